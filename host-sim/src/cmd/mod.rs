@@ -1,0 +1,10 @@
+//! One module per command of the acceptance interface.
+pub mod accuracy;
+pub mod center;
+pub mod coeffs;
+pub mod csmp;
+pub mod cut;
+pub mod faults;
+pub mod response;
+pub mod track;
+pub mod zcmd;

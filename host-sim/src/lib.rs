@@ -1,0 +1,2 @@
+//! Host simulator of the Z-slide machine.
+pub mod cmd;

@@ -1,0 +1,50 @@
+//! `host-sim`: the acceptance interface of `BRIEF.md` §5.
+use clap::{Parser, Subcommand};
+use host_sim::cmd;
+
+#[derive(Parser)]
+#[command(
+    name = "host-sim",
+    version,
+    about = "Z-slide machine simulator and coefficient tools"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Coefficient tables: Table 2-2 (sin-power form) or a Fourier expansion at one X.
+    Coeffs(cmd::coeffs::Args),
+    /// Accuracy of the firmware command path against the exact surface.
+    Accuracy(cmd::accuracy::Args),
+    /// Z command from the firmware's fixed-point path for `x_in,phi_deg` lines on stdin.
+    Zcmd(cmd::zcmd::Args),
+    /// Appendix C block diagrams (CSMP studies C-1 .. C-6) simulated.
+    Csmp(cmd::csmp::Args),
+    /// Closed-loop tracking of a spindle-synchronous sinusoid.
+    Track(cmd::track::Args),
+    /// Frequency response of a loop of the simulated machine (signal analyser).
+    Response(cmd::response::Args),
+    /// The simulated finishing cut and its CMM measurement.
+    Cut(cmd::cut::Args),
+    /// Automatic centring (Y-1594).
+    Center(cmd::center::Args),
+    /// Fault injection campaign.
+    Faults(cmd::faults::Args),
+}
+
+fn main() -> anyhow::Result<()> {
+    match Cli::parse().command {
+        Command::Coeffs(a) => cmd::coeffs::run(a),
+        Command::Accuracy(a) => cmd::accuracy::run(a),
+        Command::Zcmd(a) => cmd::zcmd::run(a),
+        Command::Csmp(a) => cmd::csmp::run(a),
+        Command::Track(a) => cmd::track::run(a),
+        Command::Response(a) => cmd::response::run(a),
+        Command::Cut(a) => cmd::cut::run(a),
+        Command::Center(a) => cmd::center::run(a),
+        Command::Faults(a) => cmd::faults::run(a),
+    }
+}

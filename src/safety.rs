@@ -1,0 +1,82 @@
+//! Faults and their reactions. Every fault the machine can detect has a name
+//! here, a defined reaction, and leaves the slide in a safe state.
+
+use crate::table::TableError;
+
+/// A converter chip on a bus, for bus-error faults.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Device {
+    AmplifierDac,
+    GaugeAdc,
+    CoefficientDac,
+}
+
+/// Everything that stops a cut. Readable: `Debug`/`defmt` name the cause.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Fault {
+    /// The coefficient table was refused by the parser.
+    Table(TableError),
+    /// X left the range the table covers (below the first node).
+    XOutsideTable,
+    /// Too many X events that changed nothing or jumped: a glitching counter.
+    XGlitchStorm,
+    /// A latched BCD digit was not a decimal digit.
+    XBadBcd,
+    /// No index pulse within the expected window.
+    IndexMissing,
+    /// An index pulse well before the expected one.
+    IndexExtra,
+    /// Spindle speed outside the configured band.
+    SpindleSpeed,
+    /// Gauge reading outside its range, or pinned at full scale.
+    GaugeRange,
+    GaugeSaturated,
+    /// A converter did not answer or answered nonsense.
+    Bus(Device),
+    /// |command − position| beyond the configured limit.
+    FollowingError,
+    /// Amplifier current limit reached or amplifier tripped.
+    CurrentLimit,
+    /// Command and response disagree in sign (reversed gauge or wiring).
+    SignCheck,
+    Watchdog,
+    Panic,
+}
+
+/// What the machine does about a fault.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Reaction {
+    /// Keep the loop closed, ramp the command to null, hold there.
+    RampToNull,
+    /// Open the loop: DAC to zero volts, amplifier disabled.
+    DisableAmplifier,
+}
+
+impl Fault {
+    /// The defined reaction. The loop stays closed (and holds the slide at
+    /// null) whenever its own sensing and actuation are still trustworthy;
+    /// otherwise the amplifier is disabled, because a loop on a bad gauge or
+    /// a bad DAC would drive the tool uncontrolled.
+    pub const fn reaction(self) -> Reaction {
+        match self {
+            Fault::Table(_)
+            | Fault::XOutsideTable
+            | Fault::XGlitchStorm
+            | Fault::XBadBcd
+            | Fault::IndexMissing
+            | Fault::IndexExtra
+            | Fault::SpindleSpeed
+            | Fault::FollowingError => Reaction::RampToNull,
+            Fault::GaugeRange
+            | Fault::GaugeSaturated
+            | Fault::Bus(_)
+            | Fault::CurrentLimit
+            | Fault::SignCheck
+            | Fault::Watchdog
+            | Fault::Panic => Reaction::DisableAmplifier,
+        }
+    }
+}
