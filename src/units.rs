@@ -32,18 +32,31 @@ pub const UIN_PER_IN: f64 = 1.0e6;
 
 /// Tool-centre radius from the spindle axis, inches, `I8F24`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct XInches(pub I8F24);
 
 /// Z-slide displacement along +Y_t (eq 2-8), inches, `I2F30`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct ZInches(pub I2F30);
 
 /// Spindle angle φ of eq 2-5 as a binary angle: 2³² counts per turn, wrapping.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct SpindleAngle(pub u32);
+
+// `fixed` has no defmt support; log the raw bits with their scale so a trace
+// reader can convert without floats on the target.
+#[cfg(target_os = "none")]
+impl defmt::Format for XInches {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "X={=i32}/2^24in", self.to_bits())
+    }
+}
+#[cfg(target_os = "none")]
+impl defmt::Format for ZInches {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "Z={=i32}/2^30in", self.to_bits())
+    }
+}
 
 impl XInches {
     pub const ZERO: Self = Self(I8F24::ZERO);
