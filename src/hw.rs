@@ -63,3 +63,32 @@ pub trait Tachometer {
     /// Tachometer voltage in millivolts, signed (positive = forward rotation).
     fn millivolts(&mut self) -> i32;
 }
+
+/// A converter did not answer, or answered with a frame that cannot be right.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct BusError;
+
+/// One gauge conversion, as the ADC delivered it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct GaugeSample {
+    /// 20-bit two's complement code, `2^19` = +10 V = +0.010 in at 1 V/mil.
+    pub code: i32,
+    /// The converter flagged its input as over range.
+    pub overrange: bool,
+}
+
+/// The capacitance-gauge ADC, read once per loop tick (the conversion itself
+/// is started by hardware on the loop timer, so its instant has no jitter).
+pub trait GaugeAdc {
+    fn read(&mut self) -> Result<GaugeSample, BusError>;
+}
+
+/// The DAC in front of the power amplifier.
+pub trait AmplifierDac {
+    /// Sets the output: 20-bit two's complement code, `2^19` = +10 V.
+    fn write(&mut self, code: i32) -> Result<(), BusError>;
+    /// Clamps the output to ground (the converter's own safe state).
+    fn clamp_to_ground(&mut self) -> Result<(), BusError>;
+}
