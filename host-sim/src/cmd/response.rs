@@ -1,12 +1,196 @@
-//! `host-sim response`: not built yet.
+//! `host-sim response`: the signal analyser. Measures the frequency response
+//! of a chosen loop of the simulated machine by swept sine (see
+//! `analyser`) and writes Bode data as CSV (`f_hz,mag_db,phase_deg`) and an
+//! SVG Bode plot with the published transfer function overlaid.
+
+use crate::analog1983::{self, PositionLoop1983, VelocityLoop1983};
+use crate::analyser::{log_freqs, BodePoint, SweptSine};
+use crate::plant::linear::LinearSystem;
+use crate::plant::ZSlideParams;
+use anyhow::Context;
+use nalgebra::Complex;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Which loop to measure.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Loop {
+    /// Amplifier input (V) → gauge (V), no feedback (Model 15 plant,
+    /// amplifier gain 10, 3150 Hz mode).
+    Plant,
+    /// The emulated 1983 analog velocity loop, R1 → gauge (V/V); compare eq 4-44.
+    Velocity1983,
+    /// The 1983 closed position loop with the eq 4-45 compensator, R2 →
+    /// gauge; compare eq 4-47 (no mode) and eq 4-49 (measured).
+    Position1983,
+}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Print a JSON summary instead of a table.
+    /// Loop to measure.
+    #[arg(long = "loop", value_enum, default_value = "velocity1983")]
+    pub which: Loop,
+    /// Lowest frequency, Hz.
+    #[arg(long, default_value_t = 1.0)]
+    pub f_min: f64,
+    /// Highest frequency, Hz.
+    #[arg(long, default_value_t = 6400.0)]
+    pub f_max: f64,
+    /// Number of log-spaced frequencies.
+    #[arg(long, default_value_t = 200)]
+    pub points: usize,
+    /// Position-loop gain Ko of eq 4-45 (Kv = 8088 Ko).
+    #[arg(long, default_value_t = 0.5934)]
+    pub ko: f64,
+    /// Rigid slide (no 3150 Hz mode).
+    #[arg(long)]
+    pub rigid: bool,
+    /// Excitation amplitude, V.
+    #[arg(long, default_value_t = 0.01)]
+    pub amplitude: f64,
+    /// CSV output (default: stdout).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// SVG Bode plot.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// Print a JSON summary (agreement with the published equation, mode
+    /// peak) instead of the CSV on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`host-sim response` is not implemented yet (see the open issues)")
+/// The system to excite (input 0 → output 0) and the published reference.
+pub fn setup(which: Loop, ko: f64, rigid: bool) -> (LinearSystem, Option<fn(f64, f64) -> Complex<f64>>, &'static str) {
+    let mut p = ZSlideParams::model15();
+    if rigid {
+        p = p.rigid();
+    }
+    match which {
+        Loop::Plant => (analog1983::plant_open(&p, 10.0), None, "plant"),
+        Loop::Velocity1983 => {
+            let c = VelocityLoop1983::default().controller();
+            (analog1983::close_loop(&p, 10.0, &c), Some(|_, w| analog1983::eq4_44(w)), "eq 4-44")
+        }
+        Loop::Position1983 => {
+            let c = PositionLoop1983 { ko, ..Default::default() }.controller();
+            (analog1983::close_loop(&p, 10.0, &c), Some(|ko, w| analog1983::eq4_47(ko, w)), "eq 4-47")
+        }
+    }
+}
+
+/// Summary of a measurement.
+#[derive(serde::Serialize, Debug)]
+pub struct Summary {
+    pub r#loop: String,
+    pub points: usize,
+    pub reference: Option<String>,
+    /// Largest |Δ magnitude| (dB) and |Δ phase| (deg) from the reference
+    /// up to 1 kHz.
+    pub max_mag_dev_db_to_1khz: Option<f64>,
+    pub max_phase_dev_deg_to_1khz: Option<f64>,
+    /// Largest magnitude above the reference between 2.5 and 4 kHz (dB)
+    /// and where: the structural mode.
+    pub mode_peak_over_ref_db: Option<f64>,
+    pub mode_peak_hz: Option<f64>,
+}
+
+pub fn summarize(pts: &[BodePoint], reference: Option<fn(f64, f64) -> Complex<f64>>, ko: f64, name: &str, which: Loop) -> Summary {
+    let mut s = Summary { r#loop: format!("{which:?}"), points: pts.len(), reference: reference.map(|_| name.to_string()), max_mag_dev_db_to_1khz: None, max_phase_dev_deg_to_1khz: None, mode_peak_over_ref_db: None, mode_peak_hz: None };
+    if let Some(r) = reference {
+        let (mut dm, mut dp) = (0.0f64, 0.0f64);
+        let (mut peak, mut peak_f) = (f64::NEG_INFINITY, 0.0);
+        for p in pts {
+            let h = r(ko, std::f64::consts::TAU * p.f_hz);
+            let ratio = p.h / h;
+            let mag = 20.0 * ratio.norm().log10();
+            if p.f_hz <= 1000.0 {
+                dm = dm.max(mag.abs());
+                dp = dp.max(ratio.arg().to_degrees().abs());
+            }
+            if (2500.0..=4000.0).contains(&p.f_hz) && mag > peak {
+                peak = mag;
+                peak_f = p.f_hz;
+            }
+        }
+        s.max_mag_dev_db_to_1khz = Some(dm);
+        s.max_phase_dev_deg_to_1khz = Some(dp);
+        if peak.is_finite() {
+            s.mode_peak_over_ref_db = Some(peak);
+            s.mode_peak_hz = Some(peak_f);
+        }
+    }
+    s
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(args.f_min > 0.0 && args.f_max > args.f_min, "need 0 < f-min < f-max");
+    anyhow::ensure!(args.points >= 2, "need at least 2 points");
+    let (sys, reference, name) = setup(args.which, args.ko, args.rigid);
+    let an = SweptSine { amplitude: args.amplitude, settle_s: if args.which == Loop::Position1983 { 3.0 } else { 0.05 }, ..Default::default() };
+    let freqs = log_freqs(args.f_min, args.f_max, args.points);
+    let pts = an.sweep(&sys, 0, 0, &freqs);
+    let mut csv = String::from("f_hz,mag_db,phase_deg\n");
+    for p in &pts {
+        csv.push_str(&format!("{:.6},{:.6},{:.4}\n", p.f_hz, p.mag_db(), p.phase_deg()));
+    }
+    if let Some(path) = &args.csv {
+        std::fs::write(path, &csv).with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &args.svg {
+        plot_bode(path, &pts, reference.map(|r| (name, r)), args.ko, &format!("{:?}", args.which))?;
+    }
+    let peak_v = pts.iter().map(|p| p.peak_out).fold(0.0, f64::max);
+    if peak_v > 10.0 {
+        eprintln!("warning: gauge output reached {peak_v:.2} V, beyond its ±10 V range; lower --amplitude");
+    }
+    if args.json {
+        let s = summarize(&pts, reference, args.ko, name, args.which);
+        println!("{}", serde_json::to_string_pretty(&s)?);
+    } else if args.csv.is_none() {
+        std::io::stdout().write_all(csv.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn plot_bode(path: &PathBuf, pts: &[BodePoint], reference: Option<(&str, fn(f64, f64) -> Complex<f64>)>, ko: f64, title: &str) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (900, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, bottom) = root.split_vertically(350);
+    let f0 = pts.first().map_or(1.0, |p| p.f_hz);
+    let f1 = pts.last().map_or(10.0, |p| p.f_hz);
+    let mags: Vec<f64> = pts.iter().map(|p| p.mag_db()).collect();
+    let lo = mags.iter().cloned().fold(f64::INFINITY, f64::min).floor() - 5.0;
+    let hi = mags.iter().cloned().fold(f64::NEG_INFINITY, f64::max).ceil() + 5.0;
+    let refpts: Vec<(f64, Complex<f64>)> = reference.map_or(Vec::new(), |(_, r)| pts.iter().map(|p| (p.f_hz, r(ko, std::f64::consts::TAU * p.f_hz))).collect());
+    {
+        let mut ch = ChartBuilder::on(&top)
+            .caption(format!("{title}: magnitude (dB)"), ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d((f0..f1).log_scale(), lo..hi)?;
+        ch.configure_mesh().x_desc("f (Hz)").draw()?;
+        ch.draw_series(LineSeries::new(pts.iter().map(|p| (p.f_hz, p.mag_db())), &BLUE))?.label("simulated").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        if let Some((name, _)) = reference {
+            ch.draw_series(LineSeries::new(refpts.iter().map(|(f, h)| (*f, 20.0 * h.norm().log10())), &RED))?.label(name).legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+        }
+        ch.configure_series_labels().border_style(BLACK).draw()?;
+    }
+    {
+        let mut ch = ChartBuilder::on(&bottom)
+            .caption("phase (deg)", ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d((f0..f1).log_scale(), -180.0..180.0)?;
+        ch.configure_mesh().x_desc("f (Hz)").draw()?;
+        ch.draw_series(LineSeries::new(pts.iter().map(|p| (p.f_hz, p.phase_deg())), &BLUE))?;
+        if reference.is_some() {
+            ch.draw_series(LineSeries::new(refpts.iter().map(|(f, h)| (*f, h.arg().to_degrees())), &RED))?;
+        }
+    }
+    root.present()?;
+    Ok(())
 }

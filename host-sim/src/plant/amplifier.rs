@@ -1,0 +1,178 @@
+//! The linear power amplifier in front of the motor: voltage gain 10 V/V,
+//! 8 A current limit, trip on sustained overload, reset by re-enabling.
+//!
+//! Between events it is one of three linear regimes of the slide model:
+//! * **voltage**: `e_m = clamp(10 · v_in, ±rail)`;
+//! * **current limit**: the coil current is held at ±8 A (the limiter
+//!   takes over from the voltage loop), the mechanical part sees a constant
+//!   force;
+//! * **off** (disabled by its enable line, or tripped): the output opens,
+//!   the coil current is zero and the slide coasts on its air film.
+//!
+//! Entry into current limit is located inside a step (bisection on the
+//! exact solution), so the current never overshoots the limit; leaving it
+//! and the trip are decided at event boundaries and at the trip instant.
+//! The trip latches: only a low-then-high on the enable line (or
+//! [`Amplifier::reset`]) clears it, like the 1983 amplifier that "turned
+//! itself off" and needed a complete re-initialisation.
+
+use super::zslide::{st, ZSlide};
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AmplifierParams {
+    /// Voltage gain, V/V (chapter 4: K_A = 10).
+    pub gain: f64,
+    /// Current limit, A (amplifier and motor fused for 8 A, chapter 5).
+    pub current_limit_a: f64,
+    /// Output voltage rail, V. Not published; 8 A × 1.4 Ω plus back EMF
+    /// needs < 12 V, so any realistic rail only matters for gross commands.
+    pub rail_v: f64,
+    /// Time in current limit after which the amplifier trips, s. Not
+    /// published ("even small loads suddenly placed on the system could
+    /// sometimes cause the power amplifier to overload and turn itself off").
+    pub trip_after_s: f64,
+}
+
+impl Default for AmplifierParams {
+    fn default() -> Self {
+        Self { gain: 10.0, current_limit_a: 8.0, rail_v: 48.0, trip_after_s: 2.0e-3 }
+    }
+}
+
+/// Regime of the amplifier output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AmpRegime {
+    Voltage,
+    /// Holding the current at `+limit` (`true`) or `−limit` (`false`).
+    CurrentLimit { positive: bool },
+    Off,
+}
+
+#[derive(Clone, Debug)]
+pub struct Amplifier {
+    pub params: AmplifierParams,
+    enabled: bool,
+    tripped: bool,
+    limiting: Option<bool>,
+    limit_time_s: f64,
+    /// Number of trips so far.
+    pub trips: u32,
+    /// Number of entries into current limit.
+    pub limit_entries: u32,
+}
+
+impl Amplifier {
+    pub fn new(params: AmplifierParams) -> Self {
+        Self { params, enabled: false, tripped: false, limiting: None, limit_time_s: 0.0, trips: 0, limit_entries: 0 }
+    }
+
+    /// Enable line. A rising edge also clears a trip (the reset).
+    pub fn set_enabled(&mut self, on: bool) {
+        if on && !self.enabled {
+            self.reset();
+        }
+        self.enabled = on;
+    }
+    pub fn enabled(&self) -> bool {
+        self.enabled
+    }
+    pub fn tripped(&self) -> bool {
+        self.tripped
+    }
+    /// Clears a trip and the overload timer.
+    pub fn reset(&mut self) {
+        self.tripped = false;
+        self.limiting = None;
+        self.limit_time_s = 0.0;
+    }
+    pub fn regime(&self) -> AmpRegime {
+        if !self.enabled || self.tripped {
+            AmpRegime::Off
+        } else if let Some(p) = self.limiting {
+            AmpRegime::CurrentLimit { positive: p }
+        } else {
+            AmpRegime::Voltage
+        }
+    }
+
+    /// Output voltage demanded by the input (before the current limiter).
+    pub fn demand_v(&self, v_in: f64) -> f64 {
+        (self.params.gain * v_in).clamp(-self.params.rail_v, self.params.rail_v)
+    }
+
+    /// Advances slide and amplifier together by `dt_ns` with the amplifier
+    /// input `v_in` (V) and external force `f_ext` (lbf) held.
+    pub fn advance(&mut self, slide: &mut ZSlide, dt_ns: u64, v_in: f64, f_ext: f64) {
+        if dt_ns == 0 {
+            return;
+        }
+        let dt_s = dt_ns as f64 * 1e-9;
+        if !self.enabled || self.tripped {
+            slide.x[st::I] = 0.0;
+            slide.step(dt_ns, 0.0, f_ext, true);
+            return;
+        }
+        let e = self.demand_v(v_in);
+        let p = &slide.params;
+        if let Some(pos) = self.limiting {
+            // Back to voltage control once the demanded voltage would lower
+            // the current magnitude.
+            let di_sign = e - p.r_ohm * slide.x[st::I] - p.kb_v_s_per_in * slide.x[st::V];
+            if (pos && di_sign < 0.0) || (!pos && di_sign > 0.0) {
+                self.limiting = None;
+                self.limit_time_s = 0.0;
+            }
+        }
+        if self.limiting.is_some() {
+            self.hold_for(slide, dt_s, Some(dt_ns), f_ext);
+            return;
+        }
+        let saved = slide.x;
+        slide.step(dt_ns, e, f_ext, false);
+        let lim = self.params.current_limit_a;
+        if slide.x[st::I].abs() <= lim {
+            return;
+        }
+        // The current crossed the limit inside the step: find the instant.
+        let positive = slide.x[st::I] > 0.0;
+        let (mut lo, mut hi) = (0.0, dt_s);
+        for _ in 0..48 {
+            let mid = 0.5 * (lo + hi);
+            slide.x = saved;
+            slide.step_uncached(mid, e, f_ext, false);
+            if slide.x[st::I].abs() > lim {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        slide.x = saved;
+        slide.step_uncached(lo, e, f_ext, false);
+        slide.x[st::I] = if positive { lim } else { -lim };
+        self.limiting = Some(positive);
+        self.limit_time_s = 0.0;
+        self.limit_entries += 1;
+        self.hold_for(slide, dt_s - lo, None, f_ext);
+    }
+
+    /// Holds the current at the limit for `dt_s`, tripping inside the
+    /// interval when the overload lasts `trip_after_s`.
+    fn hold_for(&mut self, slide: &mut ZSlide, dt_s: f64, dt_ns: Option<u64>, f_ext: f64) {
+        let left = self.params.trip_after_s - self.limit_time_s;
+        if dt_s < left {
+            match dt_ns {
+                Some(ns) => slide.step(ns, 0.0, f_ext, true),
+                None => slide.step_uncached(dt_s, 0.0, f_ext, true),
+            }
+            self.limit_time_s += dt_s;
+            return;
+        }
+        slide.step_uncached(left.max(0.0), 0.0, f_ext, true);
+        self.tripped = true;
+        self.trips += 1;
+        self.limiting = None;
+        self.limit_time_s = 0.0;
+        slide.x[st::I] = 0.0;
+        slide.step_uncached(dt_s - left.max(0.0), 0.0, f_ext, true);
+    }
+}

@@ -1,0 +1,116 @@
+//! The capacitance gauge: 1 V per mil, ±0.010 in (±10 V) range with
+//! saturation, and its noise: band-limited white noise plus power-supply
+//! hum at 120 Hz (chapter 4, Fig 4-8: "a 120 Hz, 5 mV noise signal ...
+//! over wider time traces appeared as 10 mV"; chapter 5: ≈ 20 µin reached
+//! the error signal with the loop closed).
+//!
+//! The broadband part is an Ornstein–Uhlenbeck process (white noise through
+//! a first-order low-pass of bandwidth `white_bw_hz`), updated exactly
+//! between samples: `n ← e^{−h/τ} n + σ sqrt(1 − e^{−2h/τ}) w`, so its RMS
+//! and spectrum are right for any sample spacing. Seeded ChaCha8: the same
+//! seed and the same sample instants give bit-identical noise.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GaugeParams {
+    /// Sensitivity, V/in (1 V/mil).
+    pub v_per_in: f64,
+    /// Output saturation, ±V (±0.010 in).
+    pub range_v: f64,
+    /// The gauge reads −Z as positive volts (the 1983 gauge after it was
+    /// moved to the 7 o'clock position, chapter 4).
+    pub reversed: bool,
+    /// RMS of the broadband noise, in.
+    pub white_rms_in: f64,
+    /// Bandwidth of the broadband noise, Hz.
+    pub white_bw_hz: f64,
+    /// Amplitude (peak) of the hum at `hum_hz`, in.
+    pub hum_amp_in: f64,
+    pub hum_hz: f64,
+    /// Amplitude of the second hum harmonic (240 Hz), in.
+    pub hum2_amp_in: f64,
+}
+
+impl GaugeParams {
+    /// The 1983 gauge: 5 µin peak of 120 Hz hum (Fig 4-8's 5 mV) and
+    /// broadband noise making 10 µin RMS in total.
+    pub fn legacy() -> Self {
+        let hum: f64 = 5.0e-6;
+        let total: f64 = 10.0e-6;
+        let white = (total * total - hum * hum / 2.0).sqrt();
+        Self { v_per_in: 1000.0, range_v: 10.0, reversed: false, white_rms_in: white, white_bw_hz: 5000.0, hum_amp_in: hum, hum_hz: 120.0, hum2_amp_in: 0.0 }
+    }
+    /// A modern low-noise gauge with clean supplies: 0.2 µin RMS, no hum.
+    pub fn modern() -> Self {
+        Self { white_rms_in: 0.2e-6, hum_amp_in: 0.0, ..Self::legacy() }
+    }
+    /// Noise off: for transfer-function measurements and closed-form tests.
+    pub fn noiseless() -> Self {
+        Self { white_rms_in: 0.0, hum_amp_in: 0.0, hum2_amp_in: 0.0, ..Self::legacy() }
+    }
+    /// Total noise RMS, in.
+    pub fn total_rms_in(&self) -> f64 {
+        (self.white_rms_in.powi(2) + self.hum_amp_in.powi(2) / 2.0 + self.hum2_amp_in.powi(2) / 2.0).sqrt()
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Gauge {
+    pub params: GaugeParams,
+    rng: ChaCha8Rng,
+    ou: f64,
+    last_ns: Option<u64>,
+    hum_phase: f64,
+    hum2_phase: f64,
+}
+
+impl Gauge {
+    pub fn new(params: GaugeParams, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let hum_phase = rng.random::<f64>() * std::f64::consts::TAU;
+        let hum2_phase = rng.random::<f64>() * std::f64::consts::TAU;
+        let ou = params.white_rms_in * gaussian(&mut rng);
+        Self { params, rng, ou, last_ns: None, hum_phase, hum2_phase }
+    }
+
+    /// Noise at `t_ns`, in. Must be called with non-decreasing times.
+    pub fn noise_in(&mut self, t_ns: u64) -> f64 {
+        let p = &self.params;
+        if p.white_rms_in > 0.0 {
+            let h = self.last_ns.map_or(0.0, |l| t_ns.saturating_sub(l) as f64 * 1e-9);
+            if h > 0.0 {
+                let tau = 1.0 / (std::f64::consts::TAU * p.white_bw_hz);
+                let a = (-h / tau).exp();
+                let w = gaussian(&mut self.rng);
+                self.ou = a * self.ou + p.white_rms_in * (1.0 - a * a).sqrt() * w;
+            }
+        }
+        self.last_ns = Some(t_ns);
+        let t = t_ns as f64 * 1e-9;
+        let tau = std::f64::consts::TAU;
+        self.ou + p.hum_amp_in * (tau * p.hum_hz * t + self.hum_phase).sin() + p.hum2_amp_in * (2.0 * tau * p.hum_hz * t + self.hum2_phase).sin()
+    }
+
+    /// Gauge output volts at `t_ns` for the position it sees `z_in`
+    /// (saturated at ±range).
+    pub fn volts(&mut self, t_ns: u64, z_in: f64) -> f64 {
+        let n = self.noise_in(t_ns);
+        self.volts_noiseless(z_in + n)
+    }
+
+    /// Output for a position without noise (saturated).
+    pub fn volts_noiseless(&self, z_in: f64) -> f64 {
+        let sign = if self.params.reversed { -1.0 } else { 1.0 };
+        (sign * z_in * self.params.v_per_in).clamp(-self.params.range_v, self.params.range_v)
+    }
+}
+
+/// Standard normal deviate (Box–Muller; one of the pair is discarded so a
+/// draw never depends on an earlier call's leftover).
+pub fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
+    let u2: f64 = rng.random::<f64>();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}

@@ -1,0 +1,259 @@
+//! The Z slide, voice-coil motor and the 3150 Hz coil-frame mode as one
+//! linear state-space model (chapter 4, eq 4-1..4-11), stepped exactly.
+//!
+//! # Units (inch system, used throughout the plant)
+//! Length in inches, force in lbf, time in s, current in A, voltage in V.
+//! Mass is then in lbf·s²/in (1 slug = 1 lbf·s²/ft = 1/12 lbf·s²/in), the
+//! back-EMF constant in V·s/in (= V·s/ft ÷ 12) and viscous friction in
+//! lbf·s/in (= lbf·s/ft ÷ 12). Poles and transfer-function shapes do not
+//! depend on the length unit; eq 4-33 is in ft and checks out unchanged.
+//!
+//! # State, inputs, outputs
+//! `x = [i, v, z, q, q̇]`: coil current (A), slide velocity (in/s), slide
+//! position (in, +Z of eq 2-8), modal coordinate of the coil-frame mode as
+//! the gauge sees it (in) and its rate. Inputs `u = [e_m, f_ext]`: motor
+//! terminal voltage (V) and external force on the slide along +Z (lbf; the
+//! cutting force). Outputs `y = [z_gauge, i, v, z]` with `z_gauge = z + q`.
+//!
+//! ```text
+//! L di/dt = e_m − R i − Kb v                        (eq 4-6)
+//! M dv/dt = Kf i − B v + f_ext                      (eq 4-1, 4-3)
+//! q̈ + 2ζ ωp q̇ + ωp² q = α Kf i                      (coil-frame mode)
+//! ```
+//! The mode is driven by the motor force only (it is a mode of the motor's
+//! armature shell, Fig 4-31). Seen at the gauge, force → z_gauge is
+//! `1/(s(Ms+B)) + α/(s² + 2ζωp s + ωp²)`: the sum has a lightly damped zero
+//! pair at `ωz = ωp / sqrt(1 + αM)`, below the pole pair, which gives the
+//! "upward thrust of nearly 180°" in phase that Fig 4-30 shows near 3100 Hz.
+//! `α` is set from the chosen zero frequency, so pole and zero are the
+//! documented parameters (`docs/PLANT.md`).
+
+use super::linear::LinearSystem;
+use nalgebra::DMatrix;
+
+/// lbm per slug (standard gravity 32.174 ft/s²).
+pub const LBM_PER_SLUG: f64 = 32.174;
+
+/// Index of each state in the state vector.
+pub mod st {
+    pub const I: usize = 0;
+    pub const V: usize = 1;
+    pub const Z: usize = 2;
+    pub const Q: usize = 3;
+    pub const QD: usize = 4;
+    pub const N: usize = 5;
+}
+
+/// Physical parameters of slide, motor and mode, inch units (see module doc).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ZSlideParams {
+    /// Motor force constant Kf, lbf/A.
+    pub kf_lbf_per_a: f64,
+    /// Back-EMF constant Kb, V·s/in.
+    pub kb_v_s_per_in: f64,
+    /// Coil resistance R, Ω.
+    pub r_ohm: f64,
+    /// Coil inductance L, H.
+    pub l_h: f64,
+    /// Moving mass M, lbf·s²/in.
+    pub mass_lbf_s2_per_in: f64,
+    /// Air-film viscous friction B, lbf·s/in.
+    pub b_lbf_s_per_in: f64,
+    /// Coil-frame mode: pole pair frequency (Hz), zero pair frequency (Hz,
+    /// below the pole), pole damping ratio. `None` = rigid slide.
+    pub mode: Option<ModeParams>,
+}
+
+/// The structural mode as the gauge sees it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ModeParams {
+    pub pole_hz: f64,
+    pub zero_hz: f64,
+    pub zeta: f64,
+}
+
+impl ModeParams {
+    /// Chosen values, see `docs/PLANT.md`: pole at the 3150 Hz of Fig 4-31,
+    /// zero 200 Hz below it (an anti-resonance then resonance, which gives
+    /// the upward phase thrust of Fig 4-30 and +11 dB peaking that limited
+    /// the loop gain well below the Routh limit), damping 2 % (a bolted and
+    /// bonded aluminium coil frame; the text calls it lightly damped).
+    pub const DISSERTATION: ModeParams = ModeParams { pole_hz: 3150.0, zero_hz: 2950.0, zeta: 0.02 };
+}
+
+impl ZSlideParams {
+    /// Builds from the dissertation's foot-based numbers.
+    /// `kb` in V·s/ft, `mass` in slug, `b` in lbf·s/ft, `tau_e = L/R` in s.
+    pub fn from_ft_units(kf_lbf_per_a: f64, kb_v_s_per_ft: f64, r_ohm: f64, tau_e_s: f64, mass_slug: f64, b_lbf_s_per_ft: f64) -> Self {
+        Self {
+            kf_lbf_per_a,
+            kb_v_s_per_in: kb_v_s_per_ft / 12.0,
+            r_ohm,
+            l_h: tau_e_s * r_ohm,
+            mass_lbf_s2_per_in: mass_slug / 12.0,
+            b_lbf_s_per_in: b_lbf_s_per_ft / 12.0,
+            mode: None,
+        }
+    }
+
+    /// Infomag Model 15, the motor the parts were cut with (ch. 4, after the
+    /// Model 14 failed): Kf 2.9 lbf/A, Kb 4.002 V·s/ft, R 1.4 Ω, L/R 0.26 ms;
+    /// mass 6.25 lbm = 0.1943 slug; B = 51.2 lbf·s/ft (eq 4-32); with the
+    /// 3150 Hz mode.
+    pub fn model15() -> Self {
+        Self { mode: Some(ModeParams::DISSERTATION), ..Self::from_ft_units(2.9, 4.002, 1.4, 0.26e-3, 6.25 / LBM_PER_SLUG, 51.2) }
+    }
+
+    /// Infomag Model 14 (first motor): Kf 4.0 lbf/A, Kb 5.52 V·s/ft, R 3.2 Ω.
+    /// Eq 4-33/4-34 were formed with these numbers, M = 0.194 slug and
+    /// B = 51.2 (which eq 4-32 also derived from Model 14 data). Rigid.
+    pub fn model14() -> Self {
+        Self::from_ft_units(4.0, 5.52, 3.2, 0.26e-3, 0.194, 51.2)
+    }
+
+    /// Without the structural mode (rigid slide), e.g. to compare with the
+    /// chapter 4 transfer functions that ignore it.
+    pub fn rigid(mut self) -> Self {
+        self.mode = None;
+        self
+    }
+
+    /// Mode input gain α (1/(lbf·s²/in)) that puts the zero pair at the
+    /// chosen frequency: `1 + αM = (ωp/ωz)²`.
+    pub fn mode_alpha(&self) -> f64 {
+        match self.mode {
+            Some(m) => ((m.pole_hz / m.zero_hz).powi(2) - 1.0) / self.mass_lbf_s2_per_in,
+            None => 0.0,
+        }
+    }
+
+    /// Continuous state space. `current_held`: the amplifier holds the coil
+    /// current (current limit, or zero when disabled/tripped), so the
+    /// current equation is frozen (di/dt = 0) and the voltage input has no
+    /// effect; the mechanical part is then driven by the held current.
+    pub fn state_space(&self, current_held: bool) -> LinearSystem {
+        let n = st::N;
+        let p = self;
+        let mut a = DMatrix::zeros(n, n);
+        let mut b = DMatrix::zeros(n, 2);
+        if !current_held {
+            a[(st::I, st::I)] = -p.r_ohm / p.l_h;
+            a[(st::I, st::V)] = -p.kb_v_s_per_in / p.l_h;
+            b[(st::I, 0)] = 1.0 / p.l_h;
+        }
+        a[(st::V, st::I)] = p.kf_lbf_per_a / p.mass_lbf_s2_per_in;
+        a[(st::V, st::V)] = -p.b_lbf_s_per_in / p.mass_lbf_s2_per_in;
+        b[(st::V, 1)] = 1.0 / p.mass_lbf_s2_per_in;
+        a[(st::Z, st::V)] = 1.0;
+        match self.mode {
+            Some(m) => {
+                let wp = 2.0 * std::f64::consts::PI * m.pole_hz;
+                a[(st::Q, st::QD)] = 1.0;
+                a[(st::QD, st::Q)] = -wp * wp;
+                a[(st::QD, st::QD)] = -2.0 * m.zeta * wp;
+                a[(st::QD, st::I)] = self.mode_alpha() * p.kf_lbf_per_a;
+            }
+            None => {
+                // Keep the modal states decoupled and at rest; a stable
+                // diagonal keeps the matrix exponential well conditioned.
+                a[(st::Q, st::Q)] = -1.0;
+                a[(st::QD, st::QD)] = -1.0;
+            }
+        }
+        let mut c = DMatrix::zeros(4, n);
+        c[(0, st::Z)] = 1.0;
+        c[(0, st::Q)] = if self.mode.is_some() { 1.0 } else { 0.0 };
+        c[(1, st::I)] = 1.0;
+        c[(2, st::V)] = 1.0;
+        c[(3, st::Z)] = 1.0;
+        LinearSystem::new(a, b, c, DMatrix::zeros(4, 2))
+    }
+
+    /// Denominator of eq 4-11, `s² + a1 s + a0` (velocity per volt), for the
+    /// rigid motor+slide: `a1 = R/L + B/M`, `a0 = (BR + Kf Kb)/(ML)`.
+    pub fn eq4_11_denominator(&self) -> (f64, f64) {
+        let p = self;
+        let m = p.mass_lbf_s2_per_in;
+        (p.r_ohm / p.l_h + p.b_lbf_s_per_in / m, (p.b_lbf_s_per_in * p.r_ohm + p.kf_lbf_per_a * p.kb_v_s_per_in) / (m * p.l_h))
+    }
+
+    /// Numerator of eq 4-11, `Kf/(ML)`, in (in/s)/(V·s²); ×1/12 for ft.
+    pub fn eq4_11_numerator(&self) -> f64 {
+        self.kf_lbf_per_a / (self.mass_lbf_s2_per_in * self.l_h)
+    }
+}
+
+/// The slide's state with the two drive models (voltage-driven, current
+/// held), each with its own discretisation cache, stepped without
+/// allocation.
+#[derive(Clone, Debug)]
+pub struct ZSlide {
+    pub params: ZSlideParams,
+    pub x: [f64; st::N],
+    voltage: super::linear::ZohCache,
+    held: super::linear::ZohCache,
+}
+
+impl ZSlide {
+    pub fn new(params: ZSlideParams) -> Self {
+        let voltage = super::linear::ZohCache::new(params.state_space(false), 16);
+        let held = super::linear::ZohCache::new(params.state_space(true), 16);
+        Self { params, x: [0.0; st::N], voltage, held }
+    }
+
+    /// Advances `dt_ns` with the inputs held. `current_held`: see
+    /// [`ZSlideParams::state_space`].
+    pub fn step(&mut self, dt_ns: u64, e_m: f64, f_ext: f64, current_held: bool) {
+        if dt_ns == 0 {
+            return;
+        }
+        let cache = if current_held { &mut self.held } else { &mut self.voltage };
+        let d = cache.get(dt_ns);
+        apply(&mut self.x, d, [e_m, f_ext]);
+    }
+
+    /// Advances an arbitrary (non-cached) interval; for the rare crossing
+    /// searches of the amplifier's current limit.
+    pub fn step_uncached(&mut self, dt_s: f64, e_m: f64, f_ext: f64, current_held: bool) {
+        if dt_s <= 0.0 {
+            return;
+        }
+        let sys = if current_held { self.held.system() } else { self.voltage.system() };
+        let d = sys.zoh(dt_s);
+        apply(&mut self.x, &d, [e_m, f_ext]);
+    }
+
+    /// Position the gauge sees (slide plus coil-frame mode), in.
+    pub fn gauge_position_in(&self) -> f64 {
+        if self.params.mode.is_some() {
+            self.x[st::Z] + self.x[st::Q]
+        } else {
+            self.x[st::Z]
+        }
+    }
+    pub fn current_a(&self) -> f64 {
+        self.x[st::I]
+    }
+    pub fn velocity_in_s(&self) -> f64 {
+        self.x[st::V]
+    }
+    pub fn position_in(&self) -> f64 {
+        self.x[st::Z]
+    }
+    /// Number of matrix exponentials computed so far (cache misses).
+    pub fn expm_count(&self) -> u64 {
+        self.voltage.misses + self.held.misses
+    }
+}
+
+fn apply(x: &mut [f64; st::N], d: &super::linear::Discrete, u: [f64; 2]) {
+    let mut nx = [0.0; st::N];
+    for (r, out) in nx.iter_mut().enumerate() {
+        let mut acc = d.gamma[(r, 0)] * u[0] + d.gamma[(r, 1)] * u[1];
+        for (c, xc) in x.iter().enumerate() {
+            acc += d.phi[(r, c)] * xc;
+        }
+        *out = acc;
+    }
+    *x = nx;
+}
