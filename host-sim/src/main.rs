@@ -33,6 +33,8 @@ enum Command {
     Center(cmd::center::Args),
     /// Fault injection campaign.
     Faults(cmd::faults::Args),
+    /// Cost of one plant step and of one simulated second at the loop rate.
+    Bench(cmd::bench::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -46,5 +48,6 @@ fn main() -> anyhow::Result<()> {
         Command::Cut(a) => cmd::cut::run(a),
         Command::Center(a) => cmd::center::run(a),
         Command::Faults(a) => cmd::faults::run(a),
+        Command::Bench(a) => cmd::bench::run(a),
     }
 }

@@ -1,5 +1,6 @@
 //! One module per command of the acceptance interface.
 pub mod accuracy;
+pub mod bench;
 pub mod center;
 pub mod coeffs;
 pub mod csmp;

@@ -64,6 +64,9 @@ pub struct Gauge {
     last_ns: Option<u64>,
     hum_phase: f64,
     hum2_phase: f64,
+    /// OU coefficients for the last sample spacing: (h ns, a, sqrt(1 − a²)).
+    ou_coef: (u64, f64, f64),
+    spare: Option<f64>,
 }
 
 impl Gauge {
@@ -72,25 +75,43 @@ impl Gauge {
         let hum_phase = rng.random::<f64>() * std::f64::consts::TAU;
         let hum2_phase = rng.random::<f64>() * std::f64::consts::TAU;
         let ou = params.white_rms_in * gaussian(&mut rng);
-        Self { params, rng, ou, last_ns: None, hum_phase, hum2_phase }
+        Self { params, rng, ou, last_ns: None, hum_phase, hum2_phase, ou_coef: (0, 1.0, 0.0), spare: None }
     }
 
     /// Noise at `t_ns`, in. Must be called with non-decreasing times.
     pub fn noise_in(&mut self, t_ns: u64) -> f64 {
         let p = &self.params;
         if p.white_rms_in > 0.0 {
-            let h = self.last_ns.map_or(0.0, |l| t_ns.saturating_sub(l) as f64 * 1e-9);
-            if h > 0.0 {
-                let tau = 1.0 / (std::f64::consts::TAU * p.white_bw_hz);
-                let a = (-h / tau).exp();
-                let w = gaussian(&mut self.rng);
-                self.ou = a * self.ou + p.white_rms_in * (1.0 - a * a).sqrt() * w;
+            let h_ns = self.last_ns.map_or(0, |l| t_ns.saturating_sub(l));
+            if h_ns > 0 {
+                if self.ou_coef.0 != h_ns {
+                    let tau = 1.0 / (std::f64::consts::TAU * p.white_bw_hz);
+                    let a = (-(h_ns as f64 * 1e-9) / tau).exp();
+                    self.ou_coef = (h_ns, a, (1.0 - a * a).sqrt());
+                }
+                // Box–Muller gives deviates in pairs; use both.
+                let w = match self.spare.take() {
+                    Some(w) => w,
+                    None => {
+                        let (a, b) = gaussian_pair(&mut self.rng);
+                        self.spare = Some(b);
+                        a
+                    }
+                };
+                self.ou = self.ou_coef.1 * self.ou + p.white_rms_in * self.ou_coef.2 * w;
             }
         }
         self.last_ns = Some(t_ns);
         let t = t_ns as f64 * 1e-9;
         let tau = std::f64::consts::TAU;
-        self.ou + p.hum_amp_in * (tau * p.hum_hz * t + self.hum_phase).sin() + p.hum2_amp_in * (2.0 * tau * p.hum_hz * t + self.hum2_phase).sin()
+        let mut n = self.ou;
+        if p.hum_amp_in != 0.0 {
+            n += p.hum_amp_in * (tau * p.hum_hz * t + self.hum_phase).sin();
+        }
+        if p.hum2_amp_in != 0.0 {
+            n += p.hum2_amp_in * (2.0 * tau * p.hum_hz * t + self.hum2_phase).sin();
+        }
+        n
     }
 
     /// Gauge output volts at `t_ns` for the position it sees `z_in`
@@ -107,10 +128,16 @@ impl Gauge {
     }
 }
 
-/// Standard normal deviate (Box–Muller; one of the pair is discarded so a
-/// draw never depends on an earlier call's leftover).
+/// Standard normal deviate (Box–Muller, first of the pair).
 pub fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    gaussian_pair(rng).0
+}
+
+/// Two independent standard normal deviates (Box–Muller).
+pub fn gaussian_pair(rng: &mut ChaCha8Rng) -> (f64, f64) {
     let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
     let u2: f64 = rng.random::<f64>();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    let r = (-2.0 * u1.ln()).sqrt();
+    let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
+    (r * c, r * s)
 }

@@ -183,22 +183,46 @@ impl ZSlideParams {
     }
 }
 
+/// `Φ` and `Γ` of one step in fixed arrays (no bounds checks, no heap).
+#[derive(Clone, Copy, Debug)]
+struct Mats {
+    phi: [[f64; st::N]; st::N],
+    gamma: [[f64; 2]; st::N],
+}
+
+impl Mats {
+    fn from(d: &super::linear::Discrete) -> Self {
+        let mut m = Mats { phi: [[0.0; st::N]; st::N], gamma: [[0.0; 2]; st::N] };
+        for r in 0..st::N {
+            for c in 0..st::N {
+                m.phi[r][c] = d.phi[(r, c)];
+            }
+            m.gamma[r] = [d.gamma[(r, 0)], d.gamma[(r, 1)]];
+        }
+        m
+    }
+}
+
 /// The slide's state with the two drive models (voltage-driven, current
-/// held), each with its own discretisation cache, stepped without
-/// allocation.
+/// held) and a most-recently-used cache of their discretisations keyed by
+/// (step length in ns, model), stepped without allocation.
 #[derive(Clone, Debug)]
 pub struct ZSlide {
     pub params: ZSlideParams,
     pub x: [f64; st::N],
-    voltage: super::linear::ZohCache,
-    held: super::linear::ZohCache,
+    voltage: LinearSystem,
+    held: LinearSystem,
+    cache: Vec<(u64, bool, Mats)>,
+    misses: u64,
 }
+
+const CACHE_SIZE: usize = 32;
 
 impl ZSlide {
     pub fn new(params: ZSlideParams) -> Self {
-        let voltage = super::linear::ZohCache::new(params.state_space(false), 16);
-        let held = super::linear::ZohCache::new(params.state_space(true), 16);
-        Self { params, x: [0.0; st::N], voltage, held }
+        let voltage = params.state_space(false);
+        let held = params.state_space(true);
+        Self { params, x: [0.0; st::N], voltage, held, cache: Vec::with_capacity(CACHE_SIZE), misses: 0 }
     }
 
     /// Advances `dt_ns` with the inputs held. `current_held`: see
@@ -207,9 +231,27 @@ impl ZSlide {
         if dt_ns == 0 {
             return;
         }
-        let cache = if current_held { &mut self.held } else { &mut self.voltage };
-        let d = cache.get(dt_ns);
-        apply(&mut self.x, d, [e_m, f_ext]);
+        let hit = matches!(self.cache.first(), Some((k, h, _)) if *k == dt_ns && *h == current_held);
+        if !hit {
+            match self.cache.iter().position(|(k, h, _)| *k == dt_ns && *h == current_held) {
+                Some(p) => {
+                    let e = self.cache.remove(p);
+                    self.cache.insert(0, e);
+                }
+                None => {
+                    self.misses += 1;
+                    let sys = if current_held { &self.held } else { &self.voltage };
+                    let m = Mats::from(&sys.zoh(dt_ns as f64 * 1e-9));
+                    if self.cache.len() >= CACHE_SIZE {
+                        self.cache.pop();
+                    }
+                    self.cache.insert(0, (dt_ns, current_held, m));
+                }
+            }
+        }
+        if let Some((_, _, m)) = self.cache.first() {
+            apply_fixed(&mut self.x, m, [e_m, f_ext]);
+        }
     }
 
     /// Advances an arbitrary (non-cached) interval; for the rare crossing
@@ -218,9 +260,9 @@ impl ZSlide {
         if dt_s <= 0.0 {
             return;
         }
-        let sys = if current_held { self.held.system() } else { self.voltage.system() };
-        let d = sys.zoh(dt_s);
-        apply(&mut self.x, &d, [e_m, f_ext]);
+        let sys = if current_held { &self.held } else { &self.voltage };
+        let m = Mats::from(&sys.zoh(dt_s));
+        apply_fixed(&mut self.x, &m, [e_m, f_ext]);
     }
 
     /// Position the gauge sees (slide plus coil-frame mode), in.
@@ -242,18 +284,17 @@ impl ZSlide {
     }
     /// Number of matrix exponentials computed so far (cache misses).
     pub fn expm_count(&self) -> u64 {
-        self.voltage.misses + self.held.misses
+        self.misses
     }
 }
 
-fn apply(x: &mut [f64; st::N], d: &super::linear::Discrete, u: [f64; 2]) {
+#[inline]
+fn apply_fixed(x: &mut [f64; st::N], m: &Mats, u: [f64; 2]) {
     let mut nx = [0.0; st::N];
-    for (r, out) in nx.iter_mut().enumerate() {
-        let mut acc = d.gamma[(r, 0)] * u[0] + d.gamma[(r, 1)] * u[1];
-        for (c, xc) in x.iter().enumerate() {
-            acc += d.phi[(r, c)] * xc;
-        }
-        *out = acc;
+    for r in 0..st::N {
+        let p = &m.phi[r];
+        let g = &m.gamma[r];
+        nx[r] = g[0] * u[0] + g[1] * u[1] + p[0] * x[0] + p[1] * x[1] + p[2] * x[2] + p[3] * x[3] + p[4] * x[4];
     }
     *x = nx;
 }
