@@ -28,6 +28,10 @@ pub struct Args {
     /// Loop rate, Hz.
     #[arg(long, default_value_t = 20_000)]
     pub loop_hz: u64,
+    /// Also write a VCD trace of 50 ms of the loop benchmark's run (slide
+    /// and gauge positions, ADC and DAC codes, current, loop-tick activity).
+    #[arg(long)]
+    pub vcd: Option<std::path::PathBuf>,
 }
 
 /// A stand-in digital controller on the simulated chips: proportional
@@ -155,10 +159,71 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         real_time_factor: args.seconds / wall,
         expm_computed: w.rig.slide.expm_count(),
     };
+    if let Some(path) = &args.vcd {
+        write_vcd(path, args.loop_hz)?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
         println!("plant step: {:.1} ns; rig step: {:.1} ns; one simulated second at {} Hz: {:.4} s wall ({:.0}x real time)", r.plant_step_ns, r.rig_step_ns, r.loop_hz, r.sim_second_wall_s, r.real_time_factor);
+    }
+    Ok(())
+}
+
+/// 50 ms of the stand-in loop from 2 mil off null, with a 1.3 lbf force
+/// step at 20 ms (a finishing cut engaging), as a VCD.
+pub fn write_vcd(path: &std::path::Path, loop_hz: u64) -> anyhow::Result<()> {
+    use crate::vcd::{SignalKind, VcdRecorder};
+    use std::cell::RefCell;
+    use std::rc::Rc;
+    let (mut w, mut s) = demo(RigConfig::legacy(7), loop_hz, true);
+    w.rig.slide.x[crate::plant::zslide::st::Z] = 0.002;
+    let mut o = crate::sched::OneShots::new("force", prio::PLANT_INPUT);
+    o.at(20_000_000, |_, w: &mut DemoWorld| w.rig.set_force_lbf(-1.3));
+    s.add(o);
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let signals = [
+        ("slide_z_uin", SignalKind::Real),
+        ("gauge_v", SignalKind::Real),
+        ("current_a", SignalKind::Real),
+        ("force_lbf", SignalKind::Real),
+        ("adc_code", SignalKind::Int(20)),
+        ("dac_code", SignalKind::Int(20)),
+        ("loop_tick", SignalKind::Bit),
+        ("amp_enabled", SignalKind::Bit),
+    ];
+    let rec = Rc::new(RefCell::new(VcdRecorder::new(file, "zslide", &signals)?));
+    let r2 = rec.clone();
+    let err: Rc<RefCell<Option<std::io::Error>>> = Rc::new(RefCell::new(None));
+    let e2 = err.clone();
+    let mut toggle = false;
+    s.on_event = Some(Box::new(move |t, k, w: &DemoWorld| {
+        let (adc, dac) = w.ctl.trace.last().map_or((0, 0), |e| (e.1, e.2));
+        if k == 0 {
+            toggle = !toggle;
+        }
+        let v = [
+            w.rig.slide.position_in() * 1e6,
+            w.rig.adc.state.borrow().input_v,
+            w.rig.slide.current_a(),
+            w.rig.f_ext,
+            f64::from(adc),
+            f64::from(dac),
+            if toggle { 1.0 } else { 0.0 },
+            if w.rig.amp.enabled() { 1.0 } else { 0.0 },
+        ];
+        if let Err(e) = r2.borrow_mut().sample(t, &v) {
+            e2.borrow_mut().get_or_insert(e);
+        }
+    }));
+    s.run_until(&mut w, 50_000_000);
+    s.on_event = None;
+    if let Some(e) = err.borrow_mut().take() {
+        return Err(e.into());
+    }
+    match Rc::try_unwrap(rec) {
+        Ok(r) => r.into_inner().finish()?,
+        Err(_) => anyhow::bail!("VCD recorder still shared"),
     }
     Ok(())
 }
