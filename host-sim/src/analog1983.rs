@@ -43,7 +43,14 @@ pub struct VelocityLoop1983 {
 
 impl Default for VelocityLoop1983 {
     fn default() -> Self {
-        Self { ka: 10.0, kg: 0.443117, lead_zero: 2953.92, lead_pole: 8635.09, kfv: 9.405266e-4, filter: std::f64::consts::TAU * 1050.0 }
+        Self {
+            ka: 10.0,
+            kg: 0.443117,
+            lead_zero: 2953.92,
+            lead_pole: 8635.09,
+            kfv: 9.405266e-4,
+            filter: std::f64::consts::TAU * 1050.0,
+        }
     }
 }
 
@@ -56,7 +63,10 @@ pub struct PositionLoop1983 {
 
 impl Default for PositionLoop1983 {
     fn default() -> Self {
-        Self { ko: 0.5934, velocity: VelocityLoop1983::default() }
+        Self {
+            ko: 0.5934,
+            velocity: VelocityLoop1983::default(),
+        }
     }
 }
 
@@ -171,7 +181,8 @@ pub fn close_loop(p: &ZSlideParams, ka: f64, ctrl: &LinearSystem) -> LinearSyste
     let cc = ctrl.c.row(0).into_owned();
     let n = np + nc;
     let mut a = DMatrix::zeros(n, n);
-    a.view_mut((0, 0), (np, np)).copy_from(&(&pl.a + &be * &cz * dy));
+    a.view_mut((0, 0), (np, np))
+        .copy_from(&(&pl.a + &be * &cz * dy));
     a.view_mut((0, np), (np, nc)).copy_from(&(&be * &cc));
     a.view_mut((np, 0), (nc, np)).copy_from(&(&by * &cz));
     a.view_mut((np, np), (nc, nc)).copy_from(&ctrl.a);
@@ -212,7 +223,8 @@ pub fn eq4_47(ko: f64, w: f64) -> nalgebra::Complex<f64> {
 pub fn eq4_49(w: f64) -> nalgebra::Complex<f64> {
     let s = nalgebra::Complex::new(0.0, w);
     let q = s / 691.2;
-    nalgebra::Complex::new(1.0, 0.0) / ((1.0 + s / 2827.4) * (1.0 + s / 9110.6) * (1.0 + 2.0 * 0.5 * q + q * q))
+    nalgebra::Complex::new(1.0, 0.0)
+        / ((1.0 + s / 2827.4) * (1.0 + s / 9110.6) * (1.0 + 2.0 * 0.5 * q + q * q))
 }
 
 /// The analog controller run in the time domain against the [`Rig`]
@@ -235,7 +247,12 @@ pub struct AnalogController {
 impl AnalogController {
     pub fn new(ctrl: LinearSystem, substep_ns: u64) -> Self {
         let n = ctrl.states();
-        Self { cache: crate::plant::linear::ZohCache::new(ctrl, 4), x: nalgebra::DVector::zeros(n), substep_ns, reference_v: 0.0 }
+        Self {
+            cache: crate::plant::linear::ZohCache::new(ctrl, 4),
+            x: nalgebra::DVector::zeros(n),
+            substep_ns,
+            reference_v: 0.0,
+        }
     }
     /// The 1983 position loop (eq 4-45 around the emulated velocity loop).
     pub fn position_loop(p: &PositionLoop1983) -> Self {

@@ -48,14 +48,22 @@ pub struct SweptSine {
 
 impl Default for SweptSine {
     fn default() -> Self {
-        Self { amplitude: 1.0, per_period: 32, settle_periods: 20, settle_s: 0.05, measure_periods: 8 }
+        Self {
+            amplitude: 1.0,
+            per_period: 32,
+            settle_periods: 20,
+            settle_s: 0.05,
+            measure_periods: 8,
+        }
     }
 }
 
 /// Log-spaced frequencies.
 pub fn log_freqs(f_min: f64, f_max: f64, points: usize) -> Vec<f64> {
     let n = points.max(2);
-    (0..n).map(|k| f_min * (f_max / f_min).powf(k as f64 / (n - 1) as f64)).collect()
+    (0..n)
+        .map(|k| f_min * (f_max / f_min).powf(k as f64 / (n - 1) as f64))
+        .collect()
 }
 
 impl SweptSine {
@@ -79,7 +87,9 @@ impl SweptSine {
         c[n + 1] = sys.d[(output, input)] * self.amplitude;
         let mut x = DVector::zeros(n + 2);
         x[n] = 1.0; // cos(0) = 1, sin(0) = 0
-        let settle = self.settle_periods.max((self.settle_s * f_hz).ceil() as usize);
+        let settle = self
+            .settle_periods
+            .max((self.settle_s * f_hz).ceil() as usize);
         let mut tmp = DVector::zeros(n + 2);
         let mut peak: f64 = 0.0;
         for _ in 0..settle * self.per_period {
@@ -99,10 +109,23 @@ impl SweptSine {
             std::mem::swap(&mut x, &mut tmp);
         }
         let scale = 2.0 / (m as f64 * self.amplitude);
-        BodePoint { f_hz, h: Complex::new(ys * scale, yc * scale), peak_out: peak }
+        BodePoint {
+            f_hz,
+            h: Complex::new(ys * scale, yc * scale),
+            peak_out: peak,
+        }
     }
 
-    pub fn sweep(&self, sys: &LinearSystem, input: usize, output: usize, freqs: &[f64]) -> Vec<BodePoint> {
-        freqs.iter().map(|&f| self.measure(sys, input, output, f)).collect()
+    pub fn sweep(
+        &self,
+        sys: &LinearSystem,
+        input: usize,
+        output: usize,
+        freqs: &[f64],
+    ) -> Vec<BodePoint> {
+        freqs
+            .iter()
+            .map(|&f| self.measure(sys, input, output, f))
+            .collect()
     }
 }

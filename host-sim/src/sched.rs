@@ -50,19 +50,36 @@ pub trait EventSource<W> {
     fn fire(&mut self, now: Nanos, world: &mut W);
 }
 
+/// An event handler: `(now, world)`.
+pub type Handler<W> = Box<dyn FnMut(Nanos, &mut W)>;
+/// An observer called after every event: `(now, source index, world)`.
+pub type Observer<W> = Box<dyn FnMut(Nanos, usize, &W)>;
+
 /// A periodic event (timer interrupt) calling `handler(now, world)`.
 pub struct Periodic<W> {
     name: String,
     priority: u8,
     period_ns: Nanos,
     next: Nanos,
-    handler: Box<dyn FnMut(Nanos, &mut W)>,
+    handler: Handler<W>,
 }
 
 impl<W> Periodic<W> {
-    pub fn new(name: &str, priority: u8, first_ns: Nanos, period_ns: Nanos, handler: impl FnMut(Nanos, &mut W) + 'static) -> Self {
+    pub fn new(
+        name: &str,
+        priority: u8,
+        first_ns: Nanos,
+        period_ns: Nanos,
+        handler: impl FnMut(Nanos, &mut W) + 'static,
+    ) -> Self {
         assert!(period_ns > 0, "period must be positive");
-        Self { name: name.to_string(), priority, period_ns, next: first_ns, handler: Box::new(handler) }
+        Self {
+            name: name.to_string(),
+            priority,
+            period_ns,
+            next: first_ns,
+            handler: Box::new(handler),
+        }
     }
 }
 
@@ -118,10 +135,19 @@ pub struct OneShots<W> {
 
 impl<W> OneShots<W> {
     pub fn new(name: &str, priority: u8) -> Self {
-        Self { name: name.to_string(), priority, heap: BinaryHeap::new(), seq: 0 }
+        Self {
+            name: name.to_string(),
+            priority,
+            heap: BinaryHeap::new(),
+            seq: 0,
+        }
     }
     pub fn at(&mut self, t_ns: Nanos, f: impl FnOnce(Nanos, &mut W) + 'static) {
-        self.heap.push(Pending { t: t_ns, seq: self.seq, f: Box::new(f) });
+        self.heap.push(Pending {
+            t: t_ns,
+            seq: self.seq,
+            f: Box::new(f),
+        });
         self.seq += 1;
     }
 }
@@ -150,7 +176,7 @@ pub struct Scheduler<W> {
     /// Events fired per source (same order as added).
     pub fired: Vec<u64>,
     /// Optional observer called after every event: (time, source index).
-    pub on_event: Option<Box<dyn FnMut(Nanos, usize, &W)>>,
+    pub on_event: Option<Observer<W>>,
 }
 
 impl<W: World> Default for Scheduler<W> {
@@ -161,7 +187,12 @@ impl<W: World> Default for Scheduler<W> {
 
 impl<W: World> Scheduler<W> {
     pub fn new() -> Self {
-        Self { sources: Vec::new(), now: 0, fired: Vec::new(), on_event: None }
+        Self {
+            sources: Vec::new(),
+            now: 0,
+            fired: Vec::new(),
+            on_event: None,
+        }
     }
     /// Adds a source; returns its index.
     pub fn add(&mut self, s: impl EventSource<W> + 'static) -> usize {

@@ -50,7 +50,12 @@ impl<W: Write> VcdRecorder<W> {
         }
         w.upscope()?;
         w.enddefinitions()?;
-        Ok(Self { w, last: vec![Last::None; ids.len()], ids, last_t: None })
+        Ok(Self {
+            w,
+            last: vec![Last::None; ids.len()],
+            ids,
+            last_t: None,
+        })
     }
 
     /// Records the values at `t_ns` (one per signal, in declaration order;
@@ -73,9 +78,17 @@ impl<W: Write> VcdRecorder<W> {
             stamped = true;
             match (kind, new) {
                 (SignalKind::Real, Last::Real(x)) => self.w.change_real(id, x)?,
-                (SignalKind::Bit, Last::Int(b)) => self.w.change_scalar(id, if b != 0 { Value::V1 } else { Value::V0 })?,
+                (SignalKind::Bit, Last::Int(b)) => self
+                    .w
+                    .change_scalar(id, if b != 0 { Value::V1 } else { Value::V0 })?,
                 (SignalKind::Int(width), Last::Int(x)) => {
-                    let bits = (0..width).rev().map(|b| if (x >> b) & 1 == 1 { Value::V1 } else { Value::V0 });
+                    let bits = (0..width).rev().map(|b| {
+                        if (x >> b) & 1 == 1 {
+                            Value::V1
+                        } else {
+                            Value::V0
+                        }
+                    });
                     self.w.change_vector(id, bits)?;
                 }
                 _ => {}

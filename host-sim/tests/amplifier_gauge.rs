@@ -21,8 +21,14 @@ fn amplifier_linear_regime_is_gain_ten() {
     let p = &r.slide.params;
     let v = r.slide.velocity_in_s();
     let i = r.slide.current_a();
-    assert!((p.r_ohm * i + p.kb_v_s_per_in * v - 0.5).abs() < 1e-9, "e = R i + Kb v");
-    assert!((p.kf_lbf_per_a * i - p.b_lbf_s_per_in * v).abs() < 1e-6, "force balance at steady speed");
+    assert!(
+        (p.r_ohm * i + p.kb_v_s_per_in * v - 0.5).abs() < 1e-9,
+        "e = R i + Kb v"
+    );
+    assert!(
+        (p.kf_lbf_per_a * i - p.b_lbf_s_per_in * v).abs() < 1e-6,
+        "force balance at steady speed"
+    );
     assert_eq!(r.amp.regime(), AmpRegime::Voltage);
 }
 
@@ -38,8 +44,14 @@ fn current_limit_trip_and_reset() {
     while r.amp.trips == 0 {
         t += 50_000;
         r.advance_to(t);
-        assert!(r.slide.current_a() <= lim + 1e-12, "current {} over the limit", r.slide.current_a());
-        if entered_at.is_none() && matches!(r.amp.regime(), AmpRegime::CurrentLimit { positive: true }) {
+        assert!(
+            r.slide.current_a() <= lim + 1e-12,
+            "current {} over the limit",
+            r.slide.current_a()
+        );
+        if entered_at.is_none()
+            && matches!(r.amp.regime(), AmpRegime::CurrentLimit { positive: true })
+        {
             assert_eq!(r.slide.current_a(), lim);
             entered_at = Some(t);
         }
@@ -49,7 +61,10 @@ fn current_limit_trip_and_reset() {
     let entered = entered_at.expect("limit entered");
     assert_eq!(entered, 100_000);
     // trips 2 ms after entering (at the first event past it)
-    assert!(t >= 86_000 + 2_000_000 && t <= entered + 2_000_000, "tripped at {t}");
+    assert!(
+        t >= 86_000 + 2_000_000 && t <= entered + 2_000_000,
+        "tripped at {t}"
+    );
     assert!(r.amp.tripped());
     assert_eq!(r.amp.regime(), AmpRegime::Off);
     assert_eq!(r.slide.current_a(), 0.0);
@@ -102,7 +117,13 @@ fn gauge_scale_sign_and_saturation() {
     assert_eq!(g.volts_noiseless(-0.0095), -9.5);
     assert_eq!(g.volts_noiseless(0.012), 10.0);
     assert_eq!(g.volts_noiseless(-0.5), -10.0);
-    let g = Gauge::new(GaugeParams { reversed: true, ..GaugeParams::noiseless() }, 0);
+    let g = Gauge::new(
+        GaugeParams {
+            reversed: true,
+            ..GaugeParams::noiseless()
+        },
+        0,
+    );
     assert_eq!(g.volts_noiseless(0.001), -1.0);
 }
 
@@ -149,7 +170,9 @@ fn gauge_noise_rms_and_120hz_line() {
 fn gauge_noise_seeded() {
     let run = |seed| {
         let mut g = Gauge::new(GaugeParams::legacy(), seed);
-        (0..1000).map(|k| g.volts(k * 50_000, 0.0).to_bits()).collect::<Vec<_>>()
+        (0..1000)
+            .map(|k| g.volts(k * 50_000, 0.0).to_bits())
+            .collect::<Vec<_>>()
     };
     assert_eq!(run(5), run(5));
     assert_ne!(run(5), run(6));
@@ -177,7 +200,9 @@ fn cutting_force_and_bolt_holes() {
     let mut edges = 0;
     let mut last = c.bolt_holes.over_hole(r, 0.0);
     for k in 1..=n {
-        let o = c.bolt_holes.over_hole(r, std::f64::consts::TAU * k as f64 / n as f64);
+        let o = c
+            .bolt_holes
+            .over_hole(r, std::f64::consts::TAU * k as f64 / n as f64);
         if o != last {
             edges += 1;
         }
@@ -185,10 +210,15 @@ fn cutting_force_and_bolt_holes() {
     }
     assert_eq!(edges, 16);
     // away from the bolt circle, or with the holes filled: uninterrupted
-    assert!((0..n).all(|k| !c.bolt_holes.over_hole(5.0, std::f64::consts::TAU * k as f64 / n as f64)));
+    assert!((0..n).all(|k| !c
+        .bolt_holes
+        .over_hole(5.0, std::f64::consts::TAU * k as f64 / n as f64)));
     let mut filled = c.clone();
     filled.bolt_holes.filled = true;
-    assert_eq!(filled.force_on_slide_lbf(r, 22.5f64.to_radians(), 300e-6, 100e-6), between);
+    assert_eq!(
+        filled.force_on_slide_lbf(r, 22.5f64.to_radians(), 300e-6, 100e-6),
+        between
+    );
     // out of the material: no force
     assert_eq!(c.thrust_lbf(0.0, 100e-6), 0.0);
 }

@@ -15,15 +15,24 @@ fn dev(h: nalgebra::Complex<f64>, r: nalgebra::Complex<f64>) -> (f64, f64) {
 #[test]
 fn velocity_loop_matches_eq_4_44_to_1khz_and_shows_the_mode() {
     let (sys, _, _) = setup(Loop::Velocity1983, 0.0, false);
-    let an = SweptSine { amplitude: 0.01, ..Default::default() };
+    let an = SweptSine {
+        amplitude: 0.01,
+        ..Default::default()
+    };
     for f in log_freqs(1.0, 1000.0, 25) {
         let p = an.measure(&sys, 0, 0, f);
         let (dm, dp) = dev(p.h, analog1983::eq4_44(TAU * f));
-        assert!(dm.abs() < 0.5 && dp.abs() < 2.0, "{f} Hz: {dm:.3} dB {dp:.2}°");
+        assert!(
+            dm.abs() < 0.5 && dp.abs() < 2.0,
+            "{f} Hz: {dm:.3} dB {dp:.2}°"
+        );
     }
     // the mode: a peak well above eq 4-44 near 3150 Hz, none at 2 kHz
     let over = |f: f64| dev(an.measure(&sys, 0, 0, f).h, analog1983::eq4_44(TAU * f)).0;
-    let peak = log_freqs(2900.0, 3400.0, 26).into_iter().map(over).fold(f64::NEG_INFINITY, f64::max);
+    let peak = log_freqs(2900.0, 3400.0, 26)
+        .into_iter()
+        .map(over)
+        .fold(f64::NEG_INFINITY, f64::max);
     assert!(peak > 8.0, "mode peak {peak:.1} dB over eq 4-44");
     assert!(over(2000.0).abs() < 1.5);
     // without the mode there is no peak
@@ -46,7 +55,12 @@ fn analyser_measures_the_transfer_function_it_excites() {
         for f in [3.0, 47.0, 610.0, 3150.0] {
             let p = an.measure(&sys, 0, 0, f);
             let h = sys.freq_response(TAU * f, 0, 0);
-            assert!((p.h - h).norm() < 1e-6 * h.norm(), "{which:?} {f} Hz: {} vs {}", p.h, h);
+            assert!(
+                (p.h - h).norm() < 1e-6 * h.norm(),
+                "{which:?} {f} Hz: {} vs {}",
+                p.h,
+                h
+            );
         }
     }
 }
@@ -56,11 +70,18 @@ fn position_loop_matches_eq_4_47_and_kv() {
     let pl = PositionLoop1983::default();
     assert!((pl.kv_eq4_46() - 4800.0).abs() < 5.0);
     let (sys, _, _) = setup(Loop::Position1983, pl.ko, false);
-    let an = SweptSine { amplitude: 0.01, settle_s: 3.0, ..Default::default() };
+    let an = SweptSine {
+        amplitude: 0.01,
+        settle_s: 3.0,
+        ..Default::default()
+    };
     for f in [2.0, 20.0, 100.0, 300.0, 1000.0] {
         let p = an.measure(&sys, 0, 0, f);
         let (dm, dp) = dev(p.h, analog1983::eq4_47(pl.ko, TAU * f));
-        assert!(dm.abs() < 0.5 && dp.abs() < 2.0, "{f} Hz: {dm:.3} dB {dp:.2}°");
+        assert!(
+            dm.abs() < 0.5 && dp.abs() < 2.0,
+            "{f} Hz: {dm:.3} dB {dp:.2}°"
+        );
     }
     // stable with the mode at the chosen gain
     let c = pl.controller();
@@ -96,7 +117,13 @@ fn analog_position_loop_in_the_time_domain_follows_a_step() {
     c.reference_v = 2.0;
     let mut w = W { rig, c };
     let mut s = Scheduler::new();
-    s.add(Periodic::new("analog", prio::LOOP_TICK, 0, 5_000, |_, w: &mut W| w.c.tick(&mut w.rig)));
+    s.add(Periodic::new(
+        "analog",
+        prio::LOOP_TICK,
+        0,
+        5_000,
+        |_, w: &mut W| w.c.tick(&mut w.rig),
+    ));
     let mut peak: f64 = 0.0;
     for k in 1..=40 {
         s.run_until(&mut w, k * 1_000_000);

@@ -46,7 +46,7 @@ fn ad5791_offset_binary_clearcode_reset_and_readback() {
     d.write(&w24(0x1_C0000)).unwrap(); // 0xC0000 − 2^19 = +2^18
     assert_eq!(d.state.borrow().output_volts(), 5.0);
     d.write(&w24(0x2_00002)).unwrap(); // back to two's complement
-    // clearcode (011) = 0x20000 (+2.5 V); CLR via software control (100) bit 1
+                                       // clearcode (011) = 0x20000 (+2.5 V); CLR via software control (100) bit 1
     d.write(&w24(0x3_20000)).unwrap();
     d.write(&w24(0x4_00002)).unwrap();
     assert_eq!(d.state.borrow().output_volts(), 2.5);
@@ -76,7 +76,8 @@ fn ad5791_short_frame_ignored_and_output_changes_timestamped() {
     assert_eq!(d.state.borrow().bad_frames, 1);
     t.set(5_000);
     // a frame split over two operations is still one frame
-    d.transaction(&mut [Operation::Write(&[0x14]), Operation::Write(&[0x00, 0x00])]).unwrap();
+    d.transaction(&mut [Operation::Write(&[0x14]), Operation::Write(&[0x00, 0x00])])
+        .unwrap();
     let s = d.state.borrow();
     assert_eq!(s.output_volts(), 5.0);
     assert_eq!(s.changes.back(), Some(&(5_250, 5.0)));
@@ -89,13 +90,20 @@ fn ad5791_bus_errors() {
     d.state.borrow_mut().faults.inject(BusFault::Error, 2);
     assert_eq!(d.write(&w24(0x1_40000)), Err(SimSpiError));
     assert_eq!(d.write(&w24(0x1_40000)), Err(SimSpiError));
-    assert_eq!(d.state.borrow().output_volts(), 0.0, "failed frames change nothing");
+    assert_eq!(
+        d.state.borrow().output_volts(),
+        0.0,
+        "failed frames change nothing"
+    );
     // silently dropped frame: Ok, but the write is lost
     d.state.borrow_mut().faults.inject(BusFault::Drop, 1);
     d.write(&w24(0x1_40000)).unwrap();
     assert_eq!(d.state.borrow().output_volts(), 0.0);
     // MOSI bit flip in the data: bit 19 turns +2^18 into a negative code
-    d.state.borrow_mut().faults.inject(BusFault::FlipMosi(19), 1);
+    d.state
+        .borrow_mut()
+        .faults
+        .inject(BusFault::FlipMosi(19), 1);
     d.write(&w24(0x1_40000)).unwrap();
     assert_eq!(d.state.borrow().output_volts(), -5.0);
     d.write(&w24(0x1_40000)).unwrap();
@@ -106,7 +114,7 @@ fn ad5791_bus_errors() {
 #[test]
 fn ad4020_frames_scale_overrange_and_pattern() {
     let mut a = SimAd4020::new();
-    let mut read = |a: &mut SimAd4020| {
+    let read = |a: &mut SimAd4020| {
         let mut b = [0u8; 3];
         a.read(&mut b).unwrap();
         (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2])
@@ -147,8 +155,13 @@ fn ad4020_stuck_bus_fails_the_pattern() {
     // random injection is seeded: the same seed fails the same reads
     let pattern = |seed| {
         let mut a = SimAd4020::new();
-        a.state.borrow_mut().faults.random(seed, 0.3, BusFault::Error);
-        (0..64).map(|_| a.read(&mut [0u8; 3]).is_err()).collect::<Vec<_>>()
+        a.state
+            .borrow_mut()
+            .faults
+            .random(seed, 0.3, BusFault::Error);
+        (0..64)
+            .map(|_| a.read(&mut [0u8; 3]).is_err())
+            .collect::<Vec<_>>()
     };
     assert_eq!(pattern(3), pattern(3));
     assert_ne!(pattern(3), pattern(4));
@@ -165,8 +178,10 @@ fn ad5686_input_registers_ldac_strobe_and_scaling() {
     // Table 3-1: C00 = +0.001 in → 32768 + round(0.001 · 65536 / 0.020) = 36045
     let code = 32768 + (0.001f64 * 65536.0 / 0.020).round() as u32;
     assert_eq!(code, 36045);
-    q.write(&w24((0b0001 << 20) | (0b0001 << 16) | code)).unwrap(); // A input
-    q.write(&w24((0b0001 << 20) | (0b1000 << 16) | 0x4000)).unwrap(); // D input
+    q.write(&w24((0b0001 << 20) | (0b0001 << 16) | code))
+        .unwrap(); // A input
+    q.write(&w24((0b0001 << 20) | (0b1000 << 16) | 0x4000))
+        .unwrap(); // D input
     assert_eq!(q.state.borrow().volts(0), 0.0, "input register only");
     ldac.set_low().unwrap();
     ldac.set_high().unwrap();
@@ -176,21 +191,28 @@ fn ad5686_input_registers_ldac_strobe_and_scaling() {
     assert_eq!(s.strobes, 1);
     drop(s);
     // write-and-update to B and C at once
-    q.write(&w24((0b0011 << 20) | (0b0110 << 16) | 0xC000)).unwrap();
-    assert_eq!((q.state.borrow().volts(1), q.state.borrow().volts(2)), (5.0, 5.0));
+    q.write(&w24((0b0011 << 20) | (0b0110 << 16) | 0xC000))
+        .unwrap();
+    assert_eq!(
+        (q.state.borrow().volts(1), q.state.borrow().volts(2)),
+        (5.0, 5.0)
+    );
     // update-from-input (0010) for A only after a new input write
-    q.write(&w24((0b0001 << 20) | (0b0001 << 16) | 0x0000)).unwrap();
+    q.write(&w24((0b0001 << 20) | (0b0001 << 16))).unwrap();
     assert!(q.state.borrow().volts(0) > 0.0);
     q.write(&w24((0b0010 << 20) | (0b0001 << 16))).unwrap();
     assert_eq!(q.state.borrow().volts(0), -10.0);
     // LDAC held low: input writes go straight through
     ldac.set_low().unwrap();
-    q.write(&w24((0b0001 << 20) | (0b0100 << 16) | 0x8000)).unwrap();
+    q.write(&w24((0b0001 << 20) | (0b0100 << 16) | 0x8000))
+        .unwrap();
     assert_eq!(q.state.borrow().volts(2), 0.0);
     ldac.set_high().unwrap();
     // bus error: nothing written
     q.state.borrow_mut().faults.inject(BusFault::Error, 1);
-    assert!(q.write(&w24((0b0011 << 20) | (0b0001 << 16) | 0xFFFF)).is_err());
+    assert!(q
+        .write(&w24((0b0011 << 20) | (0b0001 << 16) | 0xFFFF))
+        .is_err());
     assert_eq!(q.state.borrow().volts(0), -10.0);
     // software reset (0110): everything mid-scale
     q.write(&w24(0b0110 << 20)).unwrap();

@@ -24,7 +24,13 @@ fn eq_4_33_4_34_poles_from_model14_parameters() {
     assert!((p.eq4_11_numerator() / 12.0 - 24781.9).abs() < 0.5);
     // Eigenvalues of the state-space model itself (rigid: the modal
     // states are decoupled at −1, the position integrator at 0).
-    let poles: Vec<f64> = p.state_space(false).poles().iter().filter(|z| z.re < -10.0).map(|z| z.re).collect();
+    let poles: Vec<f64> = p
+        .state_space(false)
+        .poles()
+        .iter()
+        .filter(|z| z.re < -10.0)
+        .map(|z| z.re)
+        .collect();
     assert_eq!(poles.len(), 2);
     assert!((poles[0] + 3807.6).abs() < 0.1, "{poles:?}");
     assert!((poles[1] + 302.5).abs() < 0.1, "{poles:?}");
@@ -39,7 +45,10 @@ fn eq_4_13_without_friction() {
     assert!((a1 - 3846.0).abs() < 0.5);
     assert!((a0 - 136791.0).abs() < 10.0);
     let (r1, r2) = quad_roots(a1, a0);
-    assert!((r1 + 35.9).abs() < 0.05 && (r2 + 3810.0).abs() < 0.5, "{r1} {r2}");
+    assert!(
+        (r1 + 35.9).abs() < 0.05 && (r2 + 3810.0).abs() < 0.5,
+        "{r1} {r2}"
+    );
 }
 
 #[test]
@@ -53,11 +62,18 @@ fn model15_plant_and_mode() {
     let (a1, a0) = p.eq4_11_denominator();
     let (r1, r2) = quad_roots(a1, a0);
     for r in [r1, r2] {
-        assert!(poles.iter().any(|z| (z.re - r).abs() < 1e-6 * r.abs() && z.im == 0.0), "{r} not in {poles:?}");
+        assert!(
+            poles
+                .iter()
+                .any(|z| (z.re - r).abs() < 1e-6 * r.abs() && z.im == 0.0),
+            "{r} not in {poles:?}"
+        );
     }
     // mode: lightly damped pair at 3150 Hz
     let wp = std::f64::consts::TAU * 3150.0;
-    assert!(poles.iter().any(|z| ((z.norm() / wp) - 1.0).abs() < 1e-9 && (-z.re / z.norm() - 0.02).abs() < 1e-9));
+    assert!(poles
+        .iter()
+        .any(|z| ((z.norm() / wp) - 1.0).abs() < 1e-9 && (-z.re / z.norm() - 0.02).abs() < 1e-9));
     // zero pair of the gauge response at 2950 Hz: |force → gauge| vanishes
     // there up to the damping (anti-resonance)
     let sys = p.state_space(true); // current held: force input = Kf i
@@ -71,11 +87,24 @@ fn model15_plant_and_mode() {
     // the zero pair, its maximum the pole pair.
     let h = |f: f64| x.freq_response(std::f64::consts::TAU * f, 0, 0).norm() * f * f;
     let fs: Vec<f64> = (0..=2000).map(|k| 2000.0 + k as f64).collect();
-    let fmin = fs.iter().copied().min_by(|a, b| h(*a).partial_cmp(&h(*b)).unwrap()).unwrap();
-    let fmax = fs.iter().copied().max_by(|a, b| h(*a).partial_cmp(&h(*b)).unwrap()).unwrap();
+    let fmin = fs
+        .iter()
+        .copied()
+        .min_by(|a, b| h(*a).partial_cmp(&h(*b)).unwrap())
+        .unwrap();
+    let fmax = fs
+        .iter()
+        .copied()
+        .max_by(|a, b| h(*a).partial_cmp(&h(*b)).unwrap())
+        .unwrap();
     assert!((fmin - 2950.0).abs() <= 20.0, "zero pair at {fmin} Hz");
     assert!((fmax - 3150.0).abs() <= 20.0, "pole pair at {fmax} Hz");
-    assert!(h(fmax) > 3.0 * h(2000.0), "lightly damped: peak {} vs {}", h(fmax), h(2000.0));
+    assert!(
+        h(fmax) > 3.0 * h(2000.0),
+        "lightly damped: peak {} vs {}",
+        h(fmax),
+        h(2000.0)
+    );
 }
 
 /// Irregular event spacing: 1 ns .. 1 ms, deterministic.
@@ -83,7 +112,9 @@ fn spacings() -> Vec<u64> {
     let mut v = Vec::new();
     let mut s: u64 = 12345;
     for _ in 0..400 {
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         let e = (s >> 33) % 7; // decade 1 ns .. 1 ms
         let m = 1 + (s >> 40) % 9;
         v.push(m * 10u64.pow(e as u32));
@@ -93,7 +124,11 @@ fn spacings() -> Vec<u64> {
 
 fn rel_err(sim: &[f64], exact: &[f64]) -> f64 {
     let peak = exact.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-    sim.iter().zip(exact).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max) / peak
+    sim.iter()
+        .zip(exact)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max)
+        / peak
 }
 
 #[test]
@@ -106,15 +141,24 @@ fn zoh_voltage_step_matches_closed_form() {
     let (a1, a0) = p.eq4_11_denominator();
     let (p1, p2) = quad_roots(a1, a0);
     let k = kf / (m * l) * e;
-    let v = |t: f64| k * (1.0 / (p1 * p2) + (p1 * t).exp() / (p1 * (p1 - p2)) + (p2 * t).exp() / (p2 * (p2 - p1)));
-    let z = |t: f64| k * (t / (p1 * p2) + ((p1 * t).exp() - 1.0) / (p1 * p1 * (p1 - p2)) + ((p2 * t).exp() - 1.0) / (p2 * p2 * (p2 - p1)));
+    let v = |t: f64| {
+        k * (1.0 / (p1 * p2)
+            + (p1 * t).exp() / (p1 * (p1 - p2))
+            + (p2 * t).exp() / (p2 * (p2 - p1)))
+    };
+    let z = |t: f64| {
+        k * (t / (p1 * p2)
+            + ((p1 * t).exp() - 1.0) / (p1 * p1 * (p1 - p2))
+            + ((p2 * t).exp() - 1.0) / (p2 * p2 * (p2 - p1)))
+    };
     // current from M v' + B v = Kf i
     let vd = |t: f64| k * ((p1 * t).exp() / (p1 - p2) + (p2 * t).exp() / (p2 - p1));
     let i = |t: f64| (m * vd(t) + b * v(t)) / kf;
     let _ = (kb, r);
     let mut s = ZSlide::new(p);
     let mut t_ns = 0u64;
-    let (mut sv, mut ev, mut sz, mut ez, mut si, mut ei) = (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let (mut sv, mut ev, mut sz, mut ez, mut si, mut ei) =
+        (vec![], vec![], vec![], vec![], vec![], vec![]);
     for dt in spacings() {
         s.step(dt, e, 0.0, false);
         t_ns += dt;
@@ -149,10 +193,14 @@ fn zoh_held_current_with_mode_matches_closed_form() {
     let gauge = |t: f64| {
         let tau = m / b;
         let z = f / b * (t - tau * (1.0 - (-t / tau).exp()));
-        let q = alpha * f / (wn * wn) * (1.0 - (-zeta * wn * t).exp() * ((wd * t).cos() + zeta * wn / wd * (wd * t).sin()));
+        let q = alpha * f / (wn * wn)
+            * (1.0 - (-zeta * wn * t).exp() * ((wd * t).cos() + zeta * wn / wd * (wd * t).sin()));
         z + q
     };
-    let q_only = |t: f64| alpha * f / (wn * wn) * (1.0 - (-zeta * wn * t).exp() * ((wd * t).cos() + zeta * wn / wd * (wd * t).sin()));
+    let q_only = |t: f64| {
+        alpha * f / (wn * wn)
+            * (1.0 - (-zeta * wn * t).exp() * ((wd * t).cos() + zeta * wn / wd * (wd * t).sin()))
+    };
     let mut s = ZSlide::new(p);
     s.x[st::I] = i0;
     let mut t_ns = 0u64;
@@ -187,7 +235,12 @@ fn zoh_sinusoid_response_matches_closed_form() {
     }
     a[(n, n + 1)] = -w;
     a[(n + 1, n)] = w;
-    let aug = LinearSystem::new(a, DMatrix::zeros(n + 2, 1), DMatrix::zeros(1, n + 2), DMatrix::zeros(1, 1));
+    let aug = LinearSystem::new(
+        a,
+        DMatrix::zeros(n + 2, 1),
+        DMatrix::zeros(1, n + 2),
+        DMatrix::zeros(1, 1),
+    );
     let (a1, a0) = p.eq4_11_denominator();
     let (p1, p2) = quad_roots(a1, a0);
     let kn = p.eq4_11_numerator();

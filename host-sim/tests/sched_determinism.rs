@@ -16,7 +16,10 @@ struct Log {
 }
 impl World for Log {
     fn advance_to(&mut self, t: u64) {
-        assert!(self.advanced.last().is_none_or(|&l| l <= t), "time went backwards");
+        assert!(
+            self.advanced.last().is_none_or(|&l| l <= t),
+            "time went backwards"
+        );
         self.advanced.push(t);
     }
     fn set_time(&mut self, t: u64) {
@@ -27,11 +30,23 @@ impl World for Log {
 #[test]
 fn events_in_time_then_priority_order() {
     let mut s: Scheduler<Log> = Scheduler::new();
-    s.add(Periodic::new("x", prio::X_EVENT, 0, 30, |t, w: &mut Log| {
-        assert_eq!(w.clock, t);
-        w.events.push((t, "x"));
-    }));
-    s.add(Periodic::new("tick", prio::LOOP_TICK, 0, 50, |t, w: &mut Log| w.events.push((t, "tick"))));
+    s.add(Periodic::new(
+        "x",
+        prio::X_EVENT,
+        0,
+        30,
+        |t, w: &mut Log| {
+            assert_eq!(w.clock, t);
+            w.events.push((t, "x"));
+        },
+    ));
+    s.add(Periodic::new(
+        "tick",
+        prio::LOOP_TICK,
+        0,
+        50,
+        |t, w: &mut Log| w.events.push((t, "tick")),
+    ));
     let mut o = OneShots::new("oneshot", prio::BACKGROUND);
     o.at(100, |t, w: &mut Log| w.events.push((t, "a")));
     o.at(100, |t, w: &mut Log| w.events.push((t, "b")));
@@ -78,25 +93,41 @@ impl std::io::Write for SharedBuf {
 
 /// A 50 ms closed-loop run with the stand-in loop on the legacy rig;
 /// returns every bit that could differ.
-fn run(seed: u64) -> (Vec<(u64, i32, i32)>, Vec<u64>, Vec<u8>) {
+type Run = (Vec<(u64, i32, i32)>, Vec<u64>, Vec<u8>);
+
+fn run(seed: u64) -> Run {
     let (mut w, mut s) = demo(RigConfig::legacy(seed), 20_000, true);
     // start off null so the loop works; a cutting-force step at 20 ms
     w.rig.slide.x[2] = 0.002;
     let mut o = OneShots::new("force", prio::PLANT_INPUT);
-    o.at(20_000_000, |_, w: &mut host_sim::cmd::bench::DemoWorld| w.rig.set_force_lbf(-1.3));
+    o.at(20_000_000, |_, w: &mut host_sim::cmd::bench::DemoWorld| {
+        w.rig.set_force_lbf(-1.3)
+    });
     s.add(o);
     let buf = SharedBuf::default();
     let rec = Rc::new(RefCell::new(Some(
-        VcdRecorder::new(buf.clone(), "zslide", &[("z_uin", SignalKind::Real), ("dac_code", SignalKind::Int(20)), ("amp_enabled", SignalKind::Bit)]).unwrap(),
+        VcdRecorder::new(
+            buf.clone(),
+            "zslide",
+            &[
+                ("z_uin", SignalKind::Real),
+                ("dac_code", SignalKind::Int(20)),
+                ("amp_enabled", SignalKind::Bit),
+            ],
+        )
+        .unwrap(),
     )));
     let rec2 = rec.clone();
-    s.on_event = Some(Box::new(move |t, _, w: &host_sim::cmd::bench::DemoWorld| {
-        let code = w.ctl.trace.last().map_or(0, |e| e.2);
-        let en = if w.rig.amp.enabled() { 1.0 } else { 0.0 };
-        if let Some(r) = rec2.borrow_mut().as_mut() {
-            r.sample(t, &[w.rig.slide.position_in() * 1e6, f64::from(code), en]).unwrap();
-        }
-    }));
+    s.on_event = Some(Box::new(
+        move |t, _, w: &host_sim::cmd::bench::DemoWorld| {
+            let code = w.ctl.trace.last().map_or(0, |e| e.2);
+            let en = if w.rig.amp.enabled() { 1.0 } else { 0.0 };
+            if let Some(r) = rec2.borrow_mut().as_mut() {
+                r.sample(t, &[w.rig.slide.position_in() * 1e6, f64::from(code), en])
+                    .unwrap();
+            }
+        },
+    ));
     s.run_until(&mut w, 50_000_000);
     if let Some(r) = rec.borrow_mut().take() {
         r.finish().unwrap();
@@ -118,8 +149,13 @@ fn same_seed_bit_identical_different_seed_differs() {
     // the loop pulled the slide from 2 mil towards null (it works at all)
     let first = a.0[0].1;
     let before_force = a.0[399].1;
-    assert!(first > 100_000 && before_force.abs() < first / 10, "{first} → {before_force}");
+    assert!(
+        first > 100_000 && before_force.abs() < first / 10,
+        "{first} → {before_force}"
+    );
     // the VCD is well formed
     let text = String::from_utf8(a.2).unwrap();
-    assert!(text.contains("$timescale") && text.contains("$enddefinitions") && text.contains("#50000"));
+    assert!(
+        text.contains("$timescale") && text.contains("$enddefinitions") && text.contains("#50000")
+    );
 }

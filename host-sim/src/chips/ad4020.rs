@@ -36,7 +36,11 @@ impl Ad4020State {
         let max = (1i32 << 19) - 1;
         let min = -(1i32 << 19);
         let raw = (volts * f64::from(1u32 << 19) / FULL_SCALE_V).round();
-        let code = if raw.is_nan() { 0 } else { raw.clamp(f64::from(min), f64::from(max)) as i32 };
+        let code = if raw.is_nan() {
+            0
+        } else {
+            raw.clamp(f64::from(min), f64::from(max)) as i32
+        };
         let ov = volts.abs() >= FULL_SCALE_V || volts.is_nan();
         self.code = code;
         self.input_v = volts;

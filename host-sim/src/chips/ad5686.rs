@@ -38,14 +38,24 @@ pub struct Ad5686State {
 
 impl Default for Ad5686State {
     fn default() -> Self {
-        Self { input: [MIDSCALE; 4], dac: [MIDSCALE; 4], ldac_high: true, frames: 0, bad_frames: 0, strobes: 0, faults: FaultInjector::default() }
+        Self {
+            input: [MIDSCALE; 4],
+            dac: [MIDSCALE; 4],
+            ldac_high: true,
+            frames: 0,
+            bad_frames: 0,
+            strobes: 0,
+            faults: FaultInjector::default(),
+        }
     }
 }
 
 impl Ad5686State {
     /// Output of channel `ch` (0 = A), V.
     pub fn volts(&self, ch: usize) -> f64 {
-        self.dac.get(ch).map_or(0.0, |&c| 20.0 * f64::from(c) / 65536.0 - 10.0)
+        self.dac
+            .get(ch)
+            .map_or(0.0, |&c| 20.0 * f64::from(c) / 65536.0 - 10.0)
     }
 
     fn frame(&mut self, w: u32) {
@@ -103,7 +113,9 @@ impl SimAd5686 {
     }
     /// The LDAC pin of this chip.
     pub fn ldac_pin(&self) -> SimLdacPin {
-        SimLdacPin { state: self.state.clone() }
+        SimLdacPin {
+            state: self.state.clone(),
+        }
     }
 }
 
@@ -115,7 +127,9 @@ impl SpiDevice<u8> for SimAd5686 {
     fn transaction(&mut self, operations: &mut [Operation<'_, u8>]) -> Result<(), Self::Error> {
         let mut s = self.state.borrow_mut();
         let fault = s.faults.next();
-        let Some(frame) = faulty_shift(operations, 0, fault)? else { return Ok(()) };
+        let Some(frame) = faulty_shift(operations, 0, fault)? else {
+            return Ok(());
+        };
         match frame.word24() {
             Some(w) => s.frame(w),
             None => s.bad_frames += 1,

@@ -54,7 +54,19 @@ pub struct Ad5791State {
 
 impl Default for Ad5791State {
     fn default() -> Self {
-        Self { dac: 0, ctrl: CTRL_POWER_ON, clearcode: 0, sdo: 0, changes: VecDeque::new(), vout: 0.0, latency_ns: 0, frames: 0, bad_frames: 0, dac_writes: 0, faults: FaultInjector::default() }
+        Self {
+            dac: 0,
+            ctrl: CTRL_POWER_ON,
+            clearcode: 0,
+            sdo: 0,
+            changes: VecDeque::new(),
+            vout: 0.0,
+            latency_ns: 0,
+            frames: 0,
+            bad_frames: 0,
+            dac_writes: 0,
+            faults: FaultInjector::default(),
+        }
     }
 }
 
@@ -131,7 +143,10 @@ pub struct SimAd5791 {
 
 impl SimAd5791 {
     pub fn new(time: SimTime) -> Self {
-        Self { state: Rc::new(RefCell::new(Ad5791State::default())), time }
+        Self {
+            state: Rc::new(RefCell::new(Ad5791State::default())),
+            time,
+        }
     }
 }
 

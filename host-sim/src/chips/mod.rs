@@ -104,14 +104,22 @@ pub(crate) struct Frame {
 impl Frame {
     /// The 24-bit word when the frame is exactly three bytes.
     pub fn word24(&self) -> Option<u32> {
-        (self.len == 3).then(|| (u32::from(self.bytes[0]) << 16) | (u32::from(self.bytes[1]) << 8) | u32::from(self.bytes[2]))
+        (self.len == 3).then(|| {
+            (u32::from(self.bytes[0]) << 16)
+                | (u32::from(self.bytes[1]) << 8)
+                | u32::from(self.bytes[2])
+        })
     }
 }
 
 /// Runs the operations of one transaction against a 24-bit MISO word;
 /// returns the MOSI bytes. Bytes past the third read as 0 on MISO.
 pub(crate) fn shift(ops: &mut [Operation<'_, u8>], miso_word: u32) -> Frame {
-    let miso = [(miso_word >> 16) as u8, (miso_word >> 8) as u8, miso_word as u8];
+    let miso = [
+        (miso_word >> 16) as u8,
+        (miso_word >> 8) as u8,
+        miso_word as u8,
+    ];
     let mut f = Frame::default();
     let push = |b: u8, f: &mut Frame| -> u8 {
         let out = miso.get(f.len).copied().unwrap_or(0);
@@ -155,7 +163,11 @@ pub(crate) fn shift(ops: &mut [Operation<'_, u8>], miso_word: u32) -> Frame {
 
 /// Applies an injected fault around [`shift`]: returns the MOSI frame the
 /// chip sees (`None`: the chip sees no frame) or the error.
-pub(crate) fn faulty_shift(ops: &mut [Operation<'_, u8>], miso_word: u32, fault: Option<BusFault>) -> Result<Option<Frame>, SimSpiError> {
+pub(crate) fn faulty_shift(
+    ops: &mut [Operation<'_, u8>],
+    miso_word: u32,
+    fault: Option<BusFault>,
+) -> Result<Option<Frame>, SimSpiError> {
     match fault {
         None => Ok(Some(shift(ops, miso_word))),
         Some(BusFault::Error) => {
@@ -194,7 +206,9 @@ pub(crate) fn faulty_shift(ops: &mut [Operation<'_, u8>], miso_word: u32, fault:
 fn fill_reads(ops: &mut [Operation<'_, u8>], v: u8) {
     for op in ops.iter_mut() {
         match op {
-            Operation::Read(buf) | Operation::TransferInPlace(buf) => buf.iter_mut().for_each(|b| *b = v),
+            Operation::Read(buf) | Operation::TransferInPlace(buf) => {
+                buf.iter_mut().for_each(|b| *b = v)
+            }
             Operation::Transfer(read, _) => read.iter_mut().for_each(|b| *b = v),
             _ => {}
         }

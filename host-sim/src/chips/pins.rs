@@ -26,7 +26,10 @@ pub struct SimAmpEnablePin {
 
 impl SimAmpEnablePin {
     pub fn new(time: SimTime) -> Self {
-        Self { state: Rc::new(RefCell::new(AmpControl::default())), time }
+        Self {
+            state: Rc::new(RefCell::new(AmpControl::default())),
+            time,
+        }
     }
     fn set(&mut self, level: bool) {
         let mut s = self.state.borrow_mut();

@@ -71,9 +71,13 @@ impl DemoLoop {
             return;
         }
         let code = sext20(w >> 4);
-        let u = (-(i64::from(code)) * self.kp_q16 >> 16).clamp(-(1 << 19), (1 << 19) - 1) as i32;
+        let u = ((-i64::from(code) * self.kp_q16) >> 16).clamp(-(1 << 19), (1 << 19) - 1) as i32;
         let d = (0x1 << 20) | (u as u32 & 0xF_FFFF);
-        if self.dac.write(&[(d >> 16) as u8, (d >> 8) as u8, d as u8]).is_err() {
+        if self
+            .dac
+            .write(&[(d >> 16) as u8, (d >> 8) as u8, d as u8])
+            .is_err()
+        {
             self.bus_errors += 1;
         }
         if self.record {
@@ -103,11 +107,25 @@ impl World for DemoWorld {
 pub fn demo(cfg: RigConfig, loop_hz: u64, record: bool) -> (DemoWorld, Scheduler<DemoWorld>) {
     let rig = Rig::new(cfg);
     let dev = rig.devices();
-    let mut ctl = DemoLoop { adc: dev.gauge_adc, dac: dev.amp_dac, enable: dev.amp_enable, kp_q16: (0.05 * 65536.0) as i64, trace: Vec::new(), record, bus_errors: 0 };
+    let mut ctl = DemoLoop {
+        adc: dev.gauge_adc,
+        dac: dev.amp_dac,
+        enable: dev.amp_enable,
+        kp_q16: (0.05 * 65536.0) as i64,
+        trace: Vec::new(),
+        record,
+        bus_errors: 0,
+    };
     ctl.start();
     let mut s = Scheduler::new();
     let period = 1_000_000_000 / loop_hz;
-    s.add(Periodic::new("loop_tick", prio::LOOP_TICK, period, period, |t, w: &mut DemoWorld| w.ctl.tick(t, &mut w.rig)));
+    s.add(Periodic::new(
+        "loop_tick",
+        prio::LOOP_TICK,
+        period,
+        period,
+        |t, w: &mut DemoWorld| w.ctl.tick(t, &mut w.rig),
+    ));
     (DemoWorld { rig, ctl }, s)
 }
 
@@ -123,7 +141,10 @@ pub struct BenchResult {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(args.seconds > 0.0 && args.loop_hz > 0, "need positive seconds and loop rate");
+    anyhow::ensure!(
+        args.seconds > 0.0 && args.loop_hz > 0,
+        "need positive seconds and loop rate"
+    );
     // One plant step.
     let mut slide = crate::plant::ZSlide::new(crate::plant::ZSlideParams::model15());
     let n = 2_000_000u64;

@@ -12,6 +12,9 @@ use nalgebra::Complex;
 use std::io::Write;
 use std::path::PathBuf;
 
+/// A published reference transfer function: `(Ko, ω) → H(jω)`.
+pub type RefTf = fn(f64, f64) -> Complex<f64>;
+
 /// Which loop to measure.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Loop {
@@ -61,7 +64,7 @@ pub struct Args {
 }
 
 /// The system to excite (input 0 → output 0) and the published reference.
-pub fn setup(which: Loop, ko: f64, rigid: bool) -> (LinearSystem, Option<fn(f64, f64) -> Complex<f64>>, &'static str) {
+pub fn setup(which: Loop, ko: f64, rigid: bool) -> (LinearSystem, Option<RefTf>, &'static str) {
     let mut p = ZSlideParams::model15();
     if rigid {
         p = p.rigid();
@@ -70,11 +73,23 @@ pub fn setup(which: Loop, ko: f64, rigid: bool) -> (LinearSystem, Option<fn(f64,
         Loop::Plant => (analog1983::plant_open(&p, 10.0), None, "plant"),
         Loop::Velocity1983 => {
             let c = VelocityLoop1983::default().controller();
-            (analog1983::close_loop(&p, 10.0, &c), Some(|_, w| analog1983::eq4_44(w)), "eq 4-44")
+            (
+                analog1983::close_loop(&p, 10.0, &c),
+                Some(|_, w| analog1983::eq4_44(w)),
+                "eq 4-44",
+            )
         }
         Loop::Position1983 => {
-            let c = PositionLoop1983 { ko, ..Default::default() }.controller();
-            (analog1983::close_loop(&p, 10.0, &c), Some(|ko, w| analog1983::eq4_47(ko, w)), "eq 4-47")
+            let c = PositionLoop1983 {
+                ko,
+                ..Default::default()
+            }
+            .controller();
+            (
+                analog1983::close_loop(&p, 10.0, &c),
+                Some(analog1983::eq4_47),
+                "eq 4-47",
+            )
         }
     }
 }
@@ -95,8 +110,22 @@ pub struct Summary {
     pub mode_peak_hz: Option<f64>,
 }
 
-pub fn summarize(pts: &[BodePoint], reference: Option<fn(f64, f64) -> Complex<f64>>, ko: f64, name: &str, which: Loop) -> Summary {
-    let mut s = Summary { r#loop: format!("{which:?}"), points: pts.len(), reference: reference.map(|_| name.to_string()), max_mag_dev_db_to_1khz: None, max_phase_dev_deg_to_1khz: None, mode_peak_over_ref_db: None, mode_peak_hz: None };
+pub fn summarize(
+    pts: &[BodePoint],
+    reference: Option<RefTf>,
+    ko: f64,
+    name: &str,
+    which: Loop,
+) -> Summary {
+    let mut s = Summary {
+        r#loop: format!("{which:?}"),
+        points: pts.len(),
+        reference: reference.map(|_| name.to_string()),
+        max_mag_dev_db_to_1khz: None,
+        max_phase_dev_deg_to_1khz: None,
+        mode_peak_over_ref_db: None,
+        mode_peak_hz: None,
+    };
     if let Some(r) = reference {
         let (mut dm, mut dp) = (0.0f64, 0.0f64);
         let (mut peak, mut peak_f) = (f64::NEG_INFINITY, 0.0);
@@ -124,21 +153,43 @@ pub fn summarize(pts: &[BodePoint], reference: Option<fn(f64, f64) -> Complex<f6
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(args.f_min > 0.0 && args.f_max > args.f_min, "need 0 < f-min < f-max");
+    anyhow::ensure!(
+        args.f_min > 0.0 && args.f_max > args.f_min,
+        "need 0 < f-min < f-max"
+    );
     anyhow::ensure!(args.points >= 2, "need at least 2 points");
     let (sys, reference, name) = setup(args.which, args.ko, args.rigid);
-    let an = SweptSine { amplitude: args.amplitude, settle_s: if args.which == Loop::Position1983 { 3.0 } else { 0.05 }, ..Default::default() };
+    let an = SweptSine {
+        amplitude: args.amplitude,
+        settle_s: if args.which == Loop::Position1983 {
+            3.0
+        } else {
+            0.05
+        },
+        ..Default::default()
+    };
     let freqs = log_freqs(args.f_min, args.f_max, args.points);
     let pts = an.sweep(&sys, 0, 0, &freqs);
     let mut csv = String::from("f_hz,mag_db,phase_deg\n");
     for p in &pts {
-        csv.push_str(&format!("{:.6},{:.6},{:.4}\n", p.f_hz, p.mag_db(), p.phase_deg()));
+        csv.push_str(&format!(
+            "{:.6},{:.6},{:.4}\n",
+            p.f_hz,
+            p.mag_db(),
+            p.phase_deg()
+        ));
     }
     if let Some(path) = &args.csv {
         std::fs::write(path, &csv).with_context(|| format!("writing {}", path.display()))?;
     }
     if let Some(path) = &args.svg {
-        plot_bode(path, &pts, reference.map(|r| (name, r)), args.ko, &format!("{:?}", args.which))?;
+        plot_bode(
+            path,
+            &pts,
+            reference.map(|r| (name, r)),
+            args.ko,
+            &format!("{:?}", args.which),
+        )?;
     }
     let peak_v = pts.iter().map(|p| p.peak_out).fold(0.0, f64::max);
     if peak_v > 10.0 {
@@ -153,7 +204,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn plot_bode(path: &PathBuf, pts: &[BodePoint], reference: Option<(&str, fn(f64, f64) -> Complex<f64>)>, ko: f64, title: &str) -> anyhow::Result<()> {
+fn plot_bode(
+    path: &PathBuf,
+    pts: &[BodePoint],
+    reference: Option<(&str, RefTf)>,
+    ko: f64,
+    title: &str,
+) -> anyhow::Result<()> {
     use plotters::prelude::*;
     let root = SVGBackend::new(path, (900, 700)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -162,8 +219,17 @@ fn plot_bode(path: &PathBuf, pts: &[BodePoint], reference: Option<(&str, fn(f64,
     let f1 = pts.last().map_or(10.0, |p| p.f_hz);
     let mags: Vec<f64> = pts.iter().map(|p| p.mag_db()).collect();
     let lo = mags.iter().cloned().fold(f64::INFINITY, f64::min).floor() - 5.0;
-    let hi = mags.iter().cloned().fold(f64::NEG_INFINITY, f64::max).ceil() + 5.0;
-    let refpts: Vec<(f64, Complex<f64>)> = reference.map_or(Vec::new(), |(_, r)| pts.iter().map(|p| (p.f_hz, r(ko, std::f64::consts::TAU * p.f_hz))).collect());
+    let hi = mags
+        .iter()
+        .cloned()
+        .fold(f64::NEG_INFINITY, f64::max)
+        .ceil()
+        + 5.0;
+    let refpts: Vec<(f64, Complex<f64>)> = reference.map_or(Vec::new(), |(_, r)| {
+        pts.iter()
+            .map(|p| (p.f_hz, r(ko, std::f64::consts::TAU * p.f_hz)))
+            .collect()
+    });
     {
         let mut ch = ChartBuilder::on(&top)
             .caption(format!("{title}: magnitude (dB)"), ("sans-serif", 18))
@@ -172,9 +238,19 @@ fn plot_bode(path: &PathBuf, pts: &[BodePoint], reference: Option<(&str, fn(f64,
             .y_label_area_size(50)
             .build_cartesian_2d((f0..f1).log_scale(), lo..hi)?;
         ch.configure_mesh().x_desc("f (Hz)").draw()?;
-        ch.draw_series(LineSeries::new(pts.iter().map(|p| (p.f_hz, p.mag_db())), &BLUE))?.label("simulated").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        ch.draw_series(LineSeries::new(
+            pts.iter().map(|p| (p.f_hz, p.mag_db())),
+            &BLUE,
+        ))?
+        .label("simulated")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
         if let Some((name, _)) = reference {
-            ch.draw_series(LineSeries::new(refpts.iter().map(|(f, h)| (*f, 20.0 * h.norm().log10())), &RED))?.label(name).legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+            ch.draw_series(LineSeries::new(
+                refpts.iter().map(|(f, h)| (*f, 20.0 * h.norm().log10())),
+                &RED,
+            ))?
+            .label(name)
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
         }
         ch.configure_series_labels().border_style(BLACK).draw()?;
     }
@@ -186,9 +262,15 @@ fn plot_bode(path: &PathBuf, pts: &[BodePoint], reference: Option<(&str, fn(f64,
             .y_label_area_size(50)
             .build_cartesian_2d((f0..f1).log_scale(), -180.0..180.0)?;
         ch.configure_mesh().x_desc("f (Hz)").draw()?;
-        ch.draw_series(LineSeries::new(pts.iter().map(|p| (p.f_hz, p.phase_deg())), &BLUE))?;
+        ch.draw_series(LineSeries::new(
+            pts.iter().map(|p| (p.f_hz, p.phase_deg())),
+            &BLUE,
+        ))?;
         if reference.is_some() {
-            ch.draw_series(LineSeries::new(refpts.iter().map(|(f, h)| (*f, h.arg().to_degrees())), &RED))?;
+            ch.draw_series(LineSeries::new(
+                refpts.iter().map(|(f, h)| (*f, h.arg().to_degrees())),
+                &RED,
+            ))?;
         }
     }
     root.present()?;

@@ -35,7 +35,12 @@ pub struct AmplifierParams {
 
 impl Default for AmplifierParams {
     fn default() -> Self {
-        Self { gain: 10.0, current_limit_a: 8.0, rail_v: 48.0, trip_after_s: 2.0e-3 }
+        Self {
+            gain: 10.0,
+            current_limit_a: 8.0,
+            rail_v: 48.0,
+            trip_after_s: 2.0e-3,
+        }
     }
 }
 
@@ -44,7 +49,9 @@ impl Default for AmplifierParams {
 pub enum AmpRegime {
     Voltage,
     /// Holding the current at `+limit` (`true`) or `−limit` (`false`).
-    CurrentLimit { positive: bool },
+    CurrentLimit {
+        positive: bool,
+    },
     Off,
 }
 
@@ -63,7 +70,15 @@ pub struct Amplifier {
 
 impl Amplifier {
     pub fn new(params: AmplifierParams) -> Self {
-        Self { params, enabled: false, tripped: false, limiting: None, limit_time_s: 0.0, trips: 0, limit_entries: 0 }
+        Self {
+            params,
+            enabled: false,
+            tripped: false,
+            limiting: None,
+            limit_time_s: 0.0,
+            trips: 0,
+            limit_entries: 0,
+        }
     }
 
     /// Enable line. A rising edge also clears a trip (the reset).

@@ -43,7 +43,13 @@ pub struct CuttingParams {
 
 impl Default for CuttingParams {
     fn default() -> Self {
-        Self { k_t_psi: 2.0e5, k_e_lbf_per_in: 150.0, tool_radius_in: 0.125, part_side: 1.0, bolt_holes: BoltHoles::default() }
+        Self {
+            k_t_psi: 2.0e5,
+            k_e_lbf_per_in: 150.0,
+            tool_radius_in: 0.125,
+            part_side: 1.0,
+            bolt_holes: BoltHoles::default(),
+        }
     }
 }
 
@@ -65,7 +71,13 @@ pub struct BoltHoles {
 
 impl Default for BoltHoles {
     fn default() -> Self {
-        Self { count: 8, circle_radius_in: 3.25, diameter_in: 0.75, phase_deg: 22.5, filled: false }
+        Self {
+            count: 8,
+            circle_radius_in: 3.25,
+            diameter_in: 0.75,
+            phase_deg: 22.5,
+            filled: false,
+        }
     }
 }
 
@@ -79,7 +91,10 @@ impl BoltHoles {
         let rr = (self.diameter_in / 2.0).powi(2);
         (0..self.count).any(|k| {
             let a = self.phase_deg.to_radians() + TAU * k as f64 / self.count as f64;
-            let (hx, hy) = (self.circle_radius_in * a.cos(), self.circle_radius_in * a.sin());
+            let (hx, hy) = (
+                self.circle_radius_in * a.cos(),
+                self.circle_radius_in * a.sin(),
+            );
             (x - hx).powi(2) + (y - hy).powi(2) < rr
         })
     }

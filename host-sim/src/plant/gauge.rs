@@ -40,19 +40,38 @@ impl GaugeParams {
         let hum: f64 = 5.0e-6;
         let total: f64 = 10.0e-6;
         let white = (total * total - hum * hum / 2.0).sqrt();
-        Self { v_per_in: 1000.0, range_v: 10.0, reversed: false, white_rms_in: white, white_bw_hz: 5000.0, hum_amp_in: hum, hum_hz: 120.0, hum2_amp_in: 0.0 }
+        Self {
+            v_per_in: 1000.0,
+            range_v: 10.0,
+            reversed: false,
+            white_rms_in: white,
+            white_bw_hz: 5000.0,
+            hum_amp_in: hum,
+            hum_hz: 120.0,
+            hum2_amp_in: 0.0,
+        }
     }
     /// A modern low-noise gauge with clean supplies: 0.2 µin RMS, no hum.
     pub fn modern() -> Self {
-        Self { white_rms_in: 0.2e-6, hum_amp_in: 0.0, ..Self::legacy() }
+        Self {
+            white_rms_in: 0.2e-6,
+            hum_amp_in: 0.0,
+            ..Self::legacy()
+        }
     }
     /// Noise off: for transfer-function measurements and closed-form tests.
     pub fn noiseless() -> Self {
-        Self { white_rms_in: 0.0, hum_amp_in: 0.0, hum2_amp_in: 0.0, ..Self::legacy() }
+        Self {
+            white_rms_in: 0.0,
+            hum_amp_in: 0.0,
+            hum2_amp_in: 0.0,
+            ..Self::legacy()
+        }
     }
     /// Total noise RMS, in.
     pub fn total_rms_in(&self) -> f64 {
-        (self.white_rms_in.powi(2) + self.hum_amp_in.powi(2) / 2.0 + self.hum2_amp_in.powi(2) / 2.0).sqrt()
+        (self.white_rms_in.powi(2) + self.hum_amp_in.powi(2) / 2.0 + self.hum2_amp_in.powi(2) / 2.0)
+            .sqrt()
     }
 }
 
@@ -75,7 +94,16 @@ impl Gauge {
         let hum_phase = rng.random::<f64>() * std::f64::consts::TAU;
         let hum2_phase = rng.random::<f64>() * std::f64::consts::TAU;
         let ou = params.white_rms_in * gaussian(&mut rng);
-        Self { params, rng, ou, last_ns: None, hum_phase, hum2_phase, ou_coef: (0, 1.0, 0.0), spare: None }
+        Self {
+            params,
+            rng,
+            ou,
+            last_ns: None,
+            hum_phase,
+            hum2_phase,
+            ou_coef: (0, 1.0, 0.0),
+            spare: None,
+        }
     }
 
     /// Noise at `t_ns`, in. Must be called with non-decreasing times.

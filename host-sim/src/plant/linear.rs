@@ -107,14 +107,18 @@ impl LinearSystem {
         let (n1, n2) = (self.states(), other.states());
         let mut a = DMatrix::zeros(n1 + n2, n1 + n2);
         a.view_mut((0, 0), (n1, n1)).copy_from(&self.a);
-        a.view_mut((n1, 0), (n2, n1)).copy_from(&(&other.b * &self.c));
+        a.view_mut((n1, 0), (n2, n1))
+            .copy_from(&(&other.b * &self.c));
         a.view_mut((n1, n1), (n2, n2)).copy_from(&other.a);
         let mut b = DMatrix::zeros(n1 + n2, self.inputs());
         b.view_mut((0, 0), (n1, self.inputs())).copy_from(&self.b);
-        b.view_mut((n1, 0), (n2, self.inputs())).copy_from(&(&other.b * &self.d));
+        b.view_mut((n1, 0), (n2, self.inputs()))
+            .copy_from(&(&other.b * &self.d));
         let mut c = DMatrix::zeros(other.outputs(), n1 + n2);
-        c.view_mut((0, 0), (other.outputs(), n1)).copy_from(&(&other.d * &self.c));
-        c.view_mut((0, n1), (other.outputs(), n2)).copy_from(&other.c);
+        c.view_mut((0, 0), (other.outputs(), n1))
+            .copy_from(&(&other.d * &self.c));
+        c.view_mut((0, n1), (other.outputs(), n2))
+            .copy_from(&other.c);
         let d = &other.d * &self.d;
         LinearSystem::new(a, b, c, d)
     }
@@ -146,7 +150,12 @@ pub struct ZohCache {
 
 impl ZohCache {
     pub fn new(sys: LinearSystem, capacity: usize) -> Self {
-        Self { sys, entries: Vec::new(), capacity: capacity.max(1), misses: 0 }
+        Self {
+            sys,
+            entries: Vec::new(),
+            capacity: capacity.max(1),
+            misses: 0,
+        }
     }
     pub fn system(&self) -> &LinearSystem {
         &self.sys

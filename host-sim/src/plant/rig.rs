@@ -11,7 +11,9 @@
 use super::amplifier::{Amplifier, AmplifierParams};
 use super::gauge::{Gauge, GaugeParams};
 use super::zslide::{ZSlide, ZSlideParams};
-use crate::chips::{SimAd4020, SimAd5686, SimAd5791, SimAmpEnablePin, SimClock, SimLdacPin, SimTime};
+use crate::chips::{
+    SimAd4020, SimAd5686, SimAd5791, SimAmpEnablePin, SimClock, SimLdacPin, SimTime,
+};
 use crate::sched::World;
 use std::cell::Cell;
 use std::rc::Rc;
@@ -32,11 +34,21 @@ pub struct RigConfig {
 impl RigConfig {
     /// The 1983 plant: Model 15 motor with the 3150 Hz mode, legacy gauge.
     pub fn legacy(seed: u64) -> Self {
-        Self { slide: ZSlideParams::model15(), amplifier: AmplifierParams::default(), gauge: GaugeParams::legacy(), seed, dac_latency_ns: 0, clock_hz: 100_000_000 }
+        Self {
+            slide: ZSlideParams::model15(),
+            amplifier: AmplifierParams::default(),
+            gauge: GaugeParams::legacy(),
+            seed,
+            dac_latency_ns: 0,
+            clock_hz: 100_000_000,
+        }
     }
     /// Same motor and slide, low-noise gauge.
     pub fn modern(seed: u64) -> Self {
-        Self { gauge: GaugeParams::modern(), ..Self::legacy(seed) }
+        Self {
+            gauge: GaugeParams::modern(),
+            ..Self::legacy(seed)
+        }
     }
 }
 
@@ -107,7 +119,8 @@ impl Rig {
 
     fn step_plain(&mut self, t: u64) {
         if t > self.t_ns {
-            self.amp.advance(&mut self.slide, t - self.t_ns, self.v_in, self.f_ext);
+            self.amp
+                .advance(&mut self.slide, t - self.t_ns, self.v_in, self.f_ext);
             self.t_ns = t;
             self.steps += 1;
         }

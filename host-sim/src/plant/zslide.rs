@@ -78,13 +78,24 @@ impl ModeParams {
     /// the upward phase thrust of Fig 4-30 and +11 dB peaking that limited
     /// the loop gain well below the Routh limit), damping 2 % (a bolted and
     /// bonded aluminium coil frame; the text calls it lightly damped).
-    pub const DISSERTATION: ModeParams = ModeParams { pole_hz: 3150.0, zero_hz: 2950.0, zeta: 0.02 };
+    pub const DISSERTATION: ModeParams = ModeParams {
+        pole_hz: 3150.0,
+        zero_hz: 2950.0,
+        zeta: 0.02,
+    };
 }
 
 impl ZSlideParams {
     /// Builds from the dissertation's foot-based numbers.
     /// `kb` in V·s/ft, `mass` in slug, `b` in lbf·s/ft, `tau_e = L/R` in s.
-    pub fn from_ft_units(kf_lbf_per_a: f64, kb_v_s_per_ft: f64, r_ohm: f64, tau_e_s: f64, mass_slug: f64, b_lbf_s_per_ft: f64) -> Self {
+    pub fn from_ft_units(
+        kf_lbf_per_a: f64,
+        kb_v_s_per_ft: f64,
+        r_ohm: f64,
+        tau_e_s: f64,
+        mass_slug: f64,
+        b_lbf_s_per_ft: f64,
+    ) -> Self {
         Self {
             kf_lbf_per_a,
             kb_v_s_per_in: kb_v_s_per_ft / 12.0,
@@ -101,7 +112,10 @@ impl ZSlideParams {
     /// mass 6.25 lbm = 0.1943 slug; B = 51.2 lbf·s/ft (eq 4-32); with the
     /// 3150 Hz mode.
     pub fn model15() -> Self {
-        Self { mode: Some(ModeParams::DISSERTATION), ..Self::from_ft_units(2.9, 4.002, 1.4, 0.26e-3, 6.25 / LBM_PER_SLUG, 51.2) }
+        Self {
+            mode: Some(ModeParams::DISSERTATION),
+            ..Self::from_ft_units(2.9, 4.002, 1.4, 0.26e-3, 6.25 / LBM_PER_SLUG, 51.2)
+        }
     }
 
     /// Infomag Model 14 (first motor): Kf 4.0 lbf/A, Kb 5.52 V·s/ft, R 3.2 Ω.
@@ -174,7 +188,10 @@ impl ZSlideParams {
     pub fn eq4_11_denominator(&self) -> (f64, f64) {
         let p = self;
         let m = p.mass_lbf_s2_per_in;
-        (p.r_ohm / p.l_h + p.b_lbf_s_per_in / m, (p.b_lbf_s_per_in * p.r_ohm + p.kf_lbf_per_a * p.kb_v_s_per_in) / (m * p.l_h))
+        (
+            p.r_ohm / p.l_h + p.b_lbf_s_per_in / m,
+            (p.b_lbf_s_per_in * p.r_ohm + p.kf_lbf_per_a * p.kb_v_s_per_in) / (m * p.l_h),
+        )
     }
 
     /// Numerator of eq 4-11, `Kf/(ML)`, in (in/s)/(V·s²); ×1/12 for ft.
@@ -192,7 +209,10 @@ struct Mats {
 
 impl Mats {
     fn from(d: &super::linear::Discrete) -> Self {
-        let mut m = Mats { phi: [[0.0; st::N]; st::N], gamma: [[0.0; 2]; st::N] };
+        let mut m = Mats {
+            phi: [[0.0; st::N]; st::N],
+            gamma: [[0.0; 2]; st::N],
+        };
         for r in 0..st::N {
             for c in 0..st::N {
                 m.phi[r][c] = d.phi[(r, c)];
@@ -222,7 +242,14 @@ impl ZSlide {
     pub fn new(params: ZSlideParams) -> Self {
         let voltage = params.state_space(false);
         let held = params.state_space(true);
-        Self { params, x: [0.0; st::N], voltage, held, cache: Vec::with_capacity(CACHE_SIZE), misses: 0 }
+        Self {
+            params,
+            x: [0.0; st::N],
+            voltage,
+            held,
+            cache: Vec::with_capacity(CACHE_SIZE),
+            misses: 0,
+        }
     }
 
     /// Advances `dt_ns` with the inputs held. `current_held`: see
@@ -231,16 +258,25 @@ impl ZSlide {
         if dt_ns == 0 {
             return;
         }
-        let hit = matches!(self.cache.first(), Some((k, h, _)) if *k == dt_ns && *h == current_held);
+        let hit =
+            matches!(self.cache.first(), Some((k, h, _)) if *k == dt_ns && *h == current_held);
         if !hit {
-            match self.cache.iter().position(|(k, h, _)| *k == dt_ns && *h == current_held) {
+            match self
+                .cache
+                .iter()
+                .position(|(k, h, _)| *k == dt_ns && *h == current_held)
+            {
                 Some(p) => {
                     let e = self.cache.remove(p);
                     self.cache.insert(0, e);
                 }
                 None => {
                     self.misses += 1;
-                    let sys = if current_held { &self.held } else { &self.voltage };
+                    let sys = if current_held {
+                        &self.held
+                    } else {
+                        &self.voltage
+                    };
                     let m = Mats::from(&sys.zoh(dt_ns as f64 * 1e-9));
                     if self.cache.len() >= CACHE_SIZE {
                         self.cache.pop();
@@ -260,7 +296,11 @@ impl ZSlide {
         if dt_s <= 0.0 {
             return;
         }
-        let sys = if current_held { &self.held } else { &self.voltage };
+        let sys = if current_held {
+            &self.held
+        } else {
+            &self.voltage
+        };
         let m = Mats::from(&sys.zoh(dt_s));
         apply_fixed(&mut self.x, &m, [e_m, f_ext]);
     }
@@ -291,10 +331,14 @@ impl ZSlide {
 #[inline]
 fn apply_fixed(x: &mut [f64; st::N], m: &Mats, u: [f64; 2]) {
     let mut nx = [0.0; st::N];
-    for r in 0..st::N {
-        let p = &m.phi[r];
-        let g = &m.gamma[r];
-        nx[r] = g[0] * u[0] + g[1] * u[1] + p[0] * x[0] + p[1] * x[1] + p[2] * x[2] + p[3] * x[3] + p[4] * x[4];
+    for ((out, p), g) in nx.iter_mut().zip(&m.phi).zip(&m.gamma) {
+        *out = g[0] * u[0]
+            + g[1] * u[1]
+            + p[0] * x[0]
+            + p[1] * x[1]
+            + p[2] * x[2]
+            + p[3] * x[3]
+            + p[4] * x[4];
     }
     *x = nx;
 }
