@@ -48,9 +48,10 @@ pub struct Args {
     /// Rigid slide (no 3150 Hz mode).
     #[arg(long)]
     pub rigid: bool,
-    /// Excitation amplitude, V.
-    #[arg(long, default_value_t = 0.01)]
-    pub amplitude: f64,
+    /// Excitation amplitude, V (default: 0.001 V for the open plant, whose
+    /// free integrator would take the gauge out of range, 0.01 V else).
+    #[arg(long)]
+    pub amplitude: Option<f64>,
     /// CSV output (default: stdout).
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -159,8 +160,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     anyhow::ensure!(args.points >= 2, "need at least 2 points");
     let (sys, reference, name) = setup(args.which, args.ko, args.rigid);
+    let amplitude = args.amplitude.unwrap_or(if args.which == Loop::Plant {
+        0.001
+    } else {
+        0.01
+    });
+    anyhow::ensure!(
+        amplitude > 0.0 && amplitude.is_finite(),
+        "need a positive amplitude"
+    );
     let an = SweptSine {
-        amplitude: args.amplitude,
+        amplitude,
         settle_s: if args.which == Loop::Position1983 {
             3.0
         } else {
@@ -255,24 +265,45 @@ fn plot_bode(
         ch.configure_series_labels().border_style(BLACK).draw()?;
     }
     {
+        // Unwrapped, so a mode's phase excursion reads as one excursion.
+        let ph = unwrap_deg(pts.iter().map(|p| p.phase_deg()));
+        let ph_ref = unwrap_deg(refpts.iter().map(|(_, h)| h.arg().to_degrees()));
+        let all = ph.iter().chain(&ph_ref);
+        let lo = all.clone().cloned().fold(f64::INFINITY, f64::min);
+        let hi = all.cloned().fold(f64::NEG_INFINITY, f64::max);
+        let lo = (lo / 45.0).floor() * 45.0 - 10.0;
+        let hi = (hi / 45.0).ceil() * 45.0 + 10.0;
         let mut ch = ChartBuilder::on(&bottom)
-            .caption("phase (deg)", ("sans-serif", 18))
+            .caption("phase (deg, unwrapped)", ("sans-serif", 18))
             .margin(10)
             .x_label_area_size(30)
             .y_label_area_size(50)
-            .build_cartesian_2d((f0..f1).log_scale(), -180.0..180.0)?;
+            .build_cartesian_2d((f0..f1).log_scale(), lo..hi)?;
         ch.configure_mesh().x_desc("f (Hz)").draw()?;
         ch.draw_series(LineSeries::new(
-            pts.iter().map(|p| (p.f_hz, p.phase_deg())),
+            pts.iter().zip(&ph).map(|(p, a)| (p.f_hz, *a)),
             &BLUE,
         ))?;
         if reference.is_some() {
             ch.draw_series(LineSeries::new(
-                refpts.iter().map(|(f, h)| (*f, h.arg().to_degrees())),
+                refpts.iter().zip(&ph_ref).map(|((f, _), a)| (*f, *a)),
                 &RED,
             ))?;
         }
     }
     root.present()?;
     Ok(())
+}
+
+/// Removes the ±360° jumps of a phase sequence, starting in (−180, 180].
+pub fn unwrap_deg(phases: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::new();
+    for p in phases {
+        let v = match out.last() {
+            Some(&prev) => p + 360.0 * ((prev - p) / 360.0).round(),
+            None => p,
+        };
+        out.push(v);
+    }
+    out
 }
