@@ -95,7 +95,6 @@ impl CmsdkTimer {
         let reload = period.max(2) - 1;
         self.write(CTRL, 0);
         self.write(RELOAD, reload);
-        self.write(VALUE, reload);
         self.write(INTCLEAR, 1);
         self.write(CTRL, CTRL_ENABLE | CTRL_IRQ_ENABLE);
     }

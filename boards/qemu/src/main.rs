@@ -134,7 +134,10 @@ fn TIMER0() {
         run.plant.gauge_bus_broken = true;
     }
     if n >= TICKS {
+        // No further entry: timer off, its line masked and unpended.
         TIMER0_LOOP.stop();
+        NVIC::mask(Interrupt::TIMER0);
+        NVIC::unpend(Interrupt::TIMER0);
         s.fw_ticks = run.fw.ticks();
         s.fault_after = run.fw.fault();
         s.dac_clamped = run.dac.clamped();
