@@ -455,6 +455,43 @@ fn print_sizes() -> Result<()> {
     Ok(())
 }
 
+/// `cargo test --workspace`, its output shown as it comes; returns the
+/// summed counts of its "test result:" lines.
+fn host_tests() -> Result<(u64, u64, u64)> {
+    let mut child = cargo()
+        .current_dir(root())
+        .args(["test", "--workspace"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("cannot start cargo test: {e}"))?;
+    let out = child.stdout.take().ok_or("no cargo test stdout")?;
+    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
+    for line in BufReader::new(out).lines().map_while(std::result::Result::ok) {
+        println!("{line}");
+        if let Some(rest) = line.strip_prefix("test result: ") {
+            // "ok. 11 passed; 0 failed; 0 ignored; ..."
+            for part in rest.split(';') {
+                let mut words = part.split_whitespace().rev();
+                let (Some(what), Some(n)) = (words.next(), words.next()) else {
+                    continue;
+                };
+                let n: u64 = n.trim_start_matches("ok.").trim().parse().unwrap_or(0);
+                match what {
+                    "passed" => passed += n,
+                    "failed" => failed += n,
+                    "ignored" => ignored += n,
+                    _ => {}
+                }
+            }
+        }
+    }
+    let status = child.wait().map_err(|e| format!("cargo test: {e}"))?;
+    if !status.success() {
+        return Err(format!("cargo test --workspace failed ({status})"));
+    }
+    Ok((passed, failed, ignored))
+}
+
 fn cmd_test() -> Result<u8> {
     let started = Instant::now();
     let missing = ensure(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint]);
@@ -467,10 +504,7 @@ fn cmd_test() -> Result<u8> {
             .any(|m| m.starts_with("qemu") || m.starts_with("defmt-print"));
 
     step("host tests: cargo test --workspace");
-    run(
-        cargo().current_dir(root()).args(["test", "--workspace"]),
-        "cargo test --workspace",
-    )?;
+    let results = host_tests()?;
 
     if firmware_possible {
         build_board()?;
@@ -488,7 +522,8 @@ fn cmd_test() -> Result<u8> {
     }
 
     eprintln!("\n==> summary ({:.0} s)", started.elapsed().as_secs_f64());
-    eprintln!("host tests: passed");
+    let (passed, failed, ignored) = results;
+    eprintln!("host tests: passed ({passed} passed, {failed} failed, {ignored} ignored)");
     eprintln!(
         "board firmware: {}",
         if firmware_possible {
