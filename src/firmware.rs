@@ -198,6 +198,11 @@ impl Firmware {
     }
 
     /// The loop-tick interrupt: one gauge sample in, one DAC code out.
+    ///
+    /// Never inlined, so that `cargo xtask isr-cost` finds it in the image
+    /// and counts its instructions apart from the board's glue (one call and
+    /// return, a few cycles).
+    #[inline(never)]
     pub fn loop_tick(&mut self, gauge: &mut impl GaugeAdc, dac: &mut impl AmplifierDac) {
         self.ticks = self.ticks.wrapping_add(1);
         if self.amplifier_must_be_off() {

@@ -116,6 +116,10 @@ fn on_path(bin: &str) -> bool {
         .unwrap_or(false)
 }
 
+pub fn output_of(program: &str, args: &[&str]) -> Option<String> {
+    output(program, args)
+}
+
 fn output(program: &str, args: &[&str]) -> Option<String> {
     let out = Command::new(program).args(args).output().ok()?;
     out.status
@@ -260,6 +264,14 @@ fn require(tools: &[Tool]) -> Result<()> {
 fn build_board() -> Result<()> {
     step("board firmware: cargo fw (NUCLEO-H743ZI2)");
     run(cargo().current_dir(root()).arg("fw"), "cargo fw")
+}
+
+pub fn require_for_qemu() -> Result<()> {
+    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu])
+}
+
+pub fn build_qemu_image() -> Result<()> {
+    build_qemu()
 }
 
 fn build_qemu() -> Result<()> {
@@ -466,7 +478,10 @@ fn host_tests() -> Result<(u64, u64, u64)> {
         .map_err(|e| format!("cannot start cargo test: {e}"))?;
     let out = child.stdout.take().ok_or("no cargo test stdout")?;
     let (mut passed, mut failed, mut ignored) = (0, 0, 0);
-    for line in BufReader::new(out).lines().map_while(std::result::Result::ok) {
+    for line in BufReader::new(out)
+        .lines()
+        .map_while(std::result::Result::ok)
+    {
         println!("{line}");
         if let Some(rest) = line.strip_prefix("test result: ") {
             // "ok. 11 passed; 0 failed; 0 ignored; ..."

@@ -37,19 +37,35 @@ pub struct Plant {
     /// Amplifier input offset, volts.
     offset_v: f64,
     dt: f64,
+    /// The gauge's reading of `x`, converted when the plant moves, so that a
+    /// read costs the firmware what a real converter read would, not a
+    /// soft-float conversion (it would distort `cargo xtask isr-cost`).
+    code: i32,
+    overrange: bool,
     /// Makes the gauge bus fail, for the fault-reaction check.
     pub gauge_bus_broken: bool,
 }
 
 impl Plant {
     pub fn new(x_in: f64, offset_v: f64, tick_hz: u32) -> Self {
-        Self {
+        let mut p = Self {
             x: x_in,
             v: 0.0,
             offset_v,
             dt: 1.0 / f64::from(tick_hz) / f64::from(SUBSTEPS),
+            code: 0,
+            overrange: false,
             gauge_bus_broken: false,
-        }
+        };
+        p.convert();
+        p
+    }
+
+    fn convert(&mut self) {
+        let s = self.x * CODES_PER_IN;
+        let r = if s >= 0.0 { s + 0.5 } else { s - 0.5 };
+        self.code = (r as i64).clamp(-(1 << 19), (1 << 19) - 1) as i32;
+        self.overrange = self.x.abs() * CODES_PER_IN > f64::from(1u32 << 19);
     }
 
     /// Advances one tick with the DAC output held (zero-order hold); the
@@ -66,13 +82,12 @@ impl Plant {
             self.v += accel * self.dt;
             self.x += self.v * self.dt;
         }
+        self.convert();
     }
 
     /// The gauge code the ADC would convert now (rounded, clamped).
     pub fn gauge_code(&self) -> i32 {
-        let s = self.x * CODES_PER_IN;
-        let r = if s >= 0.0 { s + 0.5 } else { s - 0.5 };
-        (r as i64).clamp(-(1 << 19), (1 << 19) - 1) as i32
+        self.code
     }
 }
 
@@ -81,10 +96,9 @@ impl GaugeAdc for Plant {
         if self.gauge_bus_broken {
             return Err(BusError);
         }
-        let over = self.x.abs() * CODES_PER_IN > f64::from(1u32 << 19);
         Ok(GaugeSample {
-            code: self.gauge_code(),
-            overrange: over,
+            code: self.code,
+            overrange: self.overrange,
         })
     }
 }
