@@ -33,7 +33,7 @@ struct Stats {
     min: u64,
 }
 
-fn find<'a>(funcs: &'a [Symbol], pc: u32) -> Option<&'a Symbol> {
+fn find(funcs: &[Symbol], pc: u32) -> Option<&Symbol> {
     // `funcs` is sorted by address; the last one starting at or below pc.
     let i = funcs.partition_point(|f| f.addr <= pc);
     let f = funcs.get(i.checked_sub(1)?)?;
@@ -134,7 +134,7 @@ pub fn run(json: bool) -> Result<u8, String> {
     if json {
         let mut out = String::from("{");
         for (i, (name, s)) in stats.iter().enumerate() {
-            let mean = if s.calls > 0 { s.total / s.calls } else { 0 };
+            let mean = s.total.checked_div(s.calls).unwrap_or(0);
             out.push_str(&format!(
                 "{}\"{name}\": {{\"max\": {}, \"mean\": {mean}, \"min\": {}, \"calls\": {}}}",
                 if i > 0 { ", " } else { "" },
@@ -153,7 +153,7 @@ pub fn run(json: bool) -> Result<u8, String> {
     } else {
         println!("instructions per call, QEMU mps2-an386 image (Cortex-M4F):");
         for (name, s) in &stats {
-            let mean = if s.calls > 0 { s.total / s.calls } else { 0 };
+            let mean = s.total.checked_div(s.calls).unwrap_or(0);
             println!(
                 "  {name:28} max {:6}  mean {:6}  min {:6}  calls {}",
                 s.max, mean, s.min, s.calls
