@@ -467,6 +467,27 @@ fn print_sizes() -> Result<()> {
     Ok(())
 }
 
+/// (passed, failed, ignored) of a libtest summary line,
+/// "test result: ok. 11 passed; 0 failed; 0 ignored; 0 measured; ...".
+fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
+    let rest = line.strip_prefix("test result: ")?;
+    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
+    for part in rest.split(';') {
+        let mut words = part.split_whitespace().rev();
+        let (Some(what), Some(n)) = (words.next(), words.next()) else {
+            continue;
+        };
+        let Ok(n) = n.parse::<u64>() else { continue };
+        match what {
+            "passed" => passed = n,
+            "failed" => failed = n,
+            "ignored" => ignored = n,
+            _ => {}
+        }
+    }
+    Some((passed, failed, ignored))
+}
+
 /// `cargo test --workspace`, its output shown as it comes; returns the
 /// summed counts of its "test result:" lines.
 fn host_tests() -> Result<(u64, u64, u64)> {
@@ -483,21 +504,10 @@ fn host_tests() -> Result<(u64, u64, u64)> {
         .map_while(std::result::Result::ok)
     {
         println!("{line}");
-        if let Some(rest) = line.strip_prefix("test result: ") {
-            // "ok. 11 passed; 0 failed; 0 ignored; ..."
-            for part in rest.split(';') {
-                let mut words = part.split_whitespace().rev();
-                let (Some(what), Some(n)) = (words.next(), words.next()) else {
-                    continue;
-                };
-                let n: u64 = n.trim_start_matches("ok.").trim().parse().unwrap_or(0);
-                match what {
-                    "passed" => passed += n,
-                    "failed" => failed += n,
-                    "ignored" => ignored += n,
-                    _ => {}
-                }
-            }
+        if let Some((p, f, i)) = parse_test_result(&line) {
+            passed += p;
+            failed += f;
+            ignored += i;
         }
     }
     let status = child.wait().map_err(|e| format!("cargo test: {e}"))?;
@@ -562,5 +572,23 @@ fn cmd_test() -> Result<u8> {
             eprintln!("  - {m}");
         }
         Ok(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn test_result_lines_are_summed_by_field() {
+        let line = "test result: ok. 19 passed; 2 failed; 3 ignored; 0 measured; 0 filtered out; finished in 0.01s";
+        assert_eq!(parse_test_result(line), Some((19, 2, 3)));
+        assert_eq!(parse_test_result("running 19 tests"), None);
+    }
+
+    #[test]
+    fn timestamps_are_stripped_only_when_present() {
+        assert_eq!(strip_timestamp("0.200019 INFO  PASS"), "INFO  PASS");
+        assert_eq!(strip_timestamp("INFO  tick 1: x"), "INFO  tick 1: x");
     }
 }
