@@ -65,7 +65,7 @@ pub const fn gauge_code_from_z(z: ZInches) -> i32 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct LoopConfig {
-    /// DAC codes per gauge code of position error.
+    /// DAC codes per gauge code of position error, `I8F24` bits.
     pub kp_bits: i32,
     /// DAC codes per gauge code of error per tick (integral), `I8F24` bits.
     pub ki_bits: i32,

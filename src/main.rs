@@ -207,6 +207,8 @@ mod app {
         INDEX_EVENTS.fetch_add(1, Ordering::Release);
     }
 
+    // cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its
+    // body does nothing unsafe itself (the pin store is `Pin::set`'s).
     #[exception]
     unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
         cortex_m::interrupt::disable();
