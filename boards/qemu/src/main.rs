@@ -219,7 +219,7 @@ fn main() -> ! {
     let mut ok = true;
     let settled = s.fault_before.is_none() && s.on_target && s.settle_max_error <= SETTLE_BOUND;
     defmt::info!(
-        "settling: max |command - position| = {=u32} codes over ticks {=u32}..={=u32} (bound {=u32} codes = 0.15 uin), on target {=bool}, fault {}",
+        "settling: max |command - position| = {=u32} codes over ticks {=u32}..={=u32} (bound {=u32} codes; 1 code = 0.019 uin), on target {=bool}, fault {}",
         s.settle_max_error,
         INJECT_AT - SETTLE_WINDOW + 1,
         INJECT_AT,
