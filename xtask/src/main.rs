@@ -66,15 +66,21 @@ pub fn qemu_dir() -> PathBuf {
     root().join("boards/qemu")
 }
 
+/// Both workspaces build into the root's target directory (boards/qemu's
+/// config points there), unless CARGO_TARGET_DIR overrides it for both.
+fn target_dir() -> PathBuf {
+    match env::var_os("CARGO_TARGET_DIR") {
+        Some(dir) => root().join(dir),
+        None => root().join("target"),
+    }
+}
+
 pub fn board_elf() -> PathBuf {
-    root().join("target").join(TARGET).join("release/zslide-fw")
+    target_dir().join(TARGET).join("release/zslide-fw")
 }
 
 pub fn qemu_elf() -> PathBuf {
-    root()
-        .join("target")
-        .join(TARGET)
-        .join("release/zslide-qemu")
+    target_dir().join(TARGET).join("release/zslide-qemu")
 }
 
 fn cargo() -> Command {
