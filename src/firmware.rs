@@ -314,11 +314,11 @@ impl Firmware {
 }
 
 /// A gain given as a time in ns (volts per volt/second) as `I8F24` bits per
-/// tick at `rate` Hz, rounded. Fits: ≤ 1 ms · 1 MHz · 2²⁴ < 2³¹ is not
-/// guaranteed for every rate, so the result saturates.
+/// tick at `rate` Hz, rounded; saturates at `i32::MAX` (a 655 µs gain at
+/// 1 MHz would need 2⁴⁰). `i128`: ns · rate · 2²⁴ exceeds `i64` at 1 MHz.
 const fn time_gain_per_tick(ns: i64, rate: i64) -> i32 {
-    let bits = (ns * rate * (1 << 24) + 500_000_000) / 1_000_000_000;
-    if bits > i32::MAX as i64 {
+    let bits = (ns as i128 * rate as i128 * (1 << 24) + 500_000_000) / 1_000_000_000;
+    if bits > i32::MAX as i128 {
         i32::MAX
     } else {
         bits as i32
@@ -605,5 +605,10 @@ mod tests {
         // 0.25 in/s at 20 kHz: 12.5 µin per tick = 655.36 codes.
         assert_eq!(c.slew_per_tick, 655);
         assert_eq!(LoopConfig::at_rate(0).slew_per_tick, 13_107_200);
+        // The extremes of the allowed rates neither overflow nor wrap.
+        let fast = LoopConfig::at_rate(u32::MAX);
+        assert_eq!(fast.kd_bits, i32::MAX);
+        assert_eq!(fast.slew_per_tick, 13);
+        assert!(fast.ki_bits > 0);
     }
 }
