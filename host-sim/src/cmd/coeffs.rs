@@ -55,6 +55,9 @@ pub struct Args {
     /// Pick grid step and terms for this total error bound, µin.
     #[arg(long)]
     pub bound_uin: Option<f64>,
+    /// With `--bound-uin`: try only binary-fraction grid steps (1/4..1/128 in).
+    #[arg(long)]
+    pub binary_grid: bool,
     /// Allowance for the firmware's own arithmetic inside the bound, µin.
     #[arg(long, default_value_t = 0.01)]
     pub firmware_allowance_uin: f64,
@@ -124,8 +127,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Representation::SinPower => 12,
             Representation::Harmonic => 15,
         };
+        let steps = if args.binary_grid {
+            coeffgen::BINARY_STEPS
+        } else {
+            coeffgen::CANDIDATE_STEPS
+        };
         let picked = coeffgen::pick(
             &spec,
+            steps,
             bound,
             args.firmware_allowance_uin,
             x_lo,
