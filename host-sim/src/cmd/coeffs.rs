@@ -35,10 +35,10 @@ pub struct Args {
     #[arg(long)]
     pub fourier: bool,
     /// Tool-centre X for `--fourier`, inches.
-    #[arg(long, requires = "fourier")]
+    #[arg(long, requires = "fourier", allow_hyphen_values = true)]
     pub x: Option<f64>,
     /// Tool-nose radius for `--fourier`, inches (default: the config's).
-    #[arg(long, requires = "fourier")]
+    #[arg(long, requires = "fourier", allow_hyphen_values = true)]
     pub tool_radius: Option<f64>,
     /// Highest harmonic for `--fourier` (default 19, Table 2-1's).
     #[arg(long)]
@@ -87,7 +87,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .x
             .context("--fourier needs --x X (tool-centre radius, inches)")?;
         let surf = match args.tool_radius {
-            Some(r) => spec.surface.with_tool_radius(r)?,
+            Some(r) => spec
+                .surface
+                .with_tool_radius(r)
+                .with_context(|| format!("--tool-radius {r}"))?,
             None => spec.surface,
         };
         let k_max = args.terms.unwrap_or(19);
@@ -95,7 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (1..=1000).contains(&k_max),
             "--terms = {k_max}: must be 1..=1000 harmonics"
         );
-        let sec = surf.section(x)?;
+        let sec = surf.section(x).with_context(|| format!("--x {x}"))?;
         let h = coeffgen::harmonics(&sec, k_max);
         writeln!(out, "k,c_in,s_in")?;
         for k in 0..=k_max {
