@@ -23,3 +23,9 @@ pub mod units;
 /// interpolation + quantisation error is 0.042 µin over X 0..7.2 in
 /// (`docs/COEFFICIENTS.md`). Parse it with [`table::CoeffTable::parse`].
 pub const DEFAULT_TABLE: &[u8] = include_bytes!("../tables/default.zsct");
+
+/// Four-column (C00..C03) table for the legacy coefficient-output mode: the
+/// dissertation's part, 4-term sin-power (eq 2-19) on a 1/32 in grid, I2F30,
+/// null beyond 7.2 in; 0.062 µin over X 0..7.2 in before the coefficient DACs.
+/// From `tables/legacy4.toml` (regeneration checked by a host test).
+pub const LEGACY4_TABLE: &[u8] = include_bytes!("../tables/legacy4.zsct");

@@ -214,6 +214,19 @@ impl Surface {
         .unwrap_or_else(|_| unreachable!("the dissertation geometry is valid"))
     }
 
+    /// The surface a table image was generated for (its header's geometry,
+    /// nano-inches), with FOREX4's compensation: the reference to check a
+    /// table or the firmware's command path against.
+    pub fn from_table_geometry(g: &zslide::table::Geometry) -> Result<Self, SurfaceError> {
+        // Division, not multiplication by 1e-9: 316_700_000_000 / 1e9 is the
+        // double nearest 316.7, as in the TOML the table came from.
+        Self::new(
+            g.c_nin as f64 / 1e9,
+            g.s_y_nin as f64 / 1e9,
+            g.tool_radius_nin as f64 / 1e9,
+        )
+    }
+
     /// Same surface, another tool radius.
     pub fn with_tool_radius(&self, tool_radius: f64) -> Result<Self, SurfaceError> {
         Ok(Self::new(self.c, self.s_y, tool_radius)?.with_compensation(self.comp))
@@ -653,7 +666,11 @@ mod tests {
                     "x={x} phi={i}: {d} vs {est}"
                 );
                 worst = worst.max(d.abs());
-                assert!((b.z_of_sin(sp) - b.z(phi)).abs() < 1e-15, "{}", b.z_of_sin(sp) - b.z(phi));
+                assert!(
+                    (b.z_of_sin(sp) - b.z(phi)).abs() < 1e-15,
+                    "{}",
+                    b.z_of_sin(sp) - b.z(phi)
+                );
             }
             eprintln!(
                 "X = {x} in: profile-normal vs FOREX4 compensation max {:.4} µin",

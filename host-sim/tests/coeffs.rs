@@ -387,20 +387,30 @@ fn table_image_round_trips_bit_exactly_and_detects_corruption() {
     }
 }
 
-/// The committed default image is exactly what the generator makes from the
-/// committed TOML, and is what the firmware embeds.
+/// The committed images are exactly what the generator makes from the
+/// committed TOML files, and are what the firmware embeds.
 #[test]
-fn default_table_is_the_generators() {
-    let toml = std::fs::read_to_string(format!("{ROOT}/tables/default.toml")).unwrap();
-    let spec = Config::from_toml(&toml).unwrap().to_spec().unwrap();
-    let img = coeffgen::generate(&spec).unwrap().image().unwrap();
-    let committed = std::fs::read(format!("{ROOT}/tables/default.zsct")).unwrap();
-    assert!(
-        img == committed,
-        "tables/default.zsct is stale: regenerate it (see tables/default.toml)"
+fn committed_tables_are_the_generators() {
+    for (name, embedded) in [
+        ("default", zslide::DEFAULT_TABLE),
+        ("legacy4", zslide::LEGACY4_TABLE),
+    ] {
+        let toml = std::fs::read_to_string(format!("{ROOT}/tables/{name}.toml")).unwrap();
+        let spec = Config::from_toml(&toml).unwrap().to_spec().unwrap();
+        let img = coeffgen::generate(&spec).unwrap().image().unwrap();
+        let committed = std::fs::read(format!("{ROOT}/tables/{name}.zsct")).unwrap();
+        assert!(
+            img == committed,
+            "tables/{name}.zsct is stale: regenerate it (see tables/{name}.toml)"
+        );
+        assert_eq!(embedded, &committed[..]);
+        flip_all_bytes_detected(&committed);
+    }
+    let legacy = CoeffTable::parse(zslide::LEGACY4_TABLE).unwrap();
+    assert_eq!(
+        (legacy.representation(), legacy.terms()),
+        (Representation::SinPower, 4)
     );
-    assert_eq!(zslide::DEFAULT_TABLE, &committed[..]);
-    flip_all_bytes_detected(&committed);
 }
 
 /// The default table, read through the firmware's parser only, evaluated in
@@ -414,12 +424,8 @@ fn default_table_meets_its_budget_at_random_points() {
     let h = *t.header();
     assert!((t.x_null().to_f64() - 7.2).abs() < 1e-7);
     assert_eq!(h.geometry.c_nin, 316_700_000_000);
-    let surf = Surface::new(
-        h.geometry.c_nin as f64 * 1e-9,
-        h.geometry.s_y_nin as f64 * 1e-9,
-        h.geometry.tool_radius_nin as f64 * 1e-9,
-    )
-    .unwrap();
+    let surf = Surface::from_table_geometry(&h.geometry).unwrap();
+    assert_eq!(surf, Surface::dissertation());
     let scale = 2f64.powi(i32::from(h.coeff_frac_bits));
     let dx = t.node_x(1).to_f64() - t.node_x(0).to_f64();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2147);
