@@ -564,3 +564,25 @@ fn invalid_input_is_refused_naming_the_field() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("defined for 0 <= X <="));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Ch. 2 (Fig 2-2): "the maximum motion of the Z slide is seen to be slightly
+/// less than 0.008 in" (at the sector's edge, X = 8 in).
+#[test]
+fn z_motion_is_slightly_under_8_mils() {
+    let g = coeffgen::generate(&TableSpec::dissertation()).unwrap();
+    let e = coeffgen::error_split(
+        &g,
+        0.0,
+        8.0,
+        Sampling {
+            per_interval: 2,
+            phi: 1440,
+        },
+    )
+    .unwrap();
+    assert!(
+        (0.0075..0.008).contains(&e.z_peak_to_peak_in),
+        "{}",
+        e.z_peak_to_peak_in
+    );
+}

@@ -23,6 +23,10 @@ use std::io::Write;
 use std::path::PathBuf;
 use zslide::table::Representation;
 
+/// Full range of the 1983 capacitance gauge (±0.010 in): a surface whose Z
+/// motion exceeds it cannot be cut by this slide.
+const SLIDE_RANGE_IN: f64 = 0.020;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// CSV output (the default format; kept for the acceptance interface).
@@ -174,6 +178,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     if args.report {
         let e = coeffgen::error_split(&g, x_lo, x_hi, Sampling::default())?;
+        if e.z_peak_to_peak_in > SLIDE_RANGE_IN {
+            eprintln!(
+                "warning: Z moves {:.6} in peak to peak, more than the slide's {SLIDE_RANGE_IN} in \
+                 gauge range (±0.010 in)",
+                e.z_peak_to_peak_in
+            );
+        }
         return report(&mut out, &g, &e, x_lo, x_hi, args.json);
     }
     if args.json {
@@ -321,6 +332,11 @@ fn report(
         out,
         "  total midway               {:.4}",
         e.total_midway_uin
+    )?;
+    writeln!(
+        out,
+        "Z motion: up to {:.7} in peak to peak over phi",
+        e.z_peak_to_peak_in
     )?;
     Ok(())
 }
