@@ -131,8 +131,8 @@ pub fn harmonics(sec: &Section, k_max: usize) -> Harmonics {
 
 /// As [`harmonics`] with an explicit sample count `m` (convergence studies).
 pub fn harmonics_with(sec: &Section, k_max: usize, m: usize) -> Harmonics {
-    // sin/cos of 2πj/m from one quadrant-exact table so that the symmetric
-    // samples are bit-identical.
+    // One table of correctly rounded sin/cos(2πj/m), indexed by j·k mod m:
+    // no angle recurrence (FORIF's accumulates rounding over the harmonics).
     let (sin_t, cos_t): (Vec<f64>, Vec<f64>) = (0..m)
         .map(|j| (2.0 * PI * j as f64 / m as f64).sin_cos())
         .unzip();
