@@ -346,7 +346,7 @@ fn final_system_has_the_closed_loop_of_eq_4_47_with_ko_one_half() {
     assert_eq!(poly.len(), text.len());
     for (i, (got, want)) in poly.iter().zip(text).enumerate() {
         assert!(
-            (got.re - want).abs() < 2e-6 * want.abs(),
+            (got.re - want).abs() < 1e-7 * want.abs(),
             "s^{i}: {} vs eq 4-47 {want}",
             got.re
         );
