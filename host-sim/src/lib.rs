@@ -1,2 +1,3 @@
 //! Host simulator of the Z-slide machine.
 pub mod cmd;
+pub mod csmp;
