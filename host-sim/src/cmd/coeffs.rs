@@ -44,7 +44,8 @@ pub struct Args {
     /// Tool-nose radius for `--fourier`, inches (default: the config's).
     #[arg(long, requires = "fourier", allow_hyphen_values = true)]
     pub tool_radius: Option<f64>,
-    /// Highest harmonic for `--fourier` (default 19, Table 2-1's).
+    /// Highest harmonic for `--fourier` (default 19, Table 2-1's); otherwise
+    /// overrides the config's `series.terms`.
     #[arg(long)]
     pub terms: Option<usize>,
     /// Table configuration (TOML); missing fields take the dissertation's values.
