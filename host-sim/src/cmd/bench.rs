@@ -137,6 +137,9 @@ pub struct BenchResult {
     pub simulated_s: f64,
     pub sim_second_wall_s: f64,
     pub real_time_factor: f64,
+    /// The same with the firmware's `loop_tick` instead of the stand-in.
+    pub firmware_sim_second_wall_s: f64,
+    pub firmware_real_time_factor: f64,
     pub expm_computed: u64,
 }
 
@@ -171,6 +174,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     s.run_until(&mut w, t_end);
     let wall = t0.elapsed().as_secs_f64();
+    let (mut fw, mut s) = firmware_demo(RigConfig::legacy(7), args.loop_hz as u32);
+    let t0 = Instant::now();
+    s.run_until(&mut fw, t_end);
+    let fw_wall = t0.elapsed().as_secs_f64();
+    anyhow::ensure!(
+        fw.fw.fault().is_none(),
+        "firmware faulted in the benchmark: {:?}",
+        fw.fw.fault()
+    );
     let r = BenchResult {
         plant_step_ns,
         rig_step_ns,
@@ -178,6 +190,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         simulated_s: args.seconds,
         sim_second_wall_s: wall / args.seconds,
         real_time_factor: args.seconds / wall,
+        firmware_sim_second_wall_s: fw_wall / args.seconds,
+        firmware_real_time_factor: args.seconds / fw_wall,
         expm_computed: w.rig.slide.expm_count(),
     };
     if let Some(path) = &args.vcd {
@@ -186,7 +200,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
-        println!("plant step: {:.1} ns; rig step: {:.1} ns; one simulated second at {} Hz: {:.4} s wall ({:.0}x real time)", r.plant_step_ns, r.rig_step_ns, r.loop_hz, r.sim_second_wall_s, r.real_time_factor);
+        println!("plant step: {:.1} ns; rig step: {:.1} ns; one simulated second at {} Hz: {:.4} s wall ({:.0}x real time), with the firmware loop: {:.4} s ({:.0}x)", r.plant_step_ns, r.rig_step_ns, r.loop_hz, r.sim_second_wall_s, r.real_time_factor, r.firmware_sim_second_wall_s, r.firmware_real_time_factor);
     }
     Ok(())
 }
@@ -247,4 +261,65 @@ pub fn write_vcd(path: &std::path::Path, loop_hz: u64) -> anyhow::Result<()> {
         Err(_) => anyhow::bail!("VCD recorder still shared"),
     }
     Ok(())
+}
+
+/// The firmware's own loop (`zslide::firmware`) on the rig: CNV, its
+/// `loop_tick` through the simulated chips, the enable line from
+/// `amplifier_enable()`.
+pub struct FirmwareWorld {
+    pub rig: Rig,
+    pub fw: zslide::firmware::Firmware,
+    pub adc: crate::chips::bridge::SpiGaugeAdc<SimAd4020>,
+    pub dac: crate::chips::bridge::SpiAmplifierDac<SimAd5791>,
+    pub enable: SimAmpEnablePin,
+}
+
+impl World for FirmwareWorld {
+    fn advance_to(&mut self, t: u64) {
+        self.rig.advance_to(t);
+    }
+    fn set_time(&mut self, t: u64) {
+        self.rig.time.set(t);
+    }
+}
+
+impl FirmwareWorld {
+    pub fn tick(&mut self) {
+        self.rig.cnv();
+        self.fw.loop_tick(&mut self.adc, &mut self.dac);
+        let on = self.fw.amplifier_enable();
+        if on != self.rig.enable.state.borrow().enable {
+            let _ = if on {
+                self.enable.set_high()
+            } else {
+                self.enable.set_low()
+            };
+        }
+    }
+}
+
+/// Rig + firmware at `loop_hz` with the loop-tick source registered.
+pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
+    use zslide::firmware::{Firmware, LoopConfig};
+    let rig = Rig::new(cfg);
+    let dev = rig.devices();
+    let mut dac = crate::chips::bridge::SpiAmplifierDac(dev.amp_dac);
+    let _ = dac.release_clamp();
+    let w = FirmwareWorld {
+        rig,
+        fw: Firmware::new(LoopConfig::at_rate(loop_hz)),
+        adc: crate::chips::bridge::SpiGaugeAdc(dev.gauge_adc),
+        dac,
+        enable: dev.amp_enable,
+    };
+    let mut s = Scheduler::new();
+    let period = 1_000_000_000 / u64::from(loop_hz.max(1));
+    s.add(Periodic::new(
+        "loop_tick",
+        prio::LOOP_TICK,
+        period,
+        period,
+        |_, w: &mut FirmwareWorld| w.tick(),
+    ));
+    (w, s)
 }
