@@ -129,3 +129,21 @@ impl SweptSine {
             .collect()
     }
 }
+
+/// Least-squares fit of `y ≈ a sin ωt + b cos ωt + c` to samples `(t s, y)`:
+/// returns `a + j b` (the phasor relative to `sin ωt`). Exact for a pure
+/// sinusoid plus offset over any window, so sampled loops need not fit a
+/// whole number of periods into their sample grid.
+pub fn fit_sine(samples: &[(f64, f64)], w: f64) -> Complex<f64> {
+    let mut m = nalgebra::Matrix3::<f64>::zeros();
+    let mut r = nalgebra::Vector3::<f64>::zeros();
+    for &(t, y) in samples {
+        let v = nalgebra::Vector3::new((w * t).sin(), (w * t).cos(), 1.0);
+        m += v * v.transpose();
+        r += v * y;
+    }
+    match m.lu().solve(&r) {
+        Some(x) => Complex::new(x[0], x[1]),
+        None => Complex::new(f64::NAN, f64::NAN),
+    }
+}

@@ -69,3 +69,38 @@ fn amplifier_dac_bus_error_opens_the_loop_safely() {
     assert_eq!(w.rig.dac.state.borrow().output_volts(), 0.0);
     assert_eq!(w.rig.amp.regime(), AmpRegime::Off);
 }
+
+#[test]
+fn fit_sine_is_exact_off_the_period_grid() {
+    let w = std::f64::consts::TAU * 37.3;
+    let s: Vec<(f64, f64)> = (0..777)
+        .map(|k| {
+            let t = k as f64 * 5e-5;
+            (t, 0.7 * (w * t).sin() - 0.2 * (w * t).cos() + 3.0)
+        })
+        .collect();
+    let h = host_sim::analyser::fit_sine(&s, w);
+    assert!(
+        (h.re - 0.7).abs() < 1e-12 && (h.im + 0.2).abs() < 1e-12,
+        "{h}"
+    );
+}
+
+#[test]
+fn firmware_loop_response_tracks_low_and_shows_the_mode() {
+    use host_sim::cmd::response::measure_firmware;
+    // type-1 loop with integral action: unity gain at low frequency
+    let p = measure_firmware(2.0, 10e-6, 20_000, false);
+    assert!(
+        p.mag_db().abs() < 0.2 && p.phase_deg().abs() < 3.0,
+        "{} dB {}°",
+        p.mag_db(),
+        p.phase_deg()
+    );
+    // the coil-frame mode shows through the digital loop as a local peak
+    let m = |f| measure_firmware(f, 10e-6, 20_000, false).mag_db();
+    let (below, at, above) = (m(2700.0), m(3150.0), m(3700.0));
+    assert!(at > below + 3.0 && at > above + 3.0, "{below} {at} {above}");
+    let r = |f| measure_firmware(f, 10e-6, 20_000, true).mag_db();
+    assert!(r(3150.0) < r(2700.0), "no peak on a rigid slide");
+}

@@ -26,6 +26,10 @@ pub enum Loop {
     /// The 1983 closed position loop with the eq 4-45 compensator, R2 →
     /// gauge; compare eq 4-47 (no mode) and eq 4-49 (measured).
     Position1983,
+    /// The firmware's own digital loop (`zslide::firmware`, 20 kHz) on the
+    /// rig, target → gauge, measured through the simulated chips in the
+    /// time domain (no reference equation).
+    Firmware,
 }
 
 #[derive(clap::Args, Debug)]
@@ -80,6 +84,8 @@ pub fn setup(which: Loop, ko: f64, rigid: bool) -> (LinearSystem, Option<RefTf>,
                 "eq 4-44",
             )
         }
+        // Not a linear system: measured by `measure_firmware`.
+        Loop::Firmware => (analog1983::plant_open(&p, 10.0), None, "firmware"),
         Loop::Position1983 => {
             let c = PositionLoop1983 {
                 ko,
@@ -179,7 +185,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     let freqs = log_freqs(args.f_min, args.f_max, args.points);
-    let pts = an.sweep(&sys, 0, 0, &freqs);
+    let pts = if args.which == Loop::Firmware {
+        let amp_in = args.amplitude.unwrap_or(10e-6);
+        freqs
+            .iter()
+            .map(|&f| measure_firmware(f, amp_in, 20_000, args.rigid))
+            .collect()
+    } else {
+        an.sweep(&sys, 0, 0, &freqs)
+    };
     let mut csv = String::from("f_hz,mag_db,phase_deg\n");
     for p in &pts {
         csv.push_str(&format!(
@@ -306,4 +320,61 @@ pub fn unwrap_deg(phases: impl Iterator<Item = f64>) -> Vec<f64> {
         out.push(v);
     }
     out
+}
+
+/// Swept-sine point of the firmware's closed loop: the target follows
+/// `A sin ωt` (updated just before each loop tick, in gauge codes), the
+/// gauge codes the firmware reads are fitted with a sinusoid after
+/// settling. `amplitude_in` in inches (default 10 µin: the firmware's
+/// command slew limit of 0.25 in/s is not reached below ≈ 4 kHz).
+pub fn measure_firmware(f_hz: f64, amplitude_in: f64, loop_hz: u32, rigid: bool) -> BodePoint {
+    use crate::cmd::bench::{firmware_demo, FirmwareWorld};
+    use crate::plant::{GaugeParams, RigConfig};
+    use crate::sched::Periodic;
+    let mut cfg = RigConfig {
+        gauge: GaugeParams::noiseless(),
+        ..RigConfig::legacy(1)
+    };
+    if rigid {
+        cfg.slide = cfg.slide.rigid();
+    }
+    let (mut w, mut s) = firmware_demo(cfg, loop_hz);
+    let period = 1_000_000_000 / u64::from(loop_hz.max(1));
+    let amp_codes = amplitude_in * f64::from(1u32 << 19) / 0.010;
+    let wr = std::f64::consts::TAU * f_hz;
+    // engage first, then excite; the target is set at the tick's instant
+    // by a higher-priority source, so each tick sees the new target
+    let t0 = 20_000_000u64;
+    s.run_until(&mut w, t0);
+    s.add(Periodic::new(
+        "excitation",
+        255,
+        t0 + period,
+        period,
+        move |t, w: &mut FirmwareWorld| {
+            let tt = (t - t0) as f64 * 1e-9;
+            w.fw.set_target_code((amp_codes * (wr * tt).sin()).round() as i32);
+        },
+    ));
+    let settle = (0.05f64).max(10.0 / f_hz);
+    let measure = (0.05f64).max(10.0 / f_hz);
+    let t_settle = t0 + (settle * 1e9) as u64;
+    s.run_until(&mut w, t_settle);
+    let rec: std::rc::Rc<std::cell::RefCell<Vec<(f64, f64)>>> = Default::default();
+    let r2 = rec.clone();
+    s.on_event = Some(Box::new(move |t, k, w: &FirmwareWorld| {
+        if k == 0 {
+            r2.borrow_mut()
+                .push(((t - t0) as f64 * 1e-9, f64::from(w.fw.position_code())));
+        }
+    }));
+    s.run_until(&mut w, t_settle + (measure * 1e9) as u64);
+    let samples = rec.borrow();
+    let h = crate::analyser::fit_sine(&samples, wr) / amp_codes;
+    let peak = samples.iter().map(|p| p.1.abs()).fold(0.0, f64::max) * 10.0 / f64::from(1u32 << 19);
+    BodePoint {
+        f_hz,
+        h,
+        peak_out: peak,
+    }
 }
