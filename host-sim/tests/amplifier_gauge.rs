@@ -57,9 +57,43 @@ fn current_limit_trip_and_reset() {
         }
         assert!(t < 10_000_000, "never tripped");
     }
-    // L di/dt = 40 − R i − Kb v reaches 8 A after ≈ τ ln(1/(1 − 8·1.4/40)) ≈ 86 µs
+    // L di/dt = 40 − R i − Kb v reaches 8 A after ≈ τ ln(1/(1 − 8·1.4/40)) ≈ 86 µs;
+    // exactly: i(t) of the rigid motor+slide (closed form, two real poles)
     let entered = entered_at.expect("limit entered");
     assert_eq!(entered, 100_000);
+    let p = &r.slide.params;
+    let (m, b, kf, l) = (
+        p.mass_lbf_s2_per_in,
+        p.b_lbf_s_per_in,
+        p.kf_lbf_per_a,
+        p.l_h,
+    );
+    let (a1, a0) = p.eq4_11_denominator();
+    let d = (a1 * a1 - 4.0 * a0).sqrt();
+    let (p1, p2) = ((-a1 + d) / 2.0, (-a1 - d) / 2.0);
+    let k = kf / (m * l) * 40.0;
+    let v = |t: f64| {
+        k * (1.0 / (p1 * p2)
+            + (p1 * t).exp() / (p1 * (p1 - p2))
+            + (p2 * t).exp() / (p2 * (p2 - p1)))
+    };
+    let vd = |t: f64| k * ((p1 * t).exp() / (p1 - p2) + (p2 * t).exp() / (p2 - p1));
+    let i = |t: f64| (m * vd(t) + b * v(t)) / kf;
+    let (mut lo, mut hi) = (50e-6, 100e-6);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if i(mid) < lim {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let t_cross_ns = 50_000.0 + r.amp.last_entry_offset_ns as f64;
+    assert!(
+        (t_cross_ns - lo * 1e9).abs() <= 1.5,
+        "entry at {t_cross_ns} ns, exact {} ns",
+        lo * 1e9
+    );
     // trips 2 ms after entering (at the first event past it)
     assert!(
         t >= 86_000 + 2_000_000 && t <= entered + 2_000_000,

@@ -290,6 +290,18 @@ impl ZSlide {
         }
     }
 
+    /// Advances `dt_ns` as a sum of power-of-two steps (at most 64, each
+    /// cached): for the odd remainders of limit and trip instants, so they
+    /// never cost a matrix exponential after the first time.
+    pub fn step_binary(&mut self, dt_ns: u64, e_m: f64, f_ext: f64, current_held: bool) {
+        for k in (0..64).rev() {
+            let h = 1u64 << k;
+            if dt_ns & h != 0 {
+                self.step(h, e_m, f_ext, current_held);
+            }
+        }
+    }
+
     /// Advances an arbitrary (non-cached) interval; for the rare crossing
     /// searches of the amplifier's current limit.
     pub fn step_uncached(&mut self, dt_s: f64, e_m: f64, f_ext: f64, current_held: bool) {
