@@ -154,6 +154,17 @@ fn same_seed_bit_identical_different_seed_differs() {
         "{first} → {before_force}"
     );
     // the VCD is well formed
+    let mut parser = vcd::Parser::new(&a.2[..]);
+    let header = parser.parse_header().expect("VCD header parses");
+    assert!(
+        header.find_var(&["zslide", "dac_code"]).is_some(),
+        "{:?}",
+        header.items
+    );
+    let changes = parser
+        .filter(|c| matches!(c, Ok(vcd::Command::ChangeVector(..))))
+        .count();
+    assert!(changes >= 500, "{changes} vector changes");
     let text = String::from_utf8(a.2).unwrap();
     assert!(
         text.contains("$timescale") && text.contains("$enddefinitions") && text.contains("#50000")

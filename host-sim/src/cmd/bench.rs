@@ -28,8 +28,9 @@ pub struct Args {
     /// Loop rate, Hz.
     #[arg(long, default_value_t = 20_000)]
     pub loop_hz: u64,
-    /// Also write a VCD trace of 50 ms of the loop benchmark's run (slide
-    /// and gauge positions, ADC and DAC codes, current, loop-tick activity).
+    /// Also write a VCD trace of 50 ms of the firmware loop on the legacy
+    /// rig (positions, command, error, current, force, ADC and DAC codes,
+    /// loop-tick activity, amplifier enable).
     #[arg(long)]
     pub vcd: Option<std::path::PathBuf>,
 }
@@ -205,21 +206,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// 50 ms of the stand-in loop from 2 mil off null, with a 1.3 lbf force
-/// step at 20 ms (a finishing cut engaging), as a VCD.
+/// 50 ms of the firmware's loop on the legacy rig as a VCD: engagement from
+/// 2 mil off null, a 1.3 lbf cutting-force step at 20 ms (a finishing cut
+/// engaging), a 1 mil target step at 30 ms.
 pub fn write_vcd(path: &std::path::Path, loop_hz: u64) -> anyhow::Result<()> {
     use crate::vcd::{SignalKind, VcdRecorder};
     use std::cell::RefCell;
     use std::rc::Rc;
-    let (mut w, mut s) = demo(RigConfig::legacy(7), loop_hz, true);
+    let (mut w, mut s) = firmware_demo(RigConfig::legacy(7), loop_hz as u32);
     w.rig.slide.x[crate::plant::zslide::st::Z] = 0.002;
-    let mut o = crate::sched::OneShots::new("force", prio::PLANT_INPUT);
-    o.at(20_000_000, |_, w: &mut DemoWorld| w.rig.set_force_lbf(-1.3));
+    let mut o = crate::sched::OneShots::new("script", prio::PLANT_INPUT);
+    o.at(20_000_000, |_, w: &mut FirmwareWorld| {
+        w.rig.set_force_lbf(-1.3)
+    });
+    o.at(30_000_000, |_, w: &mut FirmwareWorld| {
+        w.fw.set_target_code(1 << 16)
+    });
     s.add(o);
     let file = std::io::BufWriter::new(std::fs::File::create(path)?);
     let signals = [
         ("slide_z_uin", SignalKind::Real),
-        ("gauge_v", SignalKind::Real),
+        ("gauge_z_uin", SignalKind::Real),
+        ("command_uin", SignalKind::Real),
+        ("error_uin", SignalKind::Real),
         ("current_a", SignalKind::Real),
         ("force_lbf", SignalKind::Real),
         ("adc_code", SignalKind::Int(20)),
@@ -232,18 +241,22 @@ pub fn write_vcd(path: &std::path::Path, loop_hz: u64) -> anyhow::Result<()> {
     let err: Rc<RefCell<Option<std::io::Error>>> = Rc::new(RefCell::new(None));
     let e2 = err.clone();
     let mut toggle = false;
-    s.on_event = Some(Box::new(move |t, k, w: &DemoWorld| {
-        let (adc, dac) = w.ctl.trace.last().map_or((0, 0), |e| (e.1, e.2));
+    // gauge codes to µin: 2^19 codes = 0.010 in
+    let uin = 0.010e6 / f64::from(1u32 << 19);
+    s.on_event = Some(Box::new(move |t, k, w: &FirmwareWorld| {
         if k == 0 {
             toggle = !toggle;
         }
+        let adc = w.rig.adc.state.borrow().code;
         let v = [
             w.rig.slide.position_in() * 1e6,
-            w.rig.adc.state.borrow().input_v,
+            w.rig.slide.gauge_position_in() * 1e6,
+            f64::from(w.fw.command_code()) * uin,
+            f64::from(w.fw.command_code() - w.fw.position_code()) * uin,
             w.rig.slide.current_a(),
             w.rig.f_ext,
             f64::from(adc),
-            f64::from(dac),
+            f64::from(w.fw.output_code()),
             if toggle { 1.0 } else { 0.0 },
             if w.rig.amp.enabled() { 1.0 } else { 0.0 },
         ];
