@@ -134,3 +134,64 @@ fn analog_position_loop_in_the_time_domain_follows_a_step() {
     assert!(peak < 0.002 * 1.3, "overshoot {peak}");
     assert_eq!(w.rig.amp.trips, 0);
 }
+
+#[test]
+fn analog_loop_following_error_at_10hz_matches_eq_4_47() {
+    // The worst-case command (10 Hz, 0.004 in half amplitude) through the
+    // emulated 1983 loop in the time domain: the following error is
+    // |1 − Z/R2| · A of eq 4-47 (≈ 580 µin), not the v/Kv ≈ 52 µin that
+    // Kv = 4800 suggests: the lag's zero (4.17 rad/s) sits far below 10 Hz,
+    // so at 10 Hz the loop gain is Kv · 0.3788/4.1667 ≈ 436 1/s.
+    use host_sim::analog1983::AnalogController;
+    use host_sim::plant::{GaugeParams, Rig, RigConfig};
+    use host_sim::sched::{prio, Periodic, Scheduler, World};
+    struct W {
+        rig: Rig,
+        c: AnalogController,
+        peak: f64,
+    }
+    impl World for W {
+        fn advance_to(&mut self, t: u64) {
+            self.rig.advance_to(t);
+        }
+        fn set_time(&mut self, t: u64) {
+            self.rig.time.set(t);
+        }
+    }
+    let mut cfg = RigConfig::legacy(1);
+    cfg.gauge = GaugeParams::noiseless();
+    let mut rig = Rig::new(cfg);
+    rig.amp.set_enabled(true);
+    let pl = PositionLoop1983::default();
+    let c = AnalogController::position_loop(&pl);
+    let mut w = W { rig, c, peak: 0.0 };
+    let mut s = Scheduler::new();
+    s.add(Periodic::new(
+        "analog",
+        prio::LOOP_TICK,
+        0,
+        5_000,
+        |t, w: &mut W| {
+            let r = 4.0 * (TAU * 10.0 * t as f64 * 1e-9).sin();
+            w.c.reference_v = r;
+            let y = w
+                .rig
+                .gauge
+                .volts(w.rig.t_ns, w.rig.slide.gauge_position_in());
+            w.rig.v_in = w.c.step(5_000, y);
+            if t > 600_000_000 {
+                w.peak = w.peak.max((r - y).abs());
+            }
+        },
+    ));
+    s.run_until(&mut w, 800_000_000);
+    let expect = (1.0 - analog1983::eq4_47(pl.ko, TAU * 10.0)).norm() * 4.0;
+    assert!(
+        (w.peak / expect - 1.0).abs() < 0.03,
+        "peak {} mil vs eq 4-47 {} mil",
+        w.peak,
+        expect
+    );
+    assert!(expect > 0.5 && expect < 0.65, "{expect}");
+    assert_eq!(w.rig.amp.trips, 0);
+}
