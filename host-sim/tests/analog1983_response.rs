@@ -195,3 +195,32 @@ fn analog_loop_following_error_at_10hz_matches_eq_4_47() {
     assert!(expect > 0.5 && expect < 0.65, "{expect}");
     assert_eq!(w.rig.amp.trips, 0);
 }
+
+#[test]
+fn noise_excitation_agrees_with_swept_sine() {
+    use host_sim::analyser::NoiseExcitation;
+    let (sys, _, _) = setup(Loop::Velocity1983, 0.0, false);
+    let freqs = log_freqs(1.0, 5000.0, 24);
+    let noise = NoiseExcitation::default().sweep(&sys, 0, 0, &freqs);
+    assert_eq!(noise.len(), freqs.len());
+    let sine = SweptSine {
+        amplitude: 0.01,
+        ..Default::default()
+    };
+    for p in &noise {
+        let s = sine.measure(&sys, 0, 0, p.f_hz);
+        let (dm, dp) = dev(p.h, s.h);
+        assert!(
+            dm.abs() < 0.5 && dp.abs() < 3.0,
+            "{} Hz: {dm:.3} dB {dp:.2}°",
+            p.f_hz
+        );
+    }
+    // and a different seed is a different (but equally good) measurement
+    let other = NoiseExcitation {
+        seed: 2,
+        ..Default::default()
+    }
+    .sweep(&sys, 0, 0, &freqs[..3]);
+    assert_ne!(other[0].h, noise[0].h);
+}

@@ -15,6 +15,13 @@ use std::path::PathBuf;
 /// A published reference transfer function: `(Ko, ω) → H(jω)`.
 pub type RefTf = fn(f64, f64) -> Complex<f64>;
 
+/// Excitation method.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Sine,
+    Noise,
+}
+
 /// Which loop to measure.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Loop {
@@ -56,6 +63,10 @@ pub struct Args {
     /// free integrator would take the gauge out of range, 0.01 V else).
     #[arg(long)]
     pub amplitude: Option<f64>,
+    /// Excitation: swept sine, or seeded noise with H1 averaging (the HP
+    /// 5420's usual mode). The firmware loop is always swept.
+    #[arg(long, value_enum, default_value = "sine")]
+    pub method: Method,
     /// CSV output (default: stdout).
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -191,6 +202,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .iter()
             .map(|&f| measure_firmware(f, amp_in, 20_000, args.rigid))
             .collect()
+    } else if args.method == Method::Noise {
+        crate::analyser::NoiseExcitation {
+            amplitude,
+            ..Default::default()
+        }
+        .sweep(&sys, 0, 0, &freqs)
     } else {
         an.sweep(&sys, 0, 0, &freqs)
     };
@@ -215,7 +232,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &format!("{:?}", args.which),
         )?;
     }
-    let peak_v = pts.iter().map(|p| p.peak_out).fold(0.0, f64::max);
+    let peak_v = pts
+        .iter()
+        .map(|p| p.peak_out)
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
     if peak_v > 10.0 {
         eprintln!("warning: gauge output reached {peak_v:.2} V, beyond its ±10 V range; lower --amplitude");
     }
