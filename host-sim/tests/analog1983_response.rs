@@ -224,3 +224,24 @@ fn noise_excitation_agrees_with_swept_sine() {
     .sweep(&sys, 0, 0, &freqs[..3]);
     assert_ne!(other[0].h, noise[0].h);
 }
+
+#[test]
+fn closed_loop_stepper_matches_eq_4_47() {
+    // The exact closed-loop stepper at 50 µs events (reference held over
+    // each step) gives the 10 Hz following error of eq 4-47.
+    use host_sim::analog1983::AnalogClosedLoop;
+    let mut cl = AnalogClosedLoop::legacy();
+    let mut peak: f64 = 0.0;
+    let dt = 50_000u64;
+    for k in 0..16_000u64 {
+        let t = k * dt;
+        let r = 4.0 * (TAU * 10.0 * t as f64 * 1e-9).sin();
+        if t > 600_000_000 {
+            peak = peak.max((r - cl.gauge_v(r, 0.0)).abs());
+        }
+        cl.step(dt, r, 0.0, 0.0);
+    }
+    let expect = (1.0 - analog1983::eq4_47(0.5934, TAU * 10.0)).norm() * 4.0;
+    assert!((peak / expect - 1.0).abs() < 0.01, "{peak} vs {expect}");
+    assert_eq!(cl.nonlinear_steps, 0);
+}
