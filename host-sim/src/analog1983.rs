@@ -239,6 +239,7 @@ pub fn eq4_49(w: f64) -> nalgebra::Complex<f64> {
 pub struct AnalogController {
     pub cache: crate::plant::linear::ZohCache,
     pub x: nalgebra::DVector<f64>,
+    tmp: nalgebra::DVector<f64>,
     pub substep_ns: u64,
     /// Reference input (R1 or R2 of the loop), V = mil.
     pub reference_v: f64,
@@ -250,6 +251,7 @@ impl AnalogController {
         Self {
             cache: crate::plant::linear::ZohCache::new(ctrl, 4),
             x: nalgebra::DVector::zeros(n),
+            tmp: nalgebra::DVector::zeros(n),
             substep_ns,
             reference_v: 0.0,
         }
@@ -261,10 +263,17 @@ impl AnalogController {
     /// Output (amplifier input, V) for the gauge reading `y_v`, then
     /// advances the controller state by `dt_ns` with its inputs held.
     pub fn step(&mut self, dt_ns: u64, y_v: f64) -> f64 {
-        let u = nalgebra::DVector::from_vec(vec![self.reference_v, y_v]);
-        let out = self.cache.system().output(&self.x, &u)[0];
+        let r = self.reference_v;
+        let s = self.cache.system();
+        let mut out = s.d[(0, 0)] * r + s.d[(0, 1)] * y_v;
+        for k in 0..s.states() {
+            out += s.c[(0, k)] * self.x[k];
+        }
         let d = self.cache.get(dt_ns);
-        self.x = &d.phi * &self.x + &d.gamma * &u;
+        d.phi.mul_to(&self.x, &mut self.tmp);
+        self.tmp.axpy(r, &d.gamma.column(0), 1.0);
+        self.tmp.axpy(y_v, &d.gamma.column(1), 1.0);
+        std::mem::swap(&mut self.x, &mut self.tmp);
         out
     }
     /// One substep against the rig: read the gauge, drive the amplifier.

@@ -141,6 +141,9 @@ pub struct BenchResult {
     /// The same with the firmware's `loop_tick` instead of the stand-in.
     pub firmware_sim_second_wall_s: f64,
     pub firmware_real_time_factor: f64,
+    /// One exact step of the 1983 analog loop closed around the plant
+    /// (`AnalogClosedLoop`, 13 states), ns.
+    pub analog_closed_loop_step_ns: f64,
     pub expm_computed: u64,
 }
 
@@ -184,6 +187,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "firmware faulted in the benchmark: {:?}",
         fw.fw.fault()
     );
+    let mut cl = crate::analog1983::AnalogClosedLoop::legacy();
+    let t0 = Instant::now();
+    for k in 0..n / 4 {
+        let r = if k & 1024 == 0 { 0.1 } else { -0.1 };
+        cl.step(50_000, r, 0.0, 0.0);
+    }
+    let analog_closed_loop_step_ns = t0.elapsed().as_nanos() as f64 / (n / 4) as f64;
+    std::hint::black_box(cl.position_in());
     let r = BenchResult {
         plant_step_ns,
         rig_step_ns,
@@ -193,6 +204,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         real_time_factor: args.seconds / wall,
         firmware_sim_second_wall_s: fw_wall / args.seconds,
         firmware_real_time_factor: args.seconds / fw_wall,
+        analog_closed_loop_step_ns,
         expm_computed: w.rig.slide.expm_count(),
     };
     if let Some(path) = &args.vcd {
