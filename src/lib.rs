@@ -14,3 +14,5 @@ pub mod hw;
 pub mod safety;
 pub mod table;
 pub mod units;
+pub mod trig;
+pub mod interp;
