@@ -147,7 +147,7 @@ impl<'a> Interpolator<'a> {
         let hi = i64::from(self.table.coeff_raw(at.node + 1, column));
         // At the last node frac is 0, so the missing upper node does not matter.
         let v = (lo << 31) + (hi - lo) * i64::from(at.frac >> 1);
-        self.to_q30(v, self.fc + 1)
+        to_q30(v, self.fc + 1)
     }
 
     /// Change of column `column` across the interval that holds `at`
@@ -157,7 +157,7 @@ impl<'a> Interpolator<'a> {
         let n = at.node.min(self.table.node_count() - 2);
         let lo = i64::from(self.table.coeff_raw(n, column));
         let hi = i64::from(self.table.coeff_raw(n + 1, column));
-        self.to_q30((hi - lo) << 1, self.fc + 1)
+        to_q30((hi - lo) << 31, self.fc + 1)
     }
 
     /// Converts a change across one interval (Q30 in) into a slope per inch
@@ -167,13 +167,14 @@ impl<'a> Interpolator<'a> {
         let d = delta_q30.clamp(-(1 << 32), 1 << 32);
         (d * self.per_inch_q16 + (1 << 15)) >> 16
     }
+}
 
-    /// Rounds `v` with `shift` extra fraction bits to Q30 and saturates to i32.
-    #[inline]
-    fn to_q30(&self, v: i64, shift: u32) -> i32 {
-        let r = (v + (1i64 << (shift - 1))) >> shift;
-        r.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
-    }
+/// Rounds `v` with `shift` (1..=32) fraction bits more than Q30 to Q30 and
+/// saturates to i32.
+#[inline]
+fn to_q30(v: i64, shift: u32) -> i32 {
+    let r = (v + (1i64 << (shift - 1))) >> shift;
+    r.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
 #[cfg(test)]
@@ -218,7 +219,8 @@ mod tests {
         let i = (u.floor() as usize).min(h.node_count as usize - 1);
         let f = u - i as f64;
         let t = usize::from(h.terms);
-        let c = |n: usize| f64::from(payload[n * t + col]) / 2f64.powi(i32::from(h.coeff_frac_bits));
+        let c =
+            |n: usize| f64::from(payload[n * t + col]) / 2f64.powi(i32::from(h.coeff_frac_bits));
         if i + 1 >= h.node_count as usize {
             c(i)
         } else {

@@ -16,3 +16,4 @@ pub mod table;
 pub mod units;
 pub mod trig;
 pub mod interp;
+pub mod command;

@@ -175,24 +175,18 @@ mod tests {
                 worst = worst.max(es).max(ec);
             }
         }
-        assert!(worst < 3.0, "worst error {worst} LSB exceeds the 3 LSB budget");
+        assert!(
+            worst < 3.0,
+            "worst error {worst} LSB exceeds the 3 LSB budget"
+        );
     }
 
     #[test]
     fn exact_at_the_quadrant_points_and_odd_even() {
         assert_eq!(sin_cos(SpindleAngle(0)), SinCos { sin: 0, cos: ONE });
-        assert_eq!(
-            sin_cos(SpindleAngle(1 << 30)),
-            SinCos { sin: ONE, cos: 0 }
-        );
-        assert_eq!(
-            sin_cos(SpindleAngle(1 << 31)),
-            SinCos { sin: 0, cos: -ONE }
-        );
-        assert_eq!(
-            sin_cos(SpindleAngle(3 << 30)),
-            SinCos { sin: -ONE, cos: 0 }
-        );
+        assert_eq!(sin_cos(SpindleAngle(1 << 30)), SinCos { sin: ONE, cos: 0 });
+        assert_eq!(sin_cos(SpindleAngle(1 << 31)), SinCos { sin: 0, cos: -ONE });
+        assert_eq!(sin_cos(SpindleAngle(3 << 30)), SinCos { sin: -ONE, cos: 0 });
         // sin(−φ) = −sin φ, cos(−φ) = cos φ, within the rounding of the step.
         let mut a: u32 = 12345;
         for _ in 0..10_000 {

@@ -1,0 +1,494 @@
+//! The Z command: Z(X, φ) from the interpolated coefficients and the spindle
+//! angle, its analytic derivatives for feedforward, the null zone, and the
+//! legacy coefficient output (C00..C03 for the 1983 analog electronics).
+//!
+//! # Split by rate
+//! [`CommandGen::coefficients`] depends on X only (the X event, or once per
+//! loop tick in modern mode); [`CommandGen::evaluate`] depends on φ and runs
+//! every loop tick. Both are integer-only, allocation-free and total.
+//!
+//! # Formats and error budget
+//! Coefficients at X arrive in Q30 inches (`I2F30`, LSB 9.3e-10 in), each
+//! rounded once by [`crate::interp`]. Sines are Q30 with < 3 LSB error
+//! ([`crate::trig`]).
+//! * Harmonic tables: every product `C_k cos kφ` is formed exactly in Q60
+//!   and summed exactly; Z is rounded once. Error ≤ Σ|C_k|·3·2⁻³⁰ +
+//!   (terms/2 + 1/2) LSB ≈ 5e-9 in for 7 harmonics.
+//! * Sin-power tables: Horner in Q30, one rounding per step: ≤ (terms) LSB +
+//!   Σ j|c_j|·3·2⁻³⁰ ≈ 4e-9 in for the four terms of eq 2-19.
+//!
+//! Both are below 0.01 µin (1e-8 in), a tenth of the 0.1 µin goal; the rest
+//! belongs to the table (series truncation, grid, coefficient rounding).
+//!
+//! Units: Z in inches along +Y_t (eq 2-8; a correct command is ≤ 0);
+//! ∂Z/∂φ in in/rad, ∂²Z/∂φ² in in/rad², ∂Z/∂X in in/in; all `I2F30`,
+//! saturating.
+
+use crate::interp::{Interpolator, Located, Locus};
+use crate::safety::Fault;
+use crate::table::{CoeffTable, Representation, MAX_TERMS};
+use crate::trig::{sin_cos, SinCos};
+use crate::units::{SpindleAngle, XInches, ZInches};
+use fixed::types::I2F30;
+
+const COLS: usize = MAX_TERMS as usize;
+/// Keeps Q30 intermediates in ±4 in, so a Q30×Q30 product fits an `i64`.
+const CLAMP: i64 = 1 << 32;
+
+/// The coefficients at one X, ready for [`CommandGen::evaluate`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Coefficients {
+    /// Column values at X, Q30 inches.
+    pub value: [i32; COLS],
+    /// Column changes across the interval holding X, Q30 inches (for ∂Z/∂X).
+    pub delta: [i32; COLS],
+    /// Slope scale of the interval: `delta · per_inch_q16 >> 16` = in/in.
+    terms: u8,
+    /// X lies in the null zone: the command is zero.
+    pub null: bool,
+    x: XInches,
+}
+
+impl Coefficients {
+    /// The null command (X in the null zone, or no table).
+    pub const NULL: Self = Self {
+        value: [0; COLS],
+        delta: [0; COLS],
+        terms: 0,
+        null: true,
+        x: XInches::ZERO,
+    };
+    /// X these coefficients were computed for.
+    pub fn x(&self) -> XInches {
+        self.x
+    }
+}
+
+/// Z and its derivatives at (X, φ).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Command {
+    pub z: ZInches,
+    /// ∂Z/∂φ, in/rad.
+    pub dz_dphi: I2F30,
+    /// ∂²Z/∂φ², in/rad².
+    pub d2z_dphi2: I2F30,
+    /// ∂Z/∂X, in/in (slope of the interpolated coefficients).
+    pub dz_dx: I2F30,
+}
+
+/// One of the four coefficients of eq 2-19, as carried by the 1983 DACs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Legacy {
+    C00 = 0,
+    C01 = 1,
+    C02 = 2,
+    C03 = 3,
+}
+
+/// The command generator for one table.
+#[derive(Clone, Copy, Debug)]
+pub struct CommandGen<'a> {
+    interp: Interpolator<'a>,
+    repr: Representation,
+    terms: u8,
+    x_null: XInches,
+}
+
+#[inline(always)]
+fn sat_i32(v: i64) -> i32 {
+    v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}
+
+/// Q60 → Q30, rounded.
+#[inline(always)]
+fn q60_to_q30(v: i64) -> i64 {
+    (v >> 30) + ((v >> 29) & 1)
+}
+
+/// Q30 × Q30 → Q30, rounded; operands clamped to ±4 so nothing overflows.
+#[inline(always)]
+fn mul30(a: i64, b: i64) -> i64 {
+    q60_to_q30(a.clamp(-CLAMP, CLAMP) * b.clamp(-CLAMP, CLAMP))
+}
+
+#[inline(always)]
+fn fx30(v: i64) -> I2F30 {
+    I2F30::from_bits(sat_i32(v))
+}
+
+impl<'a> CommandGen<'a> {
+    pub fn new(table: CoeffTable<'a>) -> Self {
+        Self {
+            interp: Interpolator::new(table),
+            repr: table.representation(),
+            terms: table.terms(),
+            x_null: table.x_null(),
+        }
+    }
+
+    pub fn interpolator(&self) -> &Interpolator<'a> {
+        &self.interp
+    }
+
+    /// Start of the null zone (the table's; 7.2 in for the default table).
+    pub fn x_null(&self) -> XInches {
+        self.x_null
+    }
+
+    /// Where X lies, with the null zone applied: `Ok(None)` in the null zone
+    /// (X beyond `x_null`, including beyond the last node), an error below
+    /// the first node.
+    #[inline]
+    pub fn locate(&self, x: XInches) -> Result<Option<Locus>, Fault> {
+        if x > self.x_null {
+            return Ok(None);
+        }
+        match self.interp.locate(x) {
+            Located::In(l) => Ok(Some(l)),
+            Located::Above => Ok(None),
+            Located::Below => Err(Fault::XOutsideTable),
+        }
+    }
+
+    /// All columns at X. Below the table: [`Fault::XOutsideTable`] (the
+    /// reaction is a ramp to null). In the null zone: [`Coefficients::NULL`].
+    pub fn coefficients(&self, x: XInches) -> Result<Coefficients, Fault> {
+        let Some(at) = self.locate(x)? else {
+            return Ok(Coefficients {
+                x,
+                ..Coefficients::NULL
+            });
+        };
+        let mut c = Coefficients {
+            value: [0; COLS],
+            delta: [0; COLS],
+            terms: self.terms,
+            null: false,
+            x,
+        };
+        let n = usize::from(self.terms).min(COLS);
+        for (j, (v, d)) in c
+            .value
+            .iter_mut()
+            .zip(c.delta.iter_mut())
+            .enumerate()
+            .take(n)
+        {
+            *v = self.interp.value(at, j as u8);
+            *d = self.interp.delta(at, j as u8);
+        }
+        Ok(c)
+    }
+
+    /// Z, ∂Z/∂φ, ∂²Z/∂φ² and ∂Z/∂X at φ for the coefficients of one X.
+    pub fn evaluate(&self, c: &Coefficients, phi: SpindleAngle) -> Command {
+        if c.null {
+            return Command::default();
+        }
+        let n = usize::from(c.terms).min(COLS);
+        let (z, d1, d2, dn) = match self.repr {
+            Representation::Harmonic => harmonic(&c.value[..n], &c.delta[..n], phi),
+            Representation::SinPower => sin_power(&c.value[..n], &c.delta[..n], sin_cos(phi)),
+        };
+        Command {
+            z: ZInches(fx30(z)),
+            dz_dphi: fx30(d1),
+            d2z_dphi2: fx30(d2),
+            dz_dx: fx30(self.interp.per_inch(dn)),
+        }
+    }
+
+    /// Z only, the cheap path (no derivatives).
+    pub fn z(&self, x: XInches, phi: SpindleAngle) -> Result<ZInches, Fault> {
+        let c = self.coefficients(x)?;
+        Ok(self.evaluate(&c, phi).z)
+    }
+
+    /// The full command at (X, φ).
+    pub fn command(&self, x: XInches, phi: SpindleAngle) -> Result<Command, Fault> {
+        let c = self.coefficients(x)?;
+        Ok(self.evaluate(&c, phi))
+    }
+
+    /// One eq 2-19 coefficient at `at`, Q30 inches. Sin-power tables give
+    /// their first four columns; harmonic tables are converted by eq 2-20..23
+    /// (C00 = C0 + C2, C01 = S1 + 3 S3, C02 = −2 C2, C03 = −4 S3), which is
+    /// exact when the table has no other harmonics than 1..3 (cos φ and
+    /// sin 2φ terms cannot be carried by powers of sin φ; the default
+    /// geometry's are zero by symmetry).
+    pub fn legacy_coefficient(&self, at: Locus, which: Legacy) -> i32 {
+        let v = |col: u8| i64::from(self.interp.value(at, col));
+        let r = match self.repr {
+            Representation::SinPower => v(which as u8),
+            // Harmonic columns: 0 C0, 1 C1, 2 S1, 3 C2, 4 S2, 5 C3, 6 S3.
+            Representation::Harmonic => match which {
+                Legacy::C00 => v(0) + v(3),
+                Legacy::C01 => v(2) + 3 * v(6),
+                Legacy::C02 => -2 * v(3),
+                Legacy::C03 => -4 * v(6),
+            },
+        };
+        sat_i32(r)
+    }
+}
+
+/// Z = C0 + Σ C_k cos kφ + S_k sin kφ (eq 2-17); columns C0, C1, S1, C2, S2, …
+fn harmonic(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i64, i64, i64) {
+    let c0 = i64::from(v.first().copied().unwrap_or(0));
+    let mut z = c0 << 30; // Q60, exact sums
+    let mut zn = i64::from(d.first().copied().unwrap_or(0)) << 30;
+    let mut d1 = 0i64; // Q30
+    let mut d2 = 0i64; // Q30
+    let pairs = v
+        .get(1..)
+        .unwrap_or(&[])
+        .chunks_exact(2)
+        .zip(d.get(1..).unwrap_or(&[]).chunks_exact(2));
+    for (k, (pv, pd)) in (1u32..).zip(pairs) {
+        let (ck, sk) = (i64::from(pv[0]), i64::from(pv[1]));
+        let (dck, dsk) = (i64::from(pd[0]), i64::from(pd[1]));
+        let sc = sin_cos(phi.times(k));
+        let (s, c) = (i64::from(sc.sin), i64::from(sc.cos));
+        // |C|,|S| < 2^31 and |sin|,|cos| ≤ 2^30: each product < 2^61.
+        let zk = ck * c + sk * s;
+        z = z.saturating_add(zk);
+        zn = zn.saturating_add(dck * c + dsk * s);
+        let kk = i64::from(k);
+        d1 = d1.saturating_add(q60_to_q30(sk * c - ck * s) * kk);
+        d2 = d2.saturating_sub(q60_to_q30(zk) * kk * kk);
+    }
+    (q60_to_q30(z), d1, d2, q60_to_q30(zn))
+}
+
+/// Z = Σ c_j sin^j φ (eq 2-19) by Horner, with P'(s) and P''(s) alongside:
+/// ∂Z/∂φ = P'(s) cos φ, ∂²Z/∂φ² = P''(s) cos²φ − P'(s) sin φ.
+fn sin_power(v: &[i32], d: &[i32], sc: SinCos) -> (i64, i64, i64, i64) {
+    let s = i64::from(sc.sin);
+    let c = i64::from(sc.cos);
+    let (mut p, mut dp, mut ddp, mut pn) = (0i64, 0i64, 0i64, 0i64);
+    for (cj, dj) in v.iter().rev().zip(d.iter().rev()) {
+        ddp = (mul30(ddp, s) + 2 * dp).clamp(-CLAMP, CLAMP);
+        dp = (mul30(dp, s) + p).clamp(-CLAMP, CLAMP);
+        p = (mul30(p, s) + i64::from(*cj)).clamp(-CLAMP, CLAMP);
+        pn = (mul30(pn, s) + i64::from(*dj)).clamp(-CLAMP, CLAMP);
+    }
+    let d1 = mul30(dp, c);
+    let d2 = mul30(mul30(ddp, c), c) - mul30(dp, s);
+    (p, d1, d2, pn)
+}
+
+/// Table 3-1 scaling of the coefficient DACs: ±10 V ↔ ±0.010 in, 16 bits over
+/// 0.020 in (3.2768 LSB/µin), straight binary with 32768 = 0:
+/// `code = 32768 + round(C · 65536 / 0.020 in)`, saturated to 0..=65535.
+/// `c_q30` is in Q30 inches. Ties round up.
+pub fn legacy_dac_code(c_q30: i32) -> u16 {
+    // 65536 / 0.020 = 3_276_800 LSB per inch; |c|·3276800 < 2^53.
+    let v = i64::from(c_q30) * 3_276_800;
+    let code = 32768 + ((v + (1 << 29)) >> 30);
+    code.clamp(0, 65535) as u16
+}
+
+/// The code of a zero coefficient (0 V).
+pub const LEGACY_DAC_ZERO: u16 = 32768;
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::table::{Geometry, TableHeader};
+    use std::vec;
+    use std::vec::Vec;
+
+    fn table(repr: Representation, terms: u8, payload: &[i32], nodes: u32) -> Vec<u8> {
+        let h = TableHeader {
+            representation: repr,
+            terms,
+            coeff_frac_bits: 30,
+            x_frac_bits: 24,
+            node_count: nodes,
+            x0_raw: 0,
+            dx_raw: 1 << 22, // 0.25 in
+            x_null_raw: (nodes as i32 - 2) << 22,
+            geometry: Geometry {
+                c_nin: 316_700_000_000,
+                s_y_nin: 28_000_000_000,
+                tool_radius_nin: 125_000_000,
+            },
+        };
+        let mut out = vec![0u8; h.image_len()];
+        h.encode(payload, &mut out).unwrap();
+        out
+    }
+
+    fn q30(v: f64) -> i32 {
+        (v * 2f64.powi(30)).round() as i32
+    }
+
+    /// Both representations of the same trigonometric polynomial give the
+    /// same Z and derivatives, against closed forms evaluated in f64.
+    #[test]
+    fn harmonic_and_sin_power_agree_with_closed_forms() {
+        // Node n: C0 = -1e-4 n, S1 = 2e-4 n, C2 = 1e-3 n, S3 = -3e-5 n.
+        let nodes = 6u32;
+        let coef = |n: f64| (-1e-4 * n, 2e-4 * n, 1e-3 * n, -3e-5 * n);
+        let mut harm = Vec::new();
+        let mut pow = Vec::new();
+        for n in 0..nodes {
+            let (c0, s1, c2, s3) = coef(f64::from(n));
+            harm.extend([q30(c0), 0, q30(s1), q30(c2), 0, 0, q30(s3)]);
+            pow.extend([
+                q30(c0 + c2),
+                q30(s1 + 3.0 * s3),
+                q30(-2.0 * c2),
+                q30(-4.0 * s3),
+            ]);
+        }
+        let ih = table(Representation::Harmonic, 7, &harm, nodes);
+        let ip = table(Representation::SinPower, 4, &pow, nodes);
+        let gh = CommandGen::new(CoeffTable::parse(&ih).unwrap());
+        let gp = CommandGen::new(CoeffTable::parse(&ip).unwrap());
+        let lsb = 2f64.powi(-30);
+        for xi in 0..40 {
+            let x = XInches::from_f64(f64::from(xi) * 0.0249);
+            let u = x.to_f64() / 0.25;
+            let (c0, s1, c2, s3) = coef(u);
+            for deg in (0..360).step_by(7) {
+                let phi = SpindleAngle::from_degrees(f64::from(deg) + 0.3);
+                let p = phi.to_radians();
+                let z = c0 + s1 * p.sin() + c2 * (2.0 * p).cos() + s3 * (3.0 * p).sin();
+                let dz = s1 * p.cos() - 2.0 * c2 * (2.0 * p).sin() + 3.0 * s3 * (3.0 * p).cos();
+                let ddz = -s1 * p.sin() - 4.0 * c2 * (2.0 * p).cos() - 9.0 * s3 * (3.0 * p).sin();
+                let (a0, a1, a2, a3) = coef(1.0);
+                let dzdx = (a0 + a1 * p.sin() + a2 * (2.0 * p).cos() + a3 * (3.0 * p).sin()) / 0.25;
+                for g in [&gh, &gp] {
+                    let cmd = g.command(x, phi).unwrap();
+                    assert!(
+                        (cmd.z.to_f64() - z).abs() < 12.0 * lsb,
+                        "z at {deg} x={x:?} {} {z}",
+                        cmd.z.to_f64()
+                    );
+                    assert!((cmd.dz_dphi.to_num::<f64>() - dz).abs() < 40.0 * lsb);
+                    assert!((cmd.d2z_dphi2.to_num::<f64>() - ddz).abs() < 80.0 * lsb);
+                    assert!((cmd.dz_dx.to_num::<f64>() - dzdx).abs() < 1e-6);
+                }
+            }
+        }
+    }
+
+    /// The derivatives are those of the command itself: a central difference
+    /// of Z over a small angle matches ∂Z/∂φ.
+    #[test]
+    fn dz_dphi_is_the_slope_of_z() {
+        let nodes = 4u32;
+        let mut harm = Vec::new();
+        for n in 0..nodes as i32 {
+            harm.extend([
+                q30(-3e-4) * n,
+                q30(1e-4),
+                q30(-5e-4) * n,
+                q30(2e-3) * n,
+                q30(1e-5),
+                q30(4e-6),
+                q30(-4e-5) * n,
+            ]);
+        }
+        let img = table(Representation::Harmonic, 7, &harm, nodes);
+        let g = CommandGen::new(CoeffTable::parse(&img).unwrap());
+        let x = XInches::from_f64(0.4);
+        let h = 1u32 << 20; // 1.5e-3 rad
+        let hr = f64::from(h) * core::f64::consts::TAU / 2f64.powi(32);
+        for k in 0..64u32 {
+            let phi = SpindleAngle(k.wrapping_mul(67_108_864 + 12_345));
+            let at = |h: u32| {
+                let zp = g.z(x, phi.wrapping_add(SpindleAngle(h))).unwrap().to_f64();
+                let zm = g
+                    .z(x, SpindleAngle(phi.0.wrapping_sub(h)))
+                    .unwrap()
+                    .to_f64();
+                (zp, zm)
+            };
+            let c = g.command(x, phi).unwrap();
+            let (zp, zm) = at(h);
+            let slope = (zp - zm) / (2.0 * hr);
+            // Curvature needs a wider step: Z's LSB over h² would swamp it.
+            let (zp, zm) = at(h << 4);
+            let curv = (zp + zm - 2.0 * c.z.to_f64()) / (256.0 * hr * hr);
+            assert!(
+                (c.dz_dphi.to_num::<f64>() - slope).abs() < 6e-7,
+                "k={k} {} {slope}",
+                c.dz_dphi
+            );
+            assert!(
+                (c.d2z_dphi2.to_num::<f64>() - curv).abs() < 2e-5,
+                "k={k} {} {curv}",
+                c.d2z_dphi2
+            );
+        }
+    }
+
+    #[test]
+    fn null_zone_and_outside_table() {
+        let nodes = 5u32;
+        let pow: Vec<i32> = (0..nodes as i32 * 4).map(|i| -1000 * i).collect();
+        let img = table(Representation::SinPower, 4, &pow, nodes);
+        let g = CommandGen::new(CoeffTable::parse(&img).unwrap());
+        // x_null = 0.75 in: at the boundary the command is live, beyond it null.
+        let phi = SpindleAngle::from_degrees(90.0);
+        assert_ne!(g.z(XInches::from_f64(0.75), phi).unwrap(), ZInches::ZERO);
+        assert_eq!(
+            g.z(XInches::from_f64(0.7500001), phi).unwrap(),
+            ZInches::ZERO
+        );
+        assert_eq!(
+            g.command(XInches::from_f64(50.0), phi).unwrap(),
+            Command::default()
+        );
+        assert_eq!(
+            g.z(XInches::from_f64(-1e-6), phi),
+            Err(Fault::XOutsideTable)
+        );
+    }
+
+    #[test]
+    fn legacy_codes_follow_table_3_1() {
+        assert_eq!(legacy_dac_code(0), 32768);
+        // +0.010 in is full scale (one LSB past the top code), -0.010 in is code 0.
+        assert_eq!(legacy_dac_code(q30(0.010)), 65535);
+        assert_eq!(legacy_dac_code(q30(-0.010)), 0);
+        // 1 µin = 3.2768 LSB; C02 at X = 7.2 in (Table 2-2) = -0.0048855 in.
+        assert_eq!(legacy_dac_code(q30(1e-6)), 32771);
+        assert_eq!(legacy_dac_code(q30(-0.0048855)), 32768 - 16009);
+    }
+
+    mod prop {
+        use super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            /// No overflow or panic anywhere in X and φ, for any coefficient
+            /// values the format can hold, in both representations; and
+            /// with coefficients of machine size (|c| ≤ 0.02 in) Z stays
+            /// within Σ|c| (no wrap-around).
+            #[test]
+            fn no_overflow_over_x_and_phi(
+                vals in proptest::collection::vec(any::<i32>(), 28),
+                small in proptest::collection::vec(-21_474_836i32..21_474_836, 28),
+                harmonic in any::<bool>(),
+                xbits in any::<i32>(), phi in any::<u32>(),
+            ) {
+                let (repr, terms) = if harmonic { (Representation::Harmonic, 7u8) } else { (Representation::SinPower, 7u8) };
+                for payload in [&vals, &small] {
+                    let img = table(repr, terms, payload, 4);
+                    let g = CommandGen::new(CoeffTable::parse(&img).unwrap());
+                    let r = g.command(XInches::from_bits(xbits), SpindleAngle(phi));
+                    if payload == &small {
+                        if let Ok(c) = r {
+                            let bound: f64 = small.iter().map(|v| f64::from(*v).abs()).sum::<f64>() * 2f64.powi(-30);
+                            prop_assert!(c.z.to_f64().abs() <= bound + 1e-8);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
