@@ -1,2 +1,5 @@
 //! Host simulator of the Z-slide machine.
 pub mod cmd;
+pub mod coeffgen;
+pub mod geometry;
+pub mod surface;

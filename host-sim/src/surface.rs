@@ -1,0 +1,569 @@
+//! The exact surface: the Z-slide motion of eq 2-1..2-15 with the tool-centre
+//! compensation of FOREX4 (appendix B-1), the reference every approximation of
+//! the command (series, interpolation, fixed point) is measured against.
+//!
+//! # Definitions (all lengths in inches)
+//!
+//! Paraboloid `x1² + y1² = c·z1` (eq 2-1 with `c = 4p`), sector centred
+//! `S_y` off axis, tool-nose radius `r_t`. With `sin θ = 2S_y/√(c²+4S_y²)`
+//! (eq 2-3) and `R0 = S_y/sin θ = √(c²+4S_y²)/2`:
+//!
+//! * `Y_t(x, φ)` is eq 2-9 at *contact* radius `x` (φ of eq 2-5,
+//!   `x3 = R cos φ`, `y3 = R sin φ`);
+//! * `Y(x) = R0·(1 − √(1 − (x/R0)²))` is the corrected eq 2-14 (the printed
+//!   one lost the leading `1 −`): the ridge `max_φ Y_t(x, φ)` of eq 2-11/2-13,
+//!   which is a circle of radius `R0` about `(0, R0)`;
+//! * `Z(x, φ) = Y_t(x, φ) − Y(x)` (eq 2-15), so `max_φ Z = 0`, `Z ≤ 0`.
+//!
+//! # What "the command at tool-centre X" means
+//!
+//! The X slide carries the tool *centre*; the interferometer reads its radius
+//! `X`. FOREX4 offsets the contact point along the normal of the ridge circle
+//! `Y(x)`: the tool centre of contact point `x1` is at radius
+//! `X = x1 − r_t·sin α(x1)`, `tan α = x1/(R0 − Y(x1))`, axial
+//! `Y(x1) + r_t·cos α`. The Z-slide command when the tool centre is at `X` is
+//! therefore **`Z(x1(X), φ)`**, the surface's Z at the contact radius whose
+//! tool centre is at `X`; the axial (Y) slide follows the smooth
+//! `Y(x1) + r_t cos α`. This is exactly what Table 2-2 tabulates (it matches
+//! to the last printed digit) and what [`Surface::z`] returns.
+//!
+//! FOREX4 stops the `x1` iteration after three passes; [`Surface::contact_radius`]
+//! iterates to convergence (the map contracts by `r_t/R0 ≈ 8e-4` per pass, so
+//! it takes about five). Because the ridge is a circle, `sin α = x1/R0`
+//! exactly and the fixed point is `x1 = X·R0/(R0 − r_t)`; the tests check the
+//! iteration against that closed form, and the derivative `dx1/dX` uses it.
+//!
+//! The compensation uses the ridge normal, not the φ-dependent normal of the
+//! surface itself; the difference is second order in the Z slope
+//! (`r_t·(∂Z/∂X)²/2`, a fraction of a microinch at the rim) and is part of
+//! the FOREX4 surface definition this module reproduces.
+//!
+//! # Numerics
+//!
+//! `Z` is a difference of quantities of order `x²/(2R0)` ≈ 0.2 in, and eq 2-9
+//! as printed subtracts numbers of order `S_y/sin³θ` ≈ 5300 in (FOREX4's `FUN`
+//! loses ~1e-12 in to rounding there). Every function here is written in a
+//! cancellation-free form (`1 − √(1+u) = −u/(1+√(1+u))`), so the absolute
+//! rounding error of `Z` is ~1e-17 in.
+
+use std::fmt;
+
+/// c of the dissertation's FOREX4 (the text's focal length 79.15 in gives
+/// c = 316.6; 316.7 is what reproduces Table 2-2).
+pub const DISSERTATION_C_IN: f64 = 316.7;
+/// Off-axis distance of the sector centre.
+pub const DISSERTATION_SY_IN: f64 = 28.0;
+/// Tool-nose radius.
+pub const DISSERTATION_TOOL_RADIUS_IN: f64 = 0.125;
+
+/// A geometry that cannot describe a surface, naming the field and its limit.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SurfaceError {
+    /// A size that must be a positive finite number is not.
+    NotPositive { field: &'static str, value: f64 },
+    /// A size that may be zero is negative or not finite.
+    Negative { field: &'static str, value: f64 },
+    /// The tool radius is not small against the ridge radius `R0`.
+    ToolTooLarge {
+        field: &'static str,
+        value: f64,
+        limit: f64,
+    },
+    /// An X outside the range where eq 2-15 has its two equal maxima per turn
+    /// (eq 2-11), i.e. where `Z ≤ 0` with `max Z = 0`.
+    XOutOfDomain {
+        field: &'static str,
+        value: f64,
+        limit: f64,
+    },
+    /// The contact-radius iteration did not converge (cannot happen for a
+    /// geometry that passed validation; reported rather than looping).
+    NoConvergence { x: f64 },
+}
+
+impl fmt::Display for SurfaceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NotPositive { field, value } => {
+                write!(f, "{field} = {value}: must be a finite number > 0")
+            }
+            Self::Negative { field, value } => {
+                write!(f, "{field} = {value}: must be a finite number >= 0")
+            }
+            Self::ToolTooLarge { field, value, limit } => write!(
+                f,
+                "{field} = {value} in: must be below {limit:.6} in (a tenth of the ridge radius R0 = S_y/sin θ)"
+            ),
+            Self::XOutOfDomain { field, value, limit } => write!(
+                f,
+                "{field} = {value} in: the surface (eq 2-15 with its maxima of eq 2-11) is defined for 0 <= X <= {limit:.6} in at this geometry"
+            ),
+            Self::NoConvergence { x } => {
+                write!(f, "contact-radius iteration did not converge at X = {x} in")
+            }
+        }
+    }
+}
+
+impl std::error::Error for SurfaceError {}
+
+/// The off-axis paraboloid sector and tool, with the derived constants of
+/// FOREX4. Construct with [`Surface::new`] (validated).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    c: f64,
+    s_y: f64,
+    r_t: f64,
+    sin_t: f64,
+    cos_t: f64,
+    /// `cot θ = c/(2 S_y)`, FOREX4's `A3`.
+    cot_t: f64,
+    /// Ridge radius `R0 = S_y/sin θ = c/(2 cos θ)`.
+    r0: f64,
+    /// FOREX4's `A1 = 2 sin²θ cos θ / S_y`.
+    a1: f64,
+    /// FOREX4's `A2 = sin⁴θ / S_y²`.
+    a2: f64,
+    /// Largest tool-centre X of the domain (see [`Surface::x_limit`]).
+    x_limit: f64,
+}
+
+/// The surface at one tool-centre X: contact radius solved once, then any φ.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Section {
+    surf: Surface,
+    /// Tool-centre radius.
+    pub x: f64,
+    /// Contact radius `x1` whose tool centre is at `x`.
+    pub x1: f64,
+    /// Ridge height `Y(x1)` (corrected eq 2-14).
+    pub y: f64,
+    /// Passes of the FOREX4 iteration needed to converge.
+    pub iterations: u32,
+}
+
+impl Surface {
+    /// Validates and builds. `c` is the paraboloid parameter (`x²+y² = c·z`,
+    /// `c = 4 × focal length`).
+    pub fn new(c: f64, s_y: f64, tool_radius: f64) -> Result<Self, SurfaceError> {
+        positive("surface.c_in", c)?;
+        positive("surface.s_y_in", s_y)?;
+        if !(tool_radius.is_finite() && tool_radius >= 0.0) {
+            return Err(SurfaceError::Negative {
+                field: "surface.tool_radius_in",
+                value: tool_radius,
+            });
+        }
+        let d = c.hypot(2.0 * s_y);
+        let sin_t = 2.0 * s_y / d;
+        let cos_t = c / d;
+        let r0 = 0.5 * d;
+        if tool_radius >= 0.1 * r0 {
+            return Err(SurfaceError::ToolTooLarge {
+                field: "surface.tool_radius_in",
+                value: tool_radius,
+                limit: 0.1 * r0,
+            });
+        }
+        let mut s = Self {
+            c,
+            s_y,
+            r_t: tool_radius,
+            sin_t,
+            cos_t,
+            cot_t: c / (2.0 * s_y),
+            r0,
+            a1: 2.0 * sin_t * sin_t * cos_t / s_y,
+            a2: (sin_t * sin_t / s_y).powi(2),
+            x_limit: 0.0,
+        };
+        s.x_limit = s.domain_limit();
+        Ok(s)
+    }
+
+    /// The dissertation's part: c = 316.7 in, S_y = 28 in, r_t = 0.125 in.
+    pub fn dissertation() -> Self {
+        Self::new(
+            DISSERTATION_C_IN,
+            DISSERTATION_SY_IN,
+            DISSERTATION_TOOL_RADIUS_IN,
+        )
+        .unwrap_or_else(|_| unreachable!("the dissertation geometry is valid"))
+    }
+
+    /// Same surface, another tool radius.
+    pub fn with_tool_radius(&self, tool_radius: f64) -> Result<Self, SurfaceError> {
+        Self::new(self.c, self.s_y, tool_radius)
+    }
+
+    pub fn c(&self) -> f64 {
+        self.c
+    }
+    pub fn s_y(&self) -> f64 {
+        self.s_y
+    }
+    pub fn tool_radius(&self) -> f64 {
+        self.r_t
+    }
+    pub fn sin_theta(&self) -> f64 {
+        self.sin_t
+    }
+    pub fn cos_theta(&self) -> f64 {
+        self.cos_t
+    }
+    /// Ridge radius `R0 = S_y/sin θ`.
+    pub fn r0(&self) -> f64 {
+        self.r0
+    }
+
+    /// Largest tool-centre X for which the surface is defined in the sense of
+    /// eq 2-11..2-15: the two maxima per turn exist (`|sin φ_max| ≤ 1`), so
+    /// that `Y(X)` is the ridge and `Z ≤ 0`. About 56 in for the dissertation's
+    /// part, far outside its 8 in sector.
+    pub fn x_limit(&self) -> f64 {
+        self.x_limit
+    }
+
+    fn domain_limit(&self) -> f64 {
+        // Contact-radius limit from |eq 2-11 argument| = 1, found by
+        // bisection on x1 in (0, R0); the argument grows monotonically.
+        let arg = |x1: f64| self.sin_phi_max(x1).abs();
+        let (mut lo, mut hi) = (0.0, self.r0 * (1.0 - 1e-12));
+        if arg(hi) <= 1.0 {
+            lo = hi;
+        } else {
+            for _ in 0..200 {
+                let mid = 0.5 * (lo + hi);
+                if arg(mid) <= 1.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+        }
+        // Tool-centre X of that contact radius (closed form, see module doc).
+        lo * (1.0 - self.r_t / self.r0)
+    }
+
+    /// `sin φ` at the maxima of `Y_t` at contact radius `x1` (eq 2-11).
+    pub fn sin_phi_max(&self, x1: f64) -> f64 {
+        if x1 == 0.0 {
+            return 0.0;
+        }
+        let w = (x1 / self.r0).powi(2);
+        // 1 − √(1−w) without cancellation.
+        let one_minus = w / (1.0 + (1.0 - w).sqrt());
+        -(self.c / (2.0 * x1 * self.sin_t)) * one_minus
+    }
+
+    /// Ridge `Y(x1) = max_φ Y_t(x1, φ)`: the corrected eq 2-14.
+    pub fn ridge(&self, x1: f64) -> f64 {
+        let w = (x1 / self.r0).powi(2);
+        self.r0 * w / (1.0 + (1.0 - w).sqrt())
+    }
+
+    /// `dY/dx1` of the ridge.
+    pub fn ridge_slope(&self, x1: f64) -> f64 {
+        let v = x1 / self.r0;
+        v / (1.0 - v * v).sqrt()
+    }
+
+    /// `Y_t(x1, φ)` of eq 2-9 at contact radius `x1`, given `s = sin φ` and
+    /// `cc = cos² φ` (passed separately so neither is formed as `1 − other`).
+    pub fn yt_sc(&self, x1: f64, s: f64, cc: f64) -> f64 {
+        let u = self.a1 * x1 * s - self.a2 * x1 * x1 * cc;
+        let q1 = 1.0 + (1.0 + u).sqrt();
+        // A(1 − √(1+u)) + cot θ·x·s with A·A1 = 2 cot θ, A·A2 = 1/R0.
+        self.cot_t * x1 * s * u / (q1 * q1) + x1 * x1 * cc / (self.r0 * q1)
+    }
+
+    /// Eq 2-15 at contact radius `x1` (no tool compensation).
+    pub fn z_contact(&self, x1: f64, phi: f64) -> f64 {
+        let (s, c) = phi.sin_cos();
+        self.yt_sc(x1, s, c * c) - self.ridge(x1)
+    }
+
+    /// Contact radius `x1` whose tool centre is at `x` (FOREX4's iteration,
+    /// run to convergence). Returns `(x1, passes)`.
+    pub fn contact_radius(&self, x: f64) -> Result<(f64, u32), SurfaceError> {
+        if !(x.is_finite() && (0.0..=self.x_limit).contains(&x)) {
+            return Err(SurfaceError::XOutOfDomain {
+                field: "x",
+                value: x,
+                limit: self.x_limit,
+            });
+        }
+        let mut x1 = x;
+        for pass in 1..=64 {
+            // α of FOREX4: tan α = x1 / (R0 − Y(x1)).
+            let alpha = (x1 / (self.r0 - self.ridge(x1))).atan();
+            let xtc = x1 - self.r_t * alpha.sin();
+            let next = x + (x1 - xtc);
+            if (next - x1).abs() <= 2.0 * f64::EPSILON * next.abs().max(f64::MIN_POSITIVE) {
+                return Ok((next, pass));
+            }
+            x1 = next;
+        }
+        Err(SurfaceError::NoConvergence { x })
+    }
+
+    /// `dx1/dX`: constant, because the ridge is a circle (module doc).
+    pub fn contact_gain(&self) -> f64 {
+        self.r0 / (self.r0 - self.r_t)
+    }
+
+    /// The surface at tool-centre radius `x`.
+    pub fn section(&self, x: f64) -> Result<Section, SurfaceError> {
+        let (x1, iterations) = self.contact_radius(x)?;
+        Ok(Section {
+            surf: *self,
+            x,
+            x1,
+            y: self.ridge(x1),
+            iterations,
+        })
+    }
+
+    /// The Z-slide command at tool-centre radius `x` and spindle angle `phi`
+    /// (radians): `Z(x1(x), φ)`, inches, ≤ 0. Panics never; an X outside the
+    /// domain is an error.
+    pub fn z(&self, x: f64, phi: f64) -> Result<f64, SurfaceError> {
+        Ok(self.section(x)?.z(phi))
+    }
+}
+
+impl Section {
+    pub fn surface(&self) -> &Surface {
+        &self.surf
+    }
+
+    /// `Z` as a function of `s = sin φ` alone (eq 2-15 depends on φ only
+    /// through `sin φ` and `cos² φ = (1−s)(1+s)`).
+    pub fn z_of_sin(&self, s: f64) -> f64 {
+        self.surf.yt_sc(self.x1, s, (1.0 - s) * (1.0 + s)) - self.y
+    }
+
+    /// `Z(X, φ)`, inches.
+    pub fn z(&self, phi: f64) -> f64 {
+        let (s, c) = phi.sin_cos();
+        self.surf.yt_sc(self.x1, s, c * c) - self.y
+    }
+
+    /// `∂Z/∂φ` at this X, inches per radian (exact, cancellation-free).
+    pub fn dz_dphi(&self, phi: f64) -> f64 {
+        let p = &self.surf;
+        let x = self.x1;
+        let (s, c) = phi.sin_cos();
+        let cc = c * c;
+        let u = p.a1 * x * s - p.a2 * x * x * cc;
+        let q = (1.0 + u).sqrt();
+        // dY_t/dφ = x cos φ [cot θ·u/(1+q) − x s/R0]/q, the bracket rewritten
+        // with cot θ·A1 = 2cos²θ/R0 so that nothing cancels.
+        let bracket = -(x * s / p.r0) * (2.0 * p.sin_t * p.sin_t + u / (1.0 + q)) / (1.0 + q)
+            - p.cot_t * p.a2 * x * x * cc / (1.0 + q);
+        x * c * bracket / q
+    }
+
+    /// `∂Z/∂X` at this tool-centre X (through the contact radius), inches per
+    /// inch.
+    pub fn dz_dx(&self, phi: f64) -> f64 {
+        let p = &self.surf;
+        let x = self.x1;
+        let (s, c) = phi.sin_cos();
+        let cc = c * c;
+        let u = p.a1 * x * s - p.a2 * x * x * cc;
+        let q = (1.0 + u).sqrt();
+        let dyt = p.cot_t * s * u / (q * (1.0 + q)) + x * cc / (p.r0 * q);
+        (dyt - p.ridge_slope(x)) * p.contact_gain()
+    }
+
+    /// Axial position of the tool centre that the Y slide follows:
+    /// `Y(x1) + r_t cos α` (FOREX4's `YTC`).
+    pub fn tool_centre_axial(&self) -> f64 {
+        let p = &self.surf;
+        let sin_a = self.x1 / p.r0;
+        self.y + p.r_t * ((1.0 - sin_a) * (1.0 + sin_a)).sqrt()
+    }
+}
+
+fn positive(field: &'static str, v: f64) -> Result<(), SurfaceError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(SurfaceError::NotPositive { field, value: v })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    /// Independent route to Y_t, from eq 2-1..2-3 directly: the point
+    /// (x3, y3, z3) of the rotated frame lies on x1² + y1² = c z1; solve the
+    /// quadratic in z3 for the root near the sector (stable form).
+    fn yt_from_paraboloid(c: f64, s_y: f64, x: f64, phi: f64) -> f64 {
+        let th = (2.0 * s_y / c).atan();
+        let (st, ct) = th.sin_cos();
+        let (x3, y3) = (x * phi.cos(), x * phi.sin());
+        let s_z = s_y * s_y / c;
+        // y1 = y3 cosθ − z3 sinθ + S_y, z1 = y3 sinθ + z3 cosθ + S_z.
+        let p = y3 * ct + s_y;
+        let qa = st * st;
+        let qb = -(2.0 * st * p + c * ct);
+        let qc = x3 * x3 + p * p - c * (y3 * st + s_z);
+        // Small root: 2 qc / (−qb + √(qb² − 4 qa qc)).
+        2.0 * qc / (-qb + (qb * qb - 4.0 * qa * qc).sqrt())
+    }
+
+    #[test]
+    fn yt_agrees_with_the_paraboloid_itself() {
+        let s = Surface::dissertation();
+        for &x in &[0.0, 0.3, 1.0, 4.0, 7.25, 8.0] {
+            for i in 0..36 {
+                let phi = i as f64 * PI / 18.0;
+                let (sp, cp) = phi.sin_cos();
+                let a = s.yt_sc(x, sp, cp * cp);
+                let b = yt_from_paraboloid(316.7, 28.0, x, phi);
+                // The quadratic route rounds at ~1e-14 of its ~30 in terms.
+                assert!((a - b).abs() < 1e-12, "x={x} phi={phi}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn forex4_fun_form_agrees_away_from_its_rounding() {
+        // FOREX4's FUN with its A, A1, A2, A3 literally (loses ~1e-12 in).
+        let (c, sy) = (316.7f64, 28.0f64);
+        let sth = 2.0 * sy / (c * c + 4.0 * sy * sy).sqrt();
+        let cth = c / (c * c + 4.0 * sy * sy).sqrt();
+        let a = c / (2.0 * cth * sth * sth);
+        let a1 = 2.0 * cth / (a * sth);
+        let a2 = 2.0 * cth / (a * c);
+        let a3 = c / (2.0 * sy);
+        let s = Surface::dissertation();
+        for &x1 in &[0.5, 3.0, 8.0] {
+            let y = (c / (2.0 * cth)) * (1.0 - (1.0 - (x1 * sth / sy).powi(2)).sqrt());
+            for i in 0..24 {
+                let phi = i as f64 * PI / 12.0;
+                let sph = phi.sin();
+                let fun = a
+                    * (1.0
+                        - (1.0 + a1 * x1 * sph + a2 * x1 * x1 * sph * sph - a2 * x1 * x1).sqrt())
+                    + a3 * x1 * sph
+                    - y;
+                assert!((fun - s.z_contact(x1, phi)).abs() < 1e-10);
+            }
+        }
+    }
+
+    #[test]
+    fn corrected_ridge_is_the_maximum_and_zero_at_the_axis() {
+        let s = Surface::dissertation();
+        assert_eq!(s.z(0.0, 1.0).unwrap(), 0.0);
+        for &x in &[0.1, 1.0, 4.0, 8.0] {
+            let sec = s.section(x).unwrap();
+            // Max over φ by dense sampling, refined with golden section near
+            // the best sample, must be 0 (the corrected eq 2-14), never > 0.
+            let n = 4096;
+            let (mut best, mut at) = (f64::MIN, 0.0);
+            for i in 0..n {
+                let phi = 2.0 * PI * i as f64 / n as f64;
+                let z = sec.z(phi);
+                assert!(z <= 1e-16, "Z > 0 at x={x} phi={phi}: {z}");
+                if z > best {
+                    best = z;
+                    at = phi;
+                }
+            }
+            let h = 2.0 * PI / n as f64;
+            let (mut lo, mut hi) = (at - h, at + h);
+            for _ in 0..100 {
+                let m1 = lo + 0.381966 * (hi - lo);
+                let m2 = hi - 0.381966 * (hi - lo);
+                if sec.z(m1) < sec.z(m2) {
+                    lo = m1
+                } else {
+                    hi = m2
+                }
+            }
+            let zmax = sec.z(0.5 * (lo + hi));
+            assert!(zmax.abs() < 1e-15, "max Z at x={x} is {zmax}");
+            // ... and sits at the eq 2-11 angle.
+            let sm = s.sin_phi_max(sec.x1);
+            assert!(sec.z(sm.asin()).abs() < 1e-16);
+        }
+    }
+
+    #[test]
+    fn iteration_converges_to_the_closed_form() {
+        let s = Surface::dissertation();
+        for &x in &[0.0, 0.1, 2.5, 7.2, 8.0, 20.0] {
+            let (x1, passes) = s.contact_radius(x).unwrap();
+            let closed = x * s.r0() / (s.r0() - 0.125);
+            assert!((x1 - closed).abs() <= 4.0 * f64::EPSILON * closed.max(1.0));
+            assert!(passes <= 8, "{passes} passes at x={x}");
+            // Tool centre of the contact point is back at x.
+            let alpha = (x1 / (s.r0() - s.ridge(x1))).atan();
+            assert!((x1 - 0.125 * alpha.sin() - x).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn small_x_closed_form() {
+        // Leading order of eq 2-15: Z ≈ −x² sin²φ sin³θ/(2 S_y).
+        let s = Surface::dissertation().with_tool_radius(0.0).unwrap();
+        let k = s.sin_theta().powi(3) / (2.0 * 28.0);
+        for &x in &[1e-3, 1e-2] {
+            for i in 0..12 {
+                let phi = i as f64 * PI / 6.0 + 0.1;
+                let z = s.z(x, phi).unwrap();
+                let lead = -x * x * phi.sin().powi(2) * k;
+                assert!((z - lead).abs() < 1e-3 * x * x * k, "x={x}");
+            }
+        }
+    }
+
+    #[test]
+    fn derivatives_match_finite_differences() {
+        let s = Surface::dissertation();
+        for &x in &[0.5, 3.0, 7.2] {
+            let sec = s.section(x).unwrap();
+            for i in 0..16 {
+                let phi = i as f64 * PI / 8.0 + 0.05;
+                let h = 1e-4;
+                let fd = (sec.z(phi + h) - sec.z(phi - h)) / (2.0 * h);
+                assert!((fd - sec.dz_dphi(phi)).abs() < 1e-10);
+                let hx = 1e-4;
+                let fdx = (s.z(x + hx, phi).unwrap() - s.z(x - hx, phi).unwrap()) / (2.0 * hx);
+                assert!((fdx - sec.dz_dx(phi)).abs() < 1e-10);
+            }
+        }
+    }
+
+    #[test]
+    fn invalid_geometry_names_the_field() {
+        for (c, sy, rt, field) in [
+            (0.0, 28.0, 0.1, "surface.c_in"),
+            (-1.0, 28.0, 0.1, "surface.c_in"),
+            (f64::NAN, 28.0, 0.1, "surface.c_in"),
+            (316.7, 0.0, 0.1, "surface.s_y_in"),
+            (316.7, f64::INFINITY, 0.1, "surface.s_y_in"),
+            (316.7, 28.0, -0.1, "surface.tool_radius_in"),
+            (316.7, 28.0, f64::NAN, "surface.tool_radius_in"),
+            (316.7, 28.0, 50.0, "surface.tool_radius_in"),
+        ] {
+            let e = Surface::new(c, sy, rt).unwrap_err();
+            assert!(e.to_string().starts_with(field), "{e}");
+        }
+        let s = Surface::dissertation();
+        assert!(s.x_limit() > 50.0 && s.x_limit() < 60.0, "{}", s.x_limit());
+        let e = s.z(s.x_limit() + 0.01, 0.0).unwrap_err();
+        assert!(matches!(e, SurfaceError::XOutOfDomain { .. }));
+        assert!(s.z(-0.1, 0.0).is_err());
+        assert!(s.z(f64::NAN, 0.0).is_err());
+        // At the limit the maximum of eq 2-11 sits at φ = −90°.
+        let x1 = s.contact_radius(s.x_limit()).unwrap().0;
+        assert!((s.sin_phi_max(x1) + 1.0).abs() < 1e-9);
+    }
+}
