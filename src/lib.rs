@@ -17,3 +17,4 @@ pub mod units;
 pub mod trig;
 pub mod interp;
 pub mod command;
+pub mod xpos;
