@@ -18,3 +18,4 @@ pub mod trig;
 pub mod interp;
 pub mod command;
 pub mod xpos;
+pub mod spindle;
