@@ -19,3 +19,4 @@ pub mod interp;
 pub mod command;
 pub mod xpos;
 pub mod spindle;
+pub mod drivers;
