@@ -655,6 +655,10 @@ pub const CANDIDATE_STEPS: &[f64] = &[
     0.25, 0.2, 0.125, 0.1, 0.0625, 0.05, 0.04, 0.03125, 0.025, 0.02, 0.015625, 0.0125, 0.01,
 ];
 
+/// Binary-fraction steps only: with them the firmware finds the node and
+/// the interpolation fraction of a binary X by a shift, not a division.
+pub const BINARY_STEPS: &[f64] = &[0.25, 0.125, 0.0625, 0.03125, 0.015625, 0.0078125];
+
 /// One candidate the picker measured.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct PickResult {
@@ -668,10 +672,13 @@ pub struct PickResult {
 /// Picks the smallest table (bytes) of `base`'s representation and formats
 /// whose total error over `[x_lo, x_hi]`, plus `firmware_allowance_uin` for
 /// the firmware's own arithmetic, is within `bound_uin`. Tries the steps of
-/// [`CANDIDATE_STEPS`] that divide the range and terms up to `max_terms`.
-/// Returns `None` if nothing meets the bound.
+/// `steps` (e.g. [`CANDIDATE_STEPS`] or [`BINARY_STEPS`]) that divide the
+/// range, and terms up to `max_terms`. Returns `None` if nothing meets the
+/// bound.
+#[allow(clippy::too_many_arguments)]
 pub fn pick(
     base: &TableSpec,
+    steps: &[f64],
     bound_uin: f64,
     firmware_allowance_uin: f64,
     x_lo: f64,
@@ -679,17 +686,14 @@ pub fn pick(
     max_terms: usize,
     sampling: Sampling,
 ) -> Result<Option<PickResult>, SpecError> {
-    // Truncation depends on terms only: find the fewest terms that leave
-    // room for interpolation, measured on the finest candidate grid.
+    // For each term count, grids from coarse to fine: the first that meets
+    // the budget is the smallest table with those terms. Truncation does not
+    // depend on the grid, so a term count whose truncation alone exceeds the
+    // budget is abandoned at once.
     let budget = bound_uin - firmware_allowance_uin;
     let mut best: Option<PickResult> = None;
-    let min_terms = if base.representation == Representation::SinPower {
-        1
-    } else {
-        0
-    };
-    for terms in min_terms.max(1)..=max_terms {
-        for &step in CANDIDATE_STEPS {
+    for terms in 1..=max_terms {
+        for &step in steps {
             let spec = TableSpec {
                 step,
                 terms,

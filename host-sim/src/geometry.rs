@@ -8,6 +8,7 @@
 //! c_in = 316.7            # or focal_length_in = 79.175 (c = 4 f); not both
 //! s_y_in = 28.0
 //! tool_radius_in = 0.125
+//! compensation = "forex4" # or "profile-normal" (docs/COEFFICIENTS.md)
 //!
 //! [grid]
 //! x_min_in = 0.0
@@ -25,7 +26,7 @@
 //! ```
 
 use crate::coeffgen::{SpecError, TableSpec};
-use crate::surface::{self, Surface};
+use crate::surface::{self, Compensation, Surface};
 use serde::Deserialize;
 use zslide::table::Representation;
 
@@ -49,6 +50,7 @@ pub struct SurfaceCfg {
     pub focal_length_in: Option<f64>,
     pub s_y_in: Option<f64>,
     pub tool_radius_in: Option<f64>,
+    pub compensation: Option<Compensation>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -118,7 +120,8 @@ impl Config {
             self.surface
                 .tool_radius_in
                 .unwrap_or(surface::DISSERTATION_TOOL_RADIUS_IN),
-        )?;
+        )?
+        .with_compensation(self.surface.compensation.unwrap_or_default());
         let spec = TableSpec {
             surface: s,
             x_min: self.grid.x_min_in.unwrap_or(d.x_min),
@@ -158,6 +161,12 @@ mod tests {
             .to_spec()
             .unwrap();
         assert!((f.surface.c() - 316.7).abs() < 1e-12);
+        let p = Config::from_toml("[surface]\ncompensation = \"profile-normal\"\n")
+            .unwrap()
+            .to_spec()
+            .unwrap();
+        assert_eq!(p.surface.compensation(), Compensation::ProfileNormal);
+        assert!(Config::from_toml("[surface]\ncompensation = \"exact\"\n").is_err());
     }
 
     #[test]

@@ -33,10 +33,16 @@
 //! exactly and the fixed point is `x1 = X·R0/(R0 − r_t)`; the tests check the
 //! iteration against that closed form, and the derivative `dx1/dX` uses it.
 //!
-//! The compensation uses the ridge normal, not the φ-dependent normal of the
-//! surface itself; the difference is second order in the Z slope
-//! (`r_t·(∂Z/∂X)²/2`, a fraction of a microinch at the rim) and is part of
-//! the FOREX4 surface definition this module reproduces.
+//! FOREX4 offsets along the ridge normal, not along the normal of the
+//! surface's own meridional profile `Y_t(·, φ)`. For a nose arc in the
+//! meridional plane (tool on centre height) the cut profile at φ is the
+//! envelope of the arcs at successive X, so the profile normal is the exact
+//! one. The two differ by `r_t·ε²/2`, ε the angle between the normals (≈ the
+//! Z slope ∂Z/∂X): 0.05 µin at 4 in, 0.22 µin at 7.2 in, 0.30 µin at 8 in,
+//! always with the profile-normal command higher. [`Compensation`] selects the
+//! model; the default, and the reference of every accuracy figure, is
+//! FOREX4's (Table 2-2 is built on it, and the table header has no field
+//! that would tell a reader which model a table was made for).
 //!
 //! # Numerics
 //!
@@ -126,6 +132,22 @@ pub struct Surface {
     a2: f64,
     /// Largest tool-centre X of the domain (see [`Surface::x_limit`]).
     x_limit: f64,
+    comp: Compensation,
+}
+
+/// How the tool-nose radius is compensated (module doc, "What the command
+/// at tool-centre X means").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Compensation {
+    /// FOREX4: offset along the normal of the ridge circle `Y(x)`, one
+    /// contact radius per X for all φ. Reproduces Table 2-2; the default.
+    #[default]
+    Forex4,
+    /// Offset along the normal of the surface's own meridional profile
+    /// `Y_t(·, φ)`: the exact envelope of a nose arc lying in the meridional
+    /// plane. Differs from FOREX4 by `r_t·ε²/2` (≤ 0.22 µin to 7.2 in).
+    ProfileNormal,
 }
 
 /// The surface at one tool-centre X: contact radius solved once, then any φ.
@@ -176,6 +198,7 @@ impl Surface {
             a1: 2.0 * sin_t * sin_t * cos_t / s_y,
             a2: (sin_t * sin_t / s_y).powi(2),
             x_limit: 0.0,
+            comp: Compensation::Forex4,
         };
         s.x_limit = s.domain_limit();
         Ok(s)
@@ -191,9 +214,31 @@ impl Surface {
         .unwrap_or_else(|_| unreachable!("the dissertation geometry is valid"))
     }
 
+    /// The surface a table image was generated for (its header's geometry,
+    /// nano-inches), with FOREX4's compensation: the reference to check a
+    /// table or the firmware's command path against.
+    pub fn from_table_geometry(g: &zslide::table::Geometry) -> Result<Self, SurfaceError> {
+        // Division, not multiplication by 1e-9: 316_700_000_000 / 1e9 is the
+        // double nearest 316.7, as in the TOML the table came from.
+        Self::new(
+            g.c_nin as f64 / 1e9,
+            g.s_y_nin as f64 / 1e9,
+            g.tool_radius_nin as f64 / 1e9,
+        )
+    }
+
     /// Same surface, another tool radius.
     pub fn with_tool_radius(&self, tool_radius: f64) -> Result<Self, SurfaceError> {
-        Self::new(self.c, self.s_y, tool_radius)
+        Ok(Self::new(self.c, self.s_y, tool_radius)?.with_compensation(self.comp))
+    }
+
+    /// Same surface, another tool-compensation model.
+    pub fn with_compensation(&self, comp: Compensation) -> Self {
+        Self { comp, ..*self }
+    }
+
+    pub fn compensation(&self) -> Compensation {
+        self.comp
     }
 
     pub fn c(&self) -> f64 {
@@ -277,6 +322,26 @@ impl Surface {
         self.cot_t * x1 * s * u / (q1 * q1) + x1 * x1 * cc / (self.r0 * q1)
     }
 
+    /// `∂Y_t/∂x` at radius `x`, given `s = sin φ`, `cc = cos²φ`.
+    fn slope_sc(&self, x: f64, s: f64, cc: f64) -> f64 {
+        let u = self.a1 * x * s - self.a2 * x * x * cc;
+        let q = (1.0 + u).sqrt();
+        self.cot_t * s * u / (q * (1.0 + q)) + x * cc / (self.r0 * q)
+    }
+
+    /// `∂Y_t/∂φ` at radius `x`, given `s = sin φ`, `c = cos φ`.
+    fn dyt_dphi(&self, x: f64, s: f64, c: f64) -> f64 {
+        let cc = c * c;
+        let u = self.a1 * x * s - self.a2 * x * x * cc;
+        let q = (1.0 + u).sqrt();
+        // dY_t/dφ = x cos φ [cot θ·u/(1+q) − x s/R0]/q, the bracket rewritten
+        // with cot θ·A1 = 2cos²θ/R0 so that nothing cancels.
+        let bracket = -(x * s / self.r0) * (2.0 * self.sin_t * self.sin_t + u / (1.0 + q))
+            / (1.0 + q)
+            - self.cot_t * self.a2 * x * x * cc / (1.0 + q);
+        x * c * bracket / q
+    }
+
     /// Eq 2-15 at contact radius `x1` (no tool compensation).
     pub fn z_contact(&self, x1: f64, phi: f64) -> f64 {
         let (s, c) = phi.sin_cos();
@@ -338,43 +403,81 @@ impl Section {
     }
 
     /// `Z` as a function of `s = sin φ` alone (eq 2-15 depends on φ only
-    /// through `sin φ` and `cos² φ = (1−s)(1+s)`).
+    /// through `sin φ` and `cos² φ = (1−s)(1+s)`; so does the profile-normal
+    /// compensation).
     pub fn z_of_sin(&self, s: f64) -> f64 {
-        self.surf.yt_sc(self.x1, s, (1.0 - s) * (1.0 + s)) - self.y
+        self.z_sc(s, (1.0 - s) * (1.0 + s))
     }
 
     /// `Z(X, φ)`, inches.
     pub fn z(&self, phi: f64) -> f64 {
         let (s, c) = phi.sin_cos();
-        self.surf.yt_sc(self.x1, s, c * c) - self.y
+        self.z_sc(s, c * c)
     }
 
-    /// `∂Z/∂φ` at this X, inches per radian (exact, cancellation-free).
+    fn z_sc(&self, s: f64, cc: f64) -> f64 {
+        let p = &self.surf;
+        match p.comp {
+            Compensation::Forex4 => p.yt_sc(self.x1, s, cc) - self.y,
+            Compensation::ProfileNormal => {
+                let xc = self.profile_contact(s, cc);
+                let tan_b = p.slope_sc(xc, s, cc);
+                // r_t (cos β − cos α) with cos α = √(1 − (x1/R0)²).
+                let sin_a = self.x1 / p.r0;
+                let cos_a = ((1.0 - sin_a) * (1.0 + sin_a)).sqrt();
+                let cos_b = 1.0 / tan_b.hypot(1.0);
+                (p.yt_sc(xc, s, cc) - self.y) + p.r_t * (cos_b - cos_a)
+            }
+        }
+    }
+
+    /// Contact radius on the profile `Y_t(·, φ)` whose normal-offset tool
+    /// centre is at radius X: `xc − r_t sin β(xc) = X`, `tan β = ∂Y_t/∂x`.
+    /// Fixed point from FOREX4's `x1`; contracts by `r_t·|∂²Y_t/∂x²| ≈ 1e-3`.
+    fn profile_contact(&self, s: f64, cc: f64) -> f64 {
+        let p = &self.surf;
+        let mut xc = self.x1;
+        for _ in 0..64 {
+            let tan_b = p.slope_sc(xc, s, cc);
+            let next = self.x + p.r_t * tan_b / tan_b.hypot(1.0);
+            let done = (next - xc).abs() <= 4.0 * f64::EPSILON * next.abs().max(1.0);
+            xc = next;
+            if done {
+                break;
+            }
+        }
+        xc
+    }
+
+    /// `∂Z/∂φ` at this X, inches per radian (exact, cancellation-free). For
+    /// the profile-normal model the envelope theorem gives `∂Y_t/∂φ` at the
+    /// contact point.
     pub fn dz_dphi(&self, phi: f64) -> f64 {
         let p = &self.surf;
-        let x = self.x1;
         let (s, c) = phi.sin_cos();
-        let cc = c * c;
-        let u = p.a1 * x * s - p.a2 * x * x * cc;
-        let q = (1.0 + u).sqrt();
-        // dY_t/dφ = x cos φ [cot θ·u/(1+q) − x s/R0]/q, the bracket rewritten
-        // with cot θ·A1 = 2cos²θ/R0 so that nothing cancels.
-        let bracket = -(x * s / p.r0) * (2.0 * p.sin_t * p.sin_t + u / (1.0 + q)) / (1.0 + q)
-            - p.cot_t * p.a2 * x * x * cc / (1.0 + q);
-        x * c * bracket / q
+        let x = match p.comp {
+            Compensation::Forex4 => self.x1,
+            Compensation::ProfileNormal => self.profile_contact(s, c * c),
+        };
+        p.dyt_dphi(x, s, c)
     }
 
-    /// `∂Z/∂X` at this tool-centre X (through the contact radius), inches per
-    /// inch.
+    /// `∂Z/∂X` at this tool-centre X, inches per inch: FOREX4,
+    /// `(∂Y_t/∂x1 − Y'(x1))·dx1/dX`; profile-normal (envelope theorem),
+    /// `tan β − tan α`.
     pub fn dz_dx(&self, phi: f64) -> f64 {
         let p = &self.surf;
-        let x = self.x1;
         let (s, c) = phi.sin_cos();
         let cc = c * c;
-        let u = p.a1 * x * s - p.a2 * x * x * cc;
-        let q = (1.0 + u).sqrt();
-        let dyt = p.cot_t * s * u / (q * (1.0 + q)) + x * cc / (p.r0 * q);
-        (dyt - p.ridge_slope(x)) * p.contact_gain()
+        match p.comp {
+            Compensation::Forex4 => {
+                (p.slope_sc(self.x1, s, cc) - p.ridge_slope(self.x1)) * p.contact_gain()
+            }
+            Compensation::ProfileNormal => {
+                let xc = self.profile_contact(s, cc);
+                p.slope_sc(xc, s, cc) - p.ridge_slope(self.x1)
+            }
+        }
     }
 
     /// Axial position of the tool centre that the Y slide follows:
@@ -537,6 +640,65 @@ mod tests {
                 let hx = 1e-4;
                 let fdx = (s.z(x + hx, phi).unwrap() - s.z(x - hx, phi).unwrap()) / (2.0 * hx);
                 assert!((fdx - sec.dz_dx(phi)).abs() < 1e-10);
+            }
+        }
+    }
+
+    #[test]
+    fn profile_normal_compensation_differs_by_second_order() {
+        // Profile-normal vs ridge-normal (FOREX4) compensation: the
+        // difference must be the second-order r_t·ε²/2, ε = β − α the angle
+        // between the normals (β of the profile at x1, α of the ridge).
+        let f4 = Surface::dissertation();
+        let pn = f4.with_compensation(Compensation::ProfileNormal);
+        for &x in &[1.0, 4.0, 7.2, 8.0] {
+            let (a, b) = (f4.section(x).unwrap(), pn.section(x).unwrap());
+            let alpha = (a.x1 / f4.r0()).asin();
+            let mut worst = 0.0f64;
+            for i in 0..360 {
+                let phi = (i as f64).to_radians();
+                let (sp, cp) = phi.sin_cos();
+                let d = b.z(phi) - a.z(phi);
+                let eps = f4.slope_sc(a.x1, sp, cp * cp).atan() - alpha;
+                let est = 0.125 * eps * eps / 2.0;
+                assert!(
+                    (d - est).abs() < 0.05 * est + 1e-13,
+                    "x={x} phi={i}: {d} vs {est}"
+                );
+                worst = worst.max(d.abs());
+                assert!(
+                    (b.z_of_sin(sp) - b.z(phi)).abs() < 1e-15,
+                    "{}",
+                    b.z_of_sin(sp) - b.z(phi)
+                );
+            }
+            eprintln!(
+                "X = {x} in: profile-normal vs FOREX4 compensation max {:.4} µin",
+                worst * 1e6
+            );
+        }
+        // r_t = 0: identical.
+        let s0 = pn.with_tool_radius(0.0).unwrap().section(5.0).unwrap();
+        let f0 = f4.with_tool_radius(0.0).unwrap().section(5.0).unwrap();
+        assert_eq!(s0.z(1.0), f0.z(1.0));
+    }
+
+    #[test]
+    fn profile_normal_derivatives_match_finite_differences() {
+        let s = Surface::dissertation().with_compensation(Compensation::ProfileNormal);
+        for &x in &[0.5, 3.0, 7.2] {
+            let sec = s.section(x).unwrap();
+            for i in 0..16 {
+                let phi = i as f64 * PI / 8.0 + 0.05;
+                let h = 1e-4;
+                let fd = (sec.z(phi + h) - sec.z(phi - h)) / (2.0 * h);
+                assert!((fd - sec.dz_dphi(phi)).abs() < 1e-10);
+                let fdx = (s.z(x + h, phi).unwrap() - s.z(x - h, phi).unwrap()) / (2.0 * h);
+                assert!(
+                    (fdx - sec.dz_dx(phi)).abs() < 1e-10,
+                    "{fdx} vs {}",
+                    sec.dz_dx(phi)
+                );
             }
         }
     }

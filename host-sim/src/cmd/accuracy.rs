@@ -67,19 +67,9 @@ pub fn load_table(path: Option<&PathBuf>) -> anyhow::Result<Vec<u8>> {
     }
 }
 
-/// The firmware's default table image.
+/// The firmware's default table image (`zslide::DEFAULT_TABLE`).
 pub fn default_table() -> anyhow::Result<Vec<u8>> {
-    use crate::coeffgen::{generate, TableSpec};
-    use zslide::table::Representation;
-    // Provisional until the default table lands: harmonic, 0.025 in grid.
-    let spec = TableSpec {
-        representation: Representation::Harmonic,
-        terms: 5,
-        step: 0.025,
-        ..TableSpec::dissertation()
-    };
-    let g = generate(&spec).map_err(|e| anyhow::anyhow!("{e}"))?;
-    g.image().map_err(|e| anyhow::anyhow!("{e:?}"))
+    Ok(zslide::DEFAULT_TABLE.to_vec())
 }
 
 /// The same table in f64: interpolated columns and series in double precision.
@@ -150,12 +140,8 @@ pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<
     let t = CoeffTable::parse(image).map_err(|e| anyhow::anyhow!("table refused: {e:?}"))?;
     let gen = CommandGen::new(t);
     let g = t.header().geometry;
-    let surface = Surface::new(
-        g.c_nin as f64 * 1e-9,
-        g.s_y_nin as f64 * 1e-9,
-        g.tool_radius_nin as f64 * 1e-9,
-    )
-    .map_err(|e| anyhow::anyhow!("table geometry: {e}"))?;
+    let surface =
+        Surface::from_table_geometry(&g).map_err(|e| anyhow::anyhow!("table geometry: {e}"))?;
     let x_max = t.x_null().to_f64();
     let phi = phi.max(8);
     let per = per_interval.max(1);

@@ -35,10 +35,10 @@ pub struct Args {
     #[arg(long)]
     pub fourier: bool,
     /// Tool-centre X for `--fourier`, inches.
-    #[arg(long, requires = "fourier")]
+    #[arg(long, requires = "fourier", allow_hyphen_values = true)]
     pub x: Option<f64>,
     /// Tool-nose radius for `--fourier`, inches (default: the config's).
-    #[arg(long, requires = "fourier")]
+    #[arg(long, requires = "fourier", allow_hyphen_values = true)]
     pub tool_radius: Option<f64>,
     /// Highest harmonic for `--fourier` (default 19, Table 2-1's).
     #[arg(long)]
@@ -55,6 +55,9 @@ pub struct Args {
     /// Pick grid step and terms for this total error bound, µin.
     #[arg(long)]
     pub bound_uin: Option<f64>,
+    /// With `--bound-uin`: try only binary-fraction grid steps (1/4..1/128 in).
+    #[arg(long)]
+    pub binary_grid: bool,
     /// Allowance for the firmware's own arithmetic inside the bound, µin.
     #[arg(long, default_value_t = 0.01)]
     pub firmware_allowance_uin: f64,
@@ -84,7 +87,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .x
             .context("--fourier needs --x X (tool-centre radius, inches)")?;
         let surf = match args.tool_radius {
-            Some(r) => spec.surface.with_tool_radius(r)?,
+            Some(r) => spec
+                .surface
+                .with_tool_radius(r)
+                .with_context(|| format!("--tool-radius {r}"))?,
             None => spec.surface,
         };
         let k_max = args.terms.unwrap_or(19);
@@ -92,7 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (1..=1000).contains(&k_max),
             "--terms = {k_max}: must be 1..=1000 harmonics"
         );
-        let sec = surf.section(x)?;
+        let sec = surf.section(x).with_context(|| format!("--x {x}"))?;
         let h = coeffgen::harmonics(&sec, k_max);
         writeln!(out, "k,c_in,s_in")?;
         for k in 0..=k_max {
@@ -124,8 +130,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Representation::SinPower => 12,
             Representation::Harmonic => 15,
         };
+        let steps = if args.binary_grid {
+            coeffgen::BINARY_STEPS
+        } else {
+            coeffgen::CANDIDATE_STEPS
+        };
         let picked = coeffgen::pick(
             &spec,
+            steps,
             bound,
             args.firmware_allowance_uin,
             x_lo,
