@@ -3,3 +3,4 @@ pub mod cmd;
 pub mod coeffgen;
 pub mod geometry;
 pub mod surface;
+pub mod machine;
