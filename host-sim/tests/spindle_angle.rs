@@ -144,7 +144,7 @@ fn encoder_angle_is_exact_to_a_fraction_of_a_count_at_every_speed() {
             0.6,
             None,
         );
-        assert!(r.worst_deg < 0.05 * COUNT_DEG, "{rpm} rpm: {r:?}");
+        assert!(r.worst_deg < 0.001 * COUNT_DEG, "{rpm} rpm: {r:?}");
         assert_eq!((r.missing, r.extra, r.speed), (0, 0, 0), "{rpm} rpm");
     }
 }
@@ -166,7 +166,8 @@ fn encoder_under_acceleration_sag_and_ripple_stays_within_one_count() {
         0.7,
         Some((0.7, 400.0, 1.0)),
     );
-    assert!(r.worst_deg < COUNT_DEG, "{r:?}");
+    // The 1/T step lags under acceleration, but by far less than a count.
+    assert!(r.worst_deg < 0.01 * COUNT_DEG, "{r:?}");
     assert_eq!((r.missing, r.extra), (0, 0));
 }
 
@@ -245,7 +246,7 @@ fn tach_under_acceleration_and_index_faults() {
         1.5,
         Some((1.5, 400.0, 1.0)),
     );
-    assert!(r.worst_deg < 0.1, "{r:?}");
+    assert!(r.worst_deg < 0.05, "{r:?}");
     assert_eq!((r.missing, r.extra), (0, 0), "{r:?}");
 
     let r = run(
