@@ -41,3 +41,40 @@ fn accuracy_report_meets_the_goal() {
     assert!(r.fixed_point_max_uin <= 0.01, "{r:?}");
     assert!((r.x_max_in - 7.2).abs() < 1e-7);
 }
+
+/// The analytic derivatives for feedforward against the exact surface's:
+/// ∂Z/∂φ within what the 0.1 µin series can carry, ∂Z/∂X within the bound
+/// of a piecewise-linear slope, ΔX/2 · max|∂²Z/∂X²| (mean-value theorem),
+/// with ∂²Z/∂X² taken from the exact surface at the rim.
+#[test]
+fn derivatives_match_the_exact_surface() {
+    let img = default_table().unwrap();
+    let gen = CommandGen::new(CoeffTable::parse(&img).unwrap());
+    let s = Surface::dissertation();
+    let mut rng = ChaCha8Rng::seed_from_u64(215);
+    let (mut wp, mut wx) = (0.0f64, 0.0f64);
+    for _ in 0..5_000 {
+        let x = rng.random_range(0.0..=7.2);
+        let phi = rng.random_range(0.0..360.0);
+        let a = zslide::units::SpindleAngle::from_degrees(phi);
+        let c = gen.command(zslide::units::XInches::from_f64(x), a).unwrap();
+        let sec = s.section(x).unwrap();
+        let r = a.to_radians();
+        wp = wp.max((c.dz_dphi.to_num::<f64>() - sec.dz_dphi(r)).abs());
+        wx = wx.max((c.dz_dx.to_num::<f64>() - sec.dz_dx(r)).abs());
+    }
+    let h = 1e-3;
+    let zxx = (0..360)
+        .map(|d| {
+            let r = f64::from(d).to_radians();
+            let z = |x: f64| s.z(x, r).unwrap();
+            ((z(7.2 + h) - 2.0 * z(7.2) + z(7.2 - h)) / (h * h)).abs()
+        })
+        .fold(0.0, f64::max);
+    let t = CoeffTable::parse(&img).unwrap();
+    let dx = t.node_x(1).to_f64() - t.node_x(0).to_f64();
+    let bound = dx / 2.0 * zxx * 1.02;
+    eprintln!("worst dZ/dphi {wp:e} in/rad, dZ/dX {wx:e} in/in (bound {bound:e})");
+    assert!(wp < 1e-7, "∂Z/∂φ off by {wp:e} in/rad");
+    assert!(wx <= bound, "∂Z/∂X off by {wx:e} in/in");
+}

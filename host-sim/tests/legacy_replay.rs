@@ -11,11 +11,10 @@
 
 use host_sim::machine::xslide::{FeedSegment, XSlide, XSlideConfig};
 use std::convert::Infallible;
-use zslide::command::{legacy_dac_code, CommandGen, Legacy, LEGACY_DAC_ZERO};
+use zslide::command::CommandGen;
 use zslide::drivers::ad5686::Ad5686;
 use zslide::hw::XLatchWord;
 use zslide::table::{CoeffTable, Geometry, Representation, TableHeader};
-use zslide::units::XInches;
 use zslide::xpos::{LegacyConfig, LegacyX, XEvent};
 
 /// Table 2-2, as printed (0.1 in grid, X = 0..8 in, C00..C03).
@@ -257,17 +256,9 @@ fn replay(cfg: XSlideConfig, until_ns: u64) -> Tally {
                 );
             }
             (Some(out), XEvent::Update(u)) => {
-                let mut codes = [LEGACY_DAC_ZERO; 4];
-                if !u.null {
-                    let at = gen.locate(u.x).unwrap().unwrap();
-                    for (j, which) in [Legacy::C00, Legacy::C01, Legacy::C02, Legacy::C03]
-                        .into_iter()
-                        .enumerate()
-                    {
-                        codes[j] = legacy_dac_code(gen.legacy_coefficient(at, which));
-                    }
-                }
-                dac.output(&codes, u.update).unwrap();
+                let frame = gen.legacy_frame(&u).unwrap();
+                assert_eq!(frame.update, u.update);
+                dac.output(&frame.codes, frame.update).unwrap();
                 let d = chip.borrow();
                 assert_eq!(d.strobes, strobes_before + 1, "one strobe per update");
                 for j in 0..4 {
@@ -421,5 +412,4 @@ fn resync_refreshes_everything_on_leaving_the_null_zone() {
             (14398, 0b0110, false)
         ]
     );
-    let _ = XInches::ZERO;
 }
