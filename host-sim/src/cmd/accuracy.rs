@@ -135,6 +135,10 @@ fn sweep(
     Ok((worst, at, fp, n))
 }
 
+/// One X of the sweep: (x, is a node, max error µin, its φ, fixed-point
+/// share µin, samples).
+type XResult = (f64, bool, f64, f64, f64, u64);
+
 /// Measures a table image through the firmware path.
 pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<Report> {
     let t = CoeffTable::parse(image).map_err(|e| anyhow::anyhow!("table refused: {e:?}"))?;
@@ -167,34 +171,33 @@ pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<
         .min(8);
     let chunk = xs.len().div_ceil(threads);
     let step = 360.0 / phi as f64;
-    let results: Vec<anyhow::Result<Vec<(f64, bool, f64, f64, f64, u64)>>> =
-        std::thread::scope(|s| {
-            let handles: Vec<_> = xs
-                .chunks(chunk)
-                .map(|part| {
-                    let (gen, t, surface) = (&gen, &t, &surface);
-                    s.spawn(move || {
-                        part.iter()
-                            .map(|&(x, node)| {
-                                let coarse = (0..phi).map(|j| j as f64 * step);
-                                let (e, at, fp, n) = sweep(gen, t, surface, x, coarse)?;
-                                let fine = (-64..=64).map(|j| at + f64::from(j) * step / 64.0);
-                                let (e2, at2, fp2, n2) = sweep(gen, t, surface, x, fine)?;
-                                let (e, at) = if e2 > e { (e2, at2) } else { (e, at) };
-                                Ok((x, node, e, at, fp.max(fp2), n + n2))
-                            })
-                            .collect()
-                    })
+    let results: Vec<anyhow::Result<Vec<XResult>>> = std::thread::scope(|s| {
+        let handles: Vec<_> = xs
+            .chunks(chunk)
+            .map(|part| {
+                let (gen, t, surface) = (&gen, &t, &surface);
+                s.spawn(move || {
+                    part.iter()
+                        .map(|&(x, node)| {
+                            let coarse = (0..phi).map(|j| j as f64 * step);
+                            let (e, at, fp, n) = sweep(gen, t, surface, x, coarse)?;
+                            let fine = (-64..=64).map(|j| at + f64::from(j) * step / 64.0);
+                            let (e2, at2, fp2, n2) = sweep(gen, t, surface, x, fine)?;
+                            let (e, at) = if e2 > e { (e2, at2) } else { (e, at) };
+                            Ok((x, node, e, at, fp.max(fp2), n + n2))
+                        })
+                        .collect()
                 })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| {
-                    h.join()
-                        .unwrap_or_else(|_| Err(anyhow::anyhow!("worker panicked")))
-                })
-                .collect()
-        });
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("worker panicked")))
+            })
+            .collect()
+    });
     let h = t.header();
     let xs_scale = f64::from(h.x_frac_bits).exp2();
     let mut r = Report {
