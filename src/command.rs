@@ -33,8 +33,10 @@ use crate::xpos::XUpdate;
 use fixed::types::I2F30;
 
 const COLS: usize = MAX_TERMS as usize;
-/// Keeps Q30 intermediates in ±4 in, so a Q30×Q30 product fits an `i64`.
-const CLAMP: i64 = 1 << 32;
+/// Coefficients saturate at ±1/8 in (Q30), twelve times the slide's whole
+/// travel: no real table comes near it, and it bounds every sum in
+/// [`harmonic`] without per-step saturation.
+pub const COEFF_LIMIT: i32 = 1 << 27;
 
 /// The coefficients at one X, ready for [`CommandGen::evaluate`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -115,12 +117,6 @@ fn q60_to_q30(v: i64) -> i64 {
     (v >> 30) + ((v >> 29) & 1)
 }
 
-/// Q30 × Q30 → Q30, rounded; operands clamped to ±4 so nothing overflows.
-#[inline(always)]
-fn mul30(a: i64, b: i64) -> i64 {
-    q60_to_q30(a.clamp(-CLAMP, CLAMP) * b.clamp(-CLAMP, CLAMP))
-}
-
 #[inline(always)]
 fn fx30(v: i64) -> I2F30 {
     I2F30::from_bits(sat_i32(v))
@@ -163,31 +159,29 @@ impl<'a> CommandGen<'a> {
     /// All columns at X. Below the table: [`Fault::XOutsideTable`] (the
     /// reaction is a ramp to null). In the null zone: [`Coefficients::NULL`].
     pub fn coefficients(&self, x: XInches) -> Result<Coefficients, Fault> {
-        let Some(at) = self.locate(x)? else {
-            return Ok(Coefficients {
-                x,
-                ..Coefficients::NULL
-            });
-        };
-        let mut c = Coefficients {
-            value: [0; COLS],
-            delta: [0; COLS],
-            terms: self.terms,
-            null: false,
-            x,
-        };
-        let n = usize::from(self.terms).min(COLS);
-        for (j, (v, d)) in c
-            .value
-            .iter_mut()
-            .zip(c.delta.iter_mut())
-            .enumerate()
-            .take(n)
-        {
-            *v = self.interp.value(at, j as u8);
-            *d = self.interp.delta(at, j as u8);
-        }
+        let mut c = Coefficients::NULL;
+        self.coefficients_into(x, &mut c)?;
         Ok(c)
+    }
+
+    /// [`CommandGen::coefficients`] in place (no copy of the arrays: the
+    /// loop-tick path). On a fault `c` is left as it was.
+    pub fn coefficients_into(&self, x: XInches, c: &mut Coefficients) -> Result<(), Fault> {
+        c.x = x;
+        let Some(at) = self.locate(x)? else {
+            c.null = true;
+            c.terms = 0;
+            return Ok(());
+        };
+        c.null = false;
+        c.terms = self.terms;
+        let n = usize::from(self.terms).min(COLS);
+        let (v, d) = (&mut c.value[..n], &mut c.delta[..n]);
+        self.interp.columns(at, v, d);
+        for x in v.iter_mut().chain(d.iter_mut()) {
+            *x = (*x).clamp(-COEFF_LIMIT, COEFF_LIMIT);
+        }
+        Ok(())
     }
 
     /// Z, ∂Z/∂φ, ∂²Z/∂φ² and ∂Z/∂X at φ for the coefficients of one X.
@@ -271,6 +265,10 @@ impl<'a> CommandGen<'a> {
 }
 
 /// Z = C0 + Σ C_k cos kφ + S_k sin kφ (eq 2-17); columns C0, C1, S1, C2, S2, …
+///
+/// Coefficients are within ±[`COEFF_LIMIT`] (2²⁷) and sines within ±2³⁰, so
+/// each product is below 2⁵⁸ and the sum of ≤ 16 of them below 2⁶² in Q60:
+/// plain (multiply-accumulate) arithmetic cannot overflow.
 fn harmonic(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i64, i64, i64) {
     let c0 = i64::from(v.first().copied().unwrap_or(0));
     let mut z = c0 << 30; // Q60, exact sums
@@ -287,32 +285,40 @@ fn harmonic(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i64, i64, i64) {
         let (dck, dsk) = (i64::from(pd[0]), i64::from(pd[1]));
         let sc = sin_cos(phi.times(k));
         let (s, c) = (i64::from(sc.sin), i64::from(sc.cos));
-        // |C|,|S| < 2^31 and |sin|,|cos| ≤ 2^30: each product < 2^61.
         let zk = ck * c + sk * s;
-        z = z.saturating_add(zk);
-        zn = zn.saturating_add(dck * c + dsk * s);
+        z += zk;
+        zn += dck * c + dsk * s;
         let kk = i64::from(k);
-        d1 = d1.saturating_add(q60_to_q30(sk * c - ck * s) * kk);
-        d2 = d2.saturating_sub(q60_to_q30(zk) * kk * kk);
+        d1 += q60_to_q30(sk * c - ck * s) * kk;
+        d2 -= q60_to_q30(zk) * kk * kk;
     }
     (q60_to_q30(z), d1, d2, q60_to_q30(zn))
 }
 
+/// Q30 × Q30 → Q30 rounded, for operands whose product is below 2⁶¹ (one
+/// of them a sine or cosine, |·| ≤ 2³⁰); the result then fits an i32 but
+/// for −2³¹ × −2³⁰, hence the saturation.
+#[inline(always)]
+fn mul_q30(a: i32, b: i32) -> i32 {
+    let p = (i64::from(a) * i64::from(b) + (1 << 29)) >> 30;
+    sat_i32(p)
+}
+
 /// Z = Σ c_j sin^j φ (eq 2-19) by Horner, with P'(s) and P''(s) alongside:
-/// ∂Z/∂φ = P'(s) cos φ, ∂²Z/∂φ² = P''(s) cos²φ − P'(s) sin φ.
+/// ∂Z/∂φ = P'(s) cos φ, ∂²Z/∂φ² = P''(s) cos²φ − P'(s) sin φ. All in i32
+/// Q30 with saturating adds (one instruction each on the M4's DSP unit).
 fn sin_power(v: &[i32], d: &[i32], sc: SinCos) -> (i64, i64, i64, i64) {
-    let s = i64::from(sc.sin);
-    let c = i64::from(sc.cos);
-    let (mut p, mut dp, mut ddp, mut pn) = (0i64, 0i64, 0i64, 0i64);
+    let (s, c) = (sc.sin, sc.cos);
+    let (mut p, mut dp, mut ddp, mut pn) = (0i32, 0i32, 0i32, 0i32);
     for (cj, dj) in v.iter().rev().zip(d.iter().rev()) {
-        ddp = (mul30(ddp, s) + 2 * dp).clamp(-CLAMP, CLAMP);
-        dp = (mul30(dp, s) + p).clamp(-CLAMP, CLAMP);
-        p = (mul30(p, s) + i64::from(*cj)).clamp(-CLAMP, CLAMP);
-        pn = (mul30(pn, s) + i64::from(*dj)).clamp(-CLAMP, CLAMP);
+        ddp = mul_q30(ddp, s).saturating_add(dp.saturating_add(dp));
+        dp = mul_q30(dp, s).saturating_add(p);
+        p = mul_q30(p, s).saturating_add(*cj);
+        pn = mul_q30(pn, s).saturating_add(*dj);
     }
-    let d1 = mul30(dp, c);
-    let d2 = mul30(mul30(ddp, c), c) - mul30(dp, s);
-    (p, d1, d2, pn)
+    let d1 = mul_q30(dp, c);
+    let d2 = mul_q30(mul_q30(ddp, c), c).saturating_sub(mul_q30(dp, s));
+    (i64::from(p), i64::from(d1), i64::from(d2), i64::from(pn))
 }
 
 /// Table 3-1 scaling of the coefficient DACs: ±10 V ↔ ±0.010 in, 16 bits over

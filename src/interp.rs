@@ -139,25 +139,61 @@ impl<'a> Interpolator<'a> {
         Located::In(Locus { node, frac })
     }
 
+    /// The interval `(lower node, Q31 position in it)` that serves `at`: the
+    /// last node is served by the last interval at its far end (f = 1).
+    #[inline(always)]
+    fn interval(&self, at: Locus) -> (u32, i64) {
+        let n = at.node.min(self.table.node_count().saturating_sub(2));
+        let f = if at.node > n {
+            1 << 31
+        } else {
+            i64::from(at.frac >> 1)
+        };
+        (n, f)
+    }
+
     /// Column `column` at `at`, Q30 inches, rounded once. A column the table
     /// does not have reads as zero.
     #[inline]
     pub fn value(&self, at: Locus, column: u8) -> i32 {
-        let lo = i64::from(self.table.coeff_raw(at.node, column));
-        let hi = i64::from(self.table.coeff_raw(at.node + 1, column));
-        // At the last node frac is 0, so the missing upper node does not matter.
-        let v = (lo << 31) + (hi - lo) * i64::from(at.frac >> 1);
-        to_q30(v, self.fc + 1)
+        let (n, f) = self.interval(at);
+        let (lo, hi) = (
+            read(self.table.node_row(n), column),
+            read(self.table.node_row(n + 1), column),
+        );
+        to_q30((lo << 31) + (hi - lo) * f, self.fc + 1)
     }
 
     /// Change of column `column` across the interval that holds `at`
     /// (the last interval at the last node), Q30 inches.
     #[inline]
     pub fn delta(&self, at: Locus, column: u8) -> i32 {
-        let n = at.node.min(self.table.node_count() - 2);
-        let lo = i64::from(self.table.coeff_raw(n, column));
-        let hi = i64::from(self.table.coeff_raw(n + 1, column));
+        let (n, _) = self.interval(at);
+        let (lo, hi) = (
+            read(self.table.node_row(n), column),
+            read(self.table.node_row(n + 1), column),
+        );
         to_q30((hi - lo) << 31, self.fc + 1)
+    }
+
+    /// Every column at `at` in one pass over the two rows (the loop-tick
+    /// path): values and interval changes, Q30 inches. Fills as many
+    /// columns as the table has and the slices hold.
+    pub fn columns(&self, at: Locus, values: &mut [i32], deltas: &mut [i32]) {
+        let (n, f) = self.interval(at);
+        let rows = self
+            .table
+            .node_row(n)
+            .chunks_exact(4)
+            .zip(self.table.node_row(n + 1).chunks_exact(4));
+        let sh = self.fc + 1;
+        for ((v, d), (l, h)) in values.iter_mut().zip(deltas.iter_mut()).zip(rows) {
+            let lo = i64::from(i32::from_le_bytes(<[u8; 4]>::try_from(l).unwrap_or([0; 4])));
+            let hi = i64::from(i32::from_le_bytes(<[u8; 4]>::try_from(h).unwrap_or([0; 4])));
+            let dl = hi - lo;
+            *v = to_q30((lo << 31) + dl * f, sh);
+            *d = to_q30(dl << 31, sh);
+        }
     }
 
     /// Converts a change across one interval (Q30 in) into a slope per inch
@@ -167,6 +203,15 @@ impl<'a> Interpolator<'a> {
         let d = delta_q30.clamp(-(1 << 32), 1 << 32);
         (d * self.per_inch_q16 + (1 << 15)) >> 16
     }
+}
+
+/// Column `column` of a row (little-endian i32), zero if absent.
+#[inline(always)]
+fn read(row: &[u8], column: u8) -> i64 {
+    let at = usize::from(column) * 4;
+    row.get(at..at + 4)
+        .and_then(|b| <[u8; 4]>::try_from(b).ok())
+        .map_or(0, |b| i64::from(i32::from_le_bytes(b)))
 }
 
 /// Rounds `v` with `shift` (1..=32) fraction bits more than Q30 to Q30 and

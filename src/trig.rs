@@ -130,7 +130,8 @@ pub fn sin_cos(angle: SpindleAngle) -> SinCos {
     let dd = u64::from(d);
     // d²/2 and d³/6 in Q32; the divisions are by constants (multiplies).
     let d2h = ((dd * dd) >> 33) as u32;
-    let d3s = (((u64::from(d2h) * dd) >> 32) / 3) as u32;
+    // < 2^25: a 32-bit division by a constant (a multiply), not a 64-bit call.
+    let d3s = ((u64::from(d2h) * dd) >> 32) as u32 / 3;
     let s = i64::from(s0) + mul_q32(c0, d) - mul_q32(s0, d2h) - mul_q32(c0, d3s);
     let c = i64::from(c0) - mul_q32(s0, d) - mul_q32(c0, d2h) + mul_q32(s0, d3s);
     // |s|, |c| ≤ 2^30 + 3: the clamp only guards the format's edge.

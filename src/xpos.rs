@@ -152,10 +152,12 @@ pub fn decode(word: XLatchWord) -> Option<u32> {
 
 /// X in `I8F24` of a position in half-mils (rounded to the nearest LSB).
 pub fn half_mils_to_x(half_mils: u32) -> XInches {
-    // 0.0005 in = 8388.608 LSB: exact in thousandths of an LSB.
-    let milli_lsb = u64::from(half_mils) * 8_388_608;
-    let bits = (milli_lsb + 500) / 1000;
-    XInches(I8F24::from_bits(bits.min(i32::MAX as u64) as i32))
+    // 0.0005 in = 8388.608 LSB: the integer part times hm is exact, the
+    // fraction is rounded with 32-bit arithmetic only (a division by a
+    // constant is a multiply; a 64-bit one would be a library call).
+    let hm = half_mils.min(200_000);
+    let bits = hm * 8388 + (hm * 608 + 500) / 1000;
+    XInches(I8F24::from_bits(bits.min(i32::MAX as u32) as i32))
 }
 
 impl LegacyX {
@@ -465,7 +467,10 @@ mod tests {
         .unwrap();
         let x = c.on_tick(1_000_000u32.wrapping_sub(3_141_593)).unwrap();
         assert!((x.to_f64() - 3.141593).abs() < 1e-7, "{x:?}");
-        assert_eq!(c.on_tick(1_000_000u32.wrapping_sub(3_000_000)), Err(Fault::XGlitchStorm));
+        assert_eq!(
+            c.on_tick(1_000_000u32.wrapping_sub(3_000_000)),
+            Err(Fault::XGlitchStorm)
+        );
         // Wrap-around of the counter is a small step.
         let mut w = CountX::new(CountConfig {
             counts_per_inch: 10_000,
