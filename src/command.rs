@@ -178,7 +178,10 @@ impl<'a> CommandGen<'a> {
         let n = usize::from(self.terms).min(COLS);
         let (v, d) = (&mut c.value[..n], &mut c.delta[..n]);
         self.interp.columns(at, v, d);
-        for x in v.iter_mut().chain(d.iter_mut()) {
+        for x in v.iter_mut() {
+            *x = (*x).clamp(-COEFF_LIMIT, COEFF_LIMIT);
+        }
+        for x in d.iter_mut() {
             *x = (*x).clamp(-COEFF_LIMIT, COEFF_LIMIT);
         }
         Ok(())
@@ -221,18 +224,26 @@ impl<'a> CommandGen<'a> {
     /// sin 2φ terms cannot be carried by powers of sin φ; the default
     /// geometry's are zero by symmetry).
     pub fn legacy_coefficient(&self, at: Locus, which: Legacy) -> i32 {
-        let v = |col: u8| i64::from(self.interp.value(at, col));
-        let r = match self.repr {
-            Representation::SinPower => v(which as u8),
-            // Harmonic columns: 0 C0, 1 C1, 2 S1, 3 C2, 4 S2, 5 C3, 6 S3.
-            Representation::Harmonic => match which {
-                Legacy::C00 => v(0) + v(3),
-                Legacy::C01 => v(2) + 3 * v(6),
-                Legacy::C02 => -2 * v(3),
-                Legacy::C03 => -4 * v(6),
-            },
-        };
-        sat_i32(r)
+        let all = self.legacy_coefficients(at);
+        all.get(which as usize).copied().unwrap_or(0)
+    }
+
+    /// C00..C03 at `at` (see [`CommandGen::legacy_coefficient`]), Q30
+    /// inches, reading the table rows once.
+    pub fn legacy_coefficients(&self, at: Locus) -> [i32; 4] {
+        let mut v = [0i32; 4];
+        match self.repr {
+            Representation::SinPower => {
+                self.interp.select(at, &[0, 1, 2, 3], &mut v);
+                v
+            }
+            Representation::Harmonic => {
+                // Harmonic columns: 0 C0, 1 C1, 2 S1, 3 C2, 4 S2, 5 C3, 6 S3.
+                self.interp.select(at, &[0, 3, 2, 6], &mut v);
+                let [c0, c2, s1, s3] = v.map(i64::from);
+                [c0 + c2, s1 + 3 * s3, -2 * c2, -4 * s3].map(sat_i32)
+            }
+        }
     }
 
     /// The quad-DAC frame of one accepted legacy X event: only the
@@ -247,13 +258,19 @@ impl<'a> CommandGen<'a> {
                 update: 0b1111,
             });
         };
-        for (j, which) in [Legacy::C00, Legacy::C01, Legacy::C02, Legacy::C03]
-            .into_iter()
-            .enumerate()
-        {
-            if u.update & (1 << j) != 0 {
-                if let Some(c) = codes.get_mut(j) {
-                    *c = legacy_dac_code(self.legacy_coefficient(at, which));
+        if self.repr == Representation::SinPower {
+            // Only the scheduled columns: at most half-mils only C02 (the
+            // common event) costs one column.
+            for (j, code) in codes.iter_mut().enumerate() {
+                if u.update & (1 << j) != 0 {
+                    *code = legacy_dac_code(self.interp.value(at, j as u8));
+                }
+            }
+        } else {
+            let v = self.legacy_coefficients(at);
+            for (j, (code, c)) in codes.iter_mut().zip(v).enumerate() {
+                if u.update & (1 << j) != 0 {
+                    *code = legacy_dac_code(c);
                 }
             }
         }
@@ -295,13 +312,18 @@ fn harmonic(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i64, i64, i64) {
     (q60_to_q30(z), d1, d2, q60_to_q30(zn))
 }
 
-/// Q30 × Q30 → Q30 rounded, for operands whose product is below 2⁶¹ (one
-/// of them a sine or cosine, |·| ≤ 2³⁰); the result then fits an i32 but
-/// for −2³¹ × −2³⁰, hence the saturation.
+/// Q30 × Q30 → Q30 rounded, `b` a sine or cosine (|b| ≤ 2³⁰). Then
+/// |a·b/2³⁰| ≤ |a|, and with `a` kept off `i32::MIN` (see [`sat`]) the
+/// rounded result always fits an i32: no clamp needed.
 #[inline(always)]
 fn mul_q30(a: i32, b: i32) -> i32 {
-    let p = (i64::from(a) * i64::from(b) + (1 << 29)) >> 30;
-    sat_i32(p)
+    ((i64::from(a) * i64::from(b) + (1 << 29)) >> 30) as i32
+}
+
+/// Saturating add kept within ±(2³¹ − 1), the range [`mul_q30`] needs.
+#[inline(always)]
+fn sat(a: i32, b: i32) -> i32 {
+    a.saturating_add(b).max(-i32::MAX)
 }
 
 /// Z = Σ c_j sin^j φ (eq 2-19) by Horner, with P'(s) and P''(s) alongside:
@@ -311,13 +333,13 @@ fn sin_power(v: &[i32], d: &[i32], sc: SinCos) -> (i64, i64, i64, i64) {
     let (s, c) = (sc.sin, sc.cos);
     let (mut p, mut dp, mut ddp, mut pn) = (0i32, 0i32, 0i32, 0i32);
     for (cj, dj) in v.iter().rev().zip(d.iter().rev()) {
-        ddp = mul_q30(ddp, s).saturating_add(dp.saturating_add(dp));
-        dp = mul_q30(dp, s).saturating_add(p);
-        p = mul_q30(p, s).saturating_add(*cj);
-        pn = mul_q30(pn, s).saturating_add(*dj);
+        ddp = sat(mul_q30(ddp, s), sat(dp, dp));
+        dp = sat(mul_q30(dp, s), p);
+        p = sat(mul_q30(p, s), *cj);
+        pn = sat(mul_q30(pn, s), *dj);
     }
     let d1 = mul_q30(dp, c);
-    let d2 = mul_q30(mul_q30(ddp, c), c).saturating_sub(mul_q30(dp, s));
+    let d2 = sat(mul_q30(mul_q30(ddp, c), c), -mul_q30(dp, s));
     (i64::from(p), i64::from(d1), i64::from(d2), i64::from(pn))
 }
 

@@ -152,6 +152,17 @@ impl<'a> Interpolator<'a> {
         (n, f)
     }
 
+    /// Linear interpolation of one column between its node values, Q30.
+    #[inline(always)]
+    fn lerp(&self, lo: i64, hi: i64, f: i64) -> i32 {
+        if self.fc == 30 {
+            // The sum lies between lo and hi; only its type needs i64.
+            sat_i32(lo + (((hi - lo) * f + (1 << 30)) >> 31))
+        } else {
+            to_q30((lo << 31) + (hi - lo) * f, self.fc + 1)
+        }
+    }
+
     /// Column `column` at `at`, Q30 inches, rounded once. A column the table
     /// does not have reads as zero.
     #[inline]
@@ -161,7 +172,17 @@ impl<'a> Interpolator<'a> {
             read(self.table.node_row(n), column),
             read(self.table.node_row(n + 1), column),
         );
-        to_q30((lo << 31) + (hi - lo) * f, self.fc + 1)
+        self.lerp(lo, hi, f)
+    }
+
+    /// Several columns at `at` (`columns[i]` into `out[i]`), fetching the
+    /// two rows once: the legacy X event's path.
+    pub fn select(&self, at: Locus, columns: &[u8], out: &mut [i32]) {
+        let (n, f) = self.interval(at);
+        let (lo_row, hi_row) = (self.table.node_row(n), self.table.node_row(n + 1));
+        for (o, &c) in out.iter_mut().zip(columns) {
+            *o = self.lerp(read(lo_row, c), read(hi_row, c), f);
+        }
     }
 
     /// Change of column `column` across the interval that holds `at`
@@ -187,12 +208,21 @@ impl<'a> Interpolator<'a> {
             .chunks_exact(4)
             .zip(self.table.node_row(n + 1).chunks_exact(4));
         let sh = self.fc + 1;
+        let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
+        if self.fc == 30 {
+            // The table is already in Q30 (the default): constant shifts
+            // only, identical results to the general path below.
+            for ((v, d), (l, h)) in values.iter_mut().zip(deltas.iter_mut()).zip(rows) {
+                let (lo, hi) = (i64::from(word(l)), i64::from(word(h)));
+                *v = self.lerp(lo, hi, f);
+                *d = sat_i32(hi - lo);
+            }
+            return;
+        }
         for ((v, d), (l, h)) in values.iter_mut().zip(deltas.iter_mut()).zip(rows) {
-            let lo = i64::from(i32::from_le_bytes(<[u8; 4]>::try_from(l).unwrap_or([0; 4])));
-            let hi = i64::from(i32::from_le_bytes(<[u8; 4]>::try_from(h).unwrap_or([0; 4])));
-            let dl = hi - lo;
-            *v = to_q30((lo << 31) + dl * f, sh);
-            *d = to_q30(dl << 31, sh);
+            let (lo, hi) = (i64::from(word(l)), i64::from(word(h)));
+            *v = self.lerp(lo, hi, f);
+            *d = to_q30((hi - lo) << 31, sh);
         }
     }
 
@@ -212,6 +242,11 @@ fn read(row: &[u8], column: u8) -> i64 {
     row.get(at..at + 4)
         .and_then(|b| <[u8; 4]>::try_from(b).ok())
         .map_or(0, |b| i64::from(i32::from_le_bytes(b)))
+}
+
+#[inline(always)]
+fn sat_i32(v: i64) -> i32 {
+    v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
 /// Rounds `v` with `shift` (1..=32) fraction bits more than Q30 to Q30 and
@@ -347,6 +382,29 @@ mod tests {
                     let steps = (1u64 << 24) as f64 / (xn.to_bits() - t.node_x(n - 1).to_bits()) as f64;
                     let bound = ((want - lo).abs() as f64 * steps).ceil() as i64 + 2;
                     prop_assert!((va - vb).abs() <= bound, "node {n}: {va} vs {vb} (bound {bound})");
+                }
+            }
+
+            /// The one-pass row reader (with its Q30 fast path) and the
+            /// per-column reader agree bit for bit.
+            #[test]
+            fn columns_equal_value_and_delta(
+                vals in proptest::collection::vec(any::<i32>(), 12..60),
+                fc in prop_oneof![Just(30u8), 0u8..=31],
+                xbits in 0i32..(40 << 24),
+            ) {
+                let nodes = vals.len() as u32 / 3;
+                let vals = &vals[..nodes as usize * 3];
+                let h = header(nodes, 3, fc, 24, 1 << 22);
+                let img = image(&h, vals);
+                let it = Interpolator::new(CoeffTable::parse(&img).unwrap());
+                if let Located::In(l) = it.locate(XInches::from_bits(xbits)) {
+                    let (mut v, mut d) = ([0i32; 3], [0i32; 3]);
+                    it.columns(l, &mut v, &mut d);
+                    for c in 0..3u8 {
+                        prop_assert_eq!(v[usize::from(c)], it.value(l, c));
+                        prop_assert_eq!(d[usize::from(c)], it.delta(l, c));
+                    }
                 }
             }
 
