@@ -178,11 +178,13 @@ impl<'a> CommandGen<'a> {
         let n = usize::from(self.terms).min(COLS);
         let (v, d) = (&mut c.value[..n], &mut c.delta[..n]);
         self.interp.columns(at, v, d);
-        for x in v.iter_mut() {
-            *x = (*x).clamp(-COEFF_LIMIT, COEFF_LIMIT);
-        }
-        for x in d.iter_mut() {
-            *x = (*x).clamp(-COEFF_LIMIT, COEFF_LIMIT);
+        // Interpolated values lie between node values, and changes are at
+        // most twice them: a table within COEFF_LIMIT/2 (all real ones, by
+        // orders of magnitude) needs no clamp on this hot path.
+        if self.interp.max_abs_q30() > i64::from(COEFF_LIMIT / 2) {
+            for x in v.iter_mut().chain(d.iter_mut()) {
+                *x = (*x).clamp(-COEFF_LIMIT, COEFF_LIMIT);
+            }
         }
         Ok(())
     }
@@ -194,14 +196,38 @@ impl<'a> CommandGen<'a> {
         }
         let n = usize::from(c.terms).min(COLS);
         let (z, d1, d2, dn) = match self.repr {
-            Representation::Harmonic => harmonic(&c.value[..n], &c.delta[..n], phi),
-            Representation::SinPower => sin_power(&c.value[..n], &c.delta[..n], sin_cos(phi)),
+            Representation::Harmonic => harmonic::<true>(&c.value[..n], &c.delta[..n], phi),
+            Representation::SinPower => {
+                sin_power::<true>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+            }
         };
         Command {
             z: ZInches(fx30(z)),
             dz_dphi: fx30(d1),
             d2z_dphi2: fx30(d2),
             dz_dx: fx30(self.interp.per_inch(dn)),
+        }
+    }
+
+    /// Z, ∂Z/∂φ and ∂²Z/∂φ² (`dz_dx` left zero): the loop-tick path for
+    /// feedforward, without the series of the coefficient changes (∂Z/∂X·Ẋ
+    /// is below 1 % of ∂Z/∂φ·ω at any feed this machine uses).
+    pub fn evaluate_phi(&self, c: &Coefficients, phi: SpindleAngle) -> Command {
+        if c.null {
+            return Command::default();
+        }
+        let n = usize::from(c.terms).min(COLS);
+        let (z, d1, d2, _) = match self.repr {
+            Representation::Harmonic => harmonic::<false>(&c.value[..n], &c.delta[..n], phi),
+            Representation::SinPower => {
+                sin_power::<false>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+            }
+        };
+        Command {
+            z: ZInches(fx30(z)),
+            dz_dphi: fx30(d1),
+            d2z_dphi2: fx30(d2),
+            dz_dx: I2F30::ZERO,
         }
     }
 
@@ -286,7 +312,7 @@ impl<'a> CommandGen<'a> {
 /// Coefficients are within ±[`COEFF_LIMIT`] (2²⁷) and sines within ±2³⁰, so
 /// each product is below 2⁵⁸ and the sum of ≤ 16 of them below 2⁶² in Q60:
 /// plain (multiply-accumulate) arithmetic cannot overflow.
-fn harmonic(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i64, i64, i64) {
+fn harmonic<const DX: bool>(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i64, i64, i64) {
     let c0 = i64::from(v.first().copied().unwrap_or(0));
     let mut z = c0 << 30; // Q60, exact sums
     let mut zn = i64::from(d.first().copied().unwrap_or(0)) << 30;
@@ -304,7 +330,9 @@ fn harmonic(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i64, i64, i64) {
         let (s, c) = (i64::from(sc.sin), i64::from(sc.cos));
         let zk = ck * c + sk * s;
         z += zk;
-        zn += dck * c + dsk * s;
+        if DX {
+            zn += dck * c + dsk * s;
+        }
         let kk = i64::from(k);
         d1 += q60_to_q30(sk * c - ck * s) * kk;
         d2 -= q60_to_q30(zk) * kk * kk;
@@ -329,14 +357,16 @@ fn sat(a: i32, b: i32) -> i32 {
 /// Z = Σ c_j sin^j φ (eq 2-19) by Horner, with P'(s) and P''(s) alongside:
 /// ∂Z/∂φ = P'(s) cos φ, ∂²Z/∂φ² = P''(s) cos²φ − P'(s) sin φ. All in i32
 /// Q30 with saturating adds (one instruction each on the M4's DSP unit).
-fn sin_power(v: &[i32], d: &[i32], sc: SinCos) -> (i64, i64, i64, i64) {
+fn sin_power<const DX: bool>(v: &[i32], d: &[i32], sc: SinCos) -> (i64, i64, i64, i64) {
     let (s, c) = (sc.sin, sc.cos);
     let (mut p, mut dp, mut ddp, mut pn) = (0i32, 0i32, 0i32, 0i32);
     for (cj, dj) in v.iter().rev().zip(d.iter().rev()) {
         ddp = sat(mul_q30(ddp, s), sat(dp, dp));
         dp = sat(mul_q30(dp, s), p);
         p = sat(mul_q30(p, s), *cj);
-        pn = sat(mul_q30(pn, s), *dj);
+        if DX {
+            pn = sat(mul_q30(pn, s), *dj);
+        }
     }
     let d1 = mul_q30(dp, c);
     let d2 = sat(mul_q30(mul_q30(ddp, c), c), -mul_q30(dp, s));
@@ -428,6 +458,11 @@ mod tests {
                 let dzdx = (a0 + a1 * p.sin() + a2 * (2.0 * p).cos() + a3 * (3.0 * p).sin()) / 0.25;
                 for g in [&gh, &gp] {
                     let cmd = g.command(x, phi).unwrap();
+                    let fast = g.evaluate_phi(&g.coefficients(x).unwrap(), phi);
+                    assert_eq!(
+                        (fast.z, fast.dz_dphi, fast.d2z_dphi2),
+                        (cmd.z, cmd.dz_dphi, cmd.d2z_dphi2)
+                    );
                     assert!(
                         (cmd.z.to_f64() - z).abs() < 12.0 * lsb,
                         "z at {deg} x={x:?} {} {z}",

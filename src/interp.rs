@@ -47,6 +47,18 @@ pub enum Located {
     Above,
 }
 
+/// Constants of [`Interpolator::locate_fast`].
+#[derive(Clone, Copy, Debug)]
+struct Fast {
+    /// Node 0, `I8F24` bits.
+    x0: i32,
+    /// ΔX, `I8F24` bits.
+    dx: u32,
+    /// ⌊2^(32+s)/ΔX⌋ < 2^32.
+    r: u32,
+    s: u32,
+}
+
 /// Linear interpolation of a [`CoeffTable`], with the grid reciprocal
 /// precomputed. Cheap to copy; borrows the table in place.
 #[derive(Clone, Copy, Debug)]
@@ -67,6 +79,10 @@ pub struct Interpolator<'a> {
     per_inch_q16: i64,
     /// Table coefficient fraction bits.
     fc: u32,
+    fast: Option<Fast>,
+    /// Largest |coefficient| in the table, Q30 (saturating): lets callers
+    /// skip per-value clamps when the whole table is small.
+    max_abs_q30: i64,
 }
 
 impl<'a> Interpolator<'a> {
@@ -91,8 +107,39 @@ impl<'a> Interpolator<'a> {
             k -= 1;
         }
         let per_inch_q16 = ((1u128 << (f + 16)) / u128::from(dx)).min(1 << 31) as i64;
+        let fast = if x_up == 0 && dx < (1 << 31) && t_max < (1 << 32) {
+            i32::try_from(x0).ok().map(|x0| {
+                let mut s = 31;
+                while s > 0 && (1u64 << (32 + s)) / dx >= (1 << 32) {
+                    s -= 1;
+                }
+                Fast {
+                    x0,
+                    dx: dx as u32,
+                    r: ((1u64 << (32 + s)) / dx) as u32,
+                    s,
+                }
+            })
+        } else {
+            None
+        };
+        let shift = u32::from(h.coeff_frac_bits);
+        let mut max_abs_q30 = 0i64;
+        for n in 0..h.node_count {
+            for c in table.node_row(n).chunks_exact(4) {
+                let v = i64::from(i32::from_le_bytes(<[u8; 4]>::try_from(c).unwrap_or([0; 4])));
+                // |v| · 2^(30 − fc), saturating.
+                let q = if shift <= 30 {
+                    v.abs() << (30 - shift)
+                } else {
+                    v.abs() >> (shift - 30)
+                };
+                max_abs_q30 = max_abs_q30.max(q);
+            }
+        }
         Self {
             table,
+            max_abs_q30,
             x_up,
             x0,
             t_max,
@@ -101,6 +148,7 @@ impl<'a> Interpolator<'a> {
             k,
             per_inch_q16,
             fc: u32::from(h.coeff_frac_bits),
+            fast,
         }
     }
 
@@ -108,9 +156,46 @@ impl<'a> Interpolator<'a> {
         &self.table
     }
 
+    /// Largest |coefficient| of the table, Q30 inches (found at load).
+    pub fn max_abs_q30(&self) -> i64 {
+        self.max_abs_q30
+    }
+
     /// Finds the interval that holds X.
     #[inline]
     pub fn locate(&self, x: XInches) -> Located {
+        match self.fast {
+            Some(fp) => self.locate_fast(fp, x),
+            None => self.locate_general(x),
+        }
+    }
+
+    /// 32-bit path for tables whose grid is in X's own format or coarser
+    /// (every table the generator makes): one 32×32 multiply for the node,
+    /// an exact remainder, and the same fraction as the general path, so
+    /// both give identical results (tested).
+    #[inline(always)]
+    fn locate_fast(&self, fp: Fast, x: XInches) -> Located {
+        let t = i64::from(x.to_bits()) - i64::from(fp.x0);
+        if t < 0 {
+            return Located::Below;
+        }
+        if t as u64 > self.t_max {
+            return Located::Above;
+        }
+        // t_max < 2^32 in this mode. r ≤ 2^(32+s)/ΔX, so the estimate is
+        // never too high and (its error being below one) at most one low.
+        let t = t as u32;
+        let mut node = ((u64::from(t) * u64::from(fp.r)) >> 32) as u32 >> fp.s;
+        let mut rem = t - node * fp.dx;
+        if rem >= fp.dx {
+            node += 1;
+            rem -= fp.dx;
+        }
+        self.finish(node, u64::from(rem))
+    }
+
+    fn locate_general(&self, x: XInches) -> Located {
         let t = (i64::from(x.to_bits()) << self.x_up) - self.x0;
         if t < 0 {
             return Located::Below;
@@ -122,19 +207,25 @@ impl<'a> Interpolator<'a> {
         // t ≤ t_max, and t_max·inv < 2^64 by the choice of k. The reciprocal
         // is rounded up, so this node is never too low, at most one too high.
         let u = t.wrapping_mul(self.inv) >> self.k;
-        let last = self.table.node_count() - 1;
-        let mut node = ((u >> 32) as u32).min(last);
+        let mut node = (u >> 32) as u32;
         let mut rem = t as i64 - i64::from(node) * self.dx as i64;
         if rem < 0 {
             node = node.saturating_sub(1);
             rem += self.dx as i64;
         }
-        // The remainder is exact, so X on a node gives frac = 0 and exactly
-        // the node's value.
+        self.finish(node, rem.max(0) as u64)
+    }
+
+    /// The locus from the exact node and remainder. The remainder is exact,
+    /// so X on a node gives frac = 0 and exactly the node's value.
+    #[inline(always)]
+    fn finish(&self, node: u32, rem: u64) -> Located {
+        let last = self.table.node_count() - 1;
+        let node = node.min(last);
         let frac = if node >= last {
             0
         } else {
-            ((rem.max(0) as u64).wrapping_mul(self.inv) >> self.k).min(u64::from(u32::MAX)) as u32
+            (rem.wrapping_mul(self.inv) >> self.k).min(u64::from(u32::MAX)) as u32
         };
         Located::In(Locus { node, frac })
     }
@@ -156,8 +247,9 @@ impl<'a> Interpolator<'a> {
     #[inline(always)]
     fn lerp(&self, lo: i64, hi: i64, f: i64) -> i32 {
         if self.fc == 30 {
-            // The sum lies between lo and hi; only its type needs i64.
-            sat_i32(lo + (((hi - lo) * f + (1 << 30)) >> 31))
+            // f ≤ 2^31, so the rounded sum lies between lo and hi, both
+            // i32: the cast is exact.
+            (lo + (((hi - lo) * f + (1 << 30)) >> 31)) as i32
         } else {
             to_q30((lo << 31) + (hi - lo) * f, self.fc + 1)
         }
@@ -382,6 +474,28 @@ mod tests {
                     let steps = (1u64 << 24) as f64 / (xn.to_bits() - t.node_x(n - 1).to_bits()) as f64;
                     let bound = ((want - lo).abs() as f64 * steps).ceil() as i64 + 2;
                     prop_assert!((va - vb).abs() <= bound, "node {n}: {va} vs {vb} (bound {bound})");
+                }
+            }
+
+            /// The 32-bit locate and the general one agree everywhere.
+            #[test]
+            fn fast_and_general_locate_agree(
+                nodes in 2u32..300, fx in 0u8..=24, dx_in in 1e-4f64..0.5,
+                x0_in in -2.0f64..2.0, xbits in any::<i32>(),
+            ) {
+                let room = (100.0 / f64::from(nodes)).min(dx_in);
+                let dx_raw = ((room * 2f64.powi(fx.into())) as i32).max(1);
+                let mut h = header(nodes, 1, 30, fx, dx_raw);
+                h.x0_raw = (x0_in * 2f64.powi(fx.into())) as i32;
+                h.x_null_raw = h.x0_raw;
+                let vals: Vec<i32> = (0..nodes as i32).collect();
+                let img = image(&h, &vals);
+                let Ok(t) = CoeffTable::parse(&img) else { return Ok(()); };
+                let it = Interpolator::new(t);
+                prop_assert!(it.fast.is_some());
+                for x in [xbits, xbits / 64, t.node_x(nodes / 2).to_bits(), t.node_x(nodes - 1).to_bits()] {
+                    let x = XInches::from_bits(x);
+                    prop_assert_eq!(it.locate(x), it.locate_general(x));
                 }
             }
 
