@@ -54,6 +54,8 @@ pub struct EncoderConfig {
     pub max_rpm: u32,
     /// Accepted deviation of the count between two indices.
     pub index_tolerance_counts: u32,
+    /// φ (eq 2-5) at which the index fires: where the mark sits on the part.
+    pub index_angle: SpindleAngle,
 }
 
 /// Encoder + index angle estimator.
@@ -135,7 +137,7 @@ impl EncoderAngle {
         }
         let Some(reference) = self.reference else {
             return Estimate {
-                angle: SpindleAngle(0),
+                angle: self.cfg.index_angle,
                 fault: None,
             };
         };
@@ -157,7 +159,7 @@ impl EncoderAngle {
         let extra = ((frac as i128 * i128::from(self.per_count_q32)) >> 32) as i64;
         let q32 = self.angle_of(delta).wrapping_add(extra);
         Estimate {
-            angle: SpindleAngle((q32 >> 32) as u32),
+            angle: SpindleAngle((q32 >> 32) as u32).wrapping_add(self.cfg.index_angle),
             fault,
         }
     }
@@ -209,6 +211,8 @@ pub struct TachConfig {
     /// Accepted deviation of the integrated angle between two indices, in
     /// thousandths of a turn (also bounds one gain correction).
     pub index_tolerance_permille: u32,
+    /// φ (eq 2-5) at which the index fires.
+    pub index_angle: SpindleAngle,
 }
 
 /// Tachometer + index angle estimator. Angle state in Q48 turns (2³² per
@@ -306,9 +310,9 @@ impl TachAngle {
         }
     }
 
-    /// Current angle (relative to the index edge).
+    /// Current angle φ (the index angle plus the angle since the index).
     pub fn angle(&self) -> SpindleAngle {
-        SpindleAngle((self.acc >> 16) as u32)
+        SpindleAngle((self.acc >> 16) as u32).wrapping_add(self.cfg.index_angle)
     }
 
     /// The index event, with the edge's timestamp.
@@ -382,6 +386,7 @@ mod tests {
             min_rpm: 50,
             max_rpm: 500,
             index_tolerance_counts: 2,
+            index_angle: SpindleAngle(0),
         })
         .unwrap();
         e.on_index(0, 0).unwrap();
@@ -412,6 +417,7 @@ mod tests {
             min_rpm: 50,
             max_rpm: 500,
             index_tolerance_counts: 2,
+            index_angle: SpindleAngle(0),
         })
         .unwrap();
         e.on_index(0, 0).unwrap();

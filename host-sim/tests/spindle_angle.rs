@@ -6,6 +6,7 @@
 use host_sim::machine::spindle::{Spindle, SpindleConfig};
 use zslide::safety::Fault;
 use zslide::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
+use zslide::units::SpindleAngle;
 
 const TICKS_PER_S: u32 = 100_000_000;
 const LOOP_NS: u64 = 50_000; // 20 kHz
@@ -103,6 +104,7 @@ fn encoder() -> Est {
             min_rpm: 50,
             max_rpm: 500,
             index_tolerance_counts: ENC_TOL_COUNTS,
+            index_angle: SpindleAngle::from_degrees(INDEX_DEG),
         })
         .unwrap(),
     )
@@ -116,12 +118,15 @@ fn tach() -> Est {
             min_rpm: 50,
             max_rpm: 500,
             index_tolerance_permille: TACH_TOL_PERMILLE,
+            index_angle: SpindleAngle::from_degrees(INDEX_DEG),
         })
         .unwrap(),
     )
 }
 
 const COUNT_DEG: f64 = 360.0 / CPR as f64;
+/// The index mark sits at φ = 108° of eq 2-5 (configured, and modelled).
+const INDEX_DEG: f64 = 108.0;
 /// Index tolerance of the tach estimator: 2 ‰ of a turn (0.72°), 36 times
 /// the calibrated phase error, so a jittered true index is never refused.
 const TACH_TOL_PERMILLE: u32 = 2;
@@ -136,7 +141,7 @@ fn encoder_angle_is_exact_to_a_fraction_of_a_count_at_every_speed() {
                 rpm0: rpm,
                 encoder_cpr: CPR,
                 ticks_per_s: f64::from(TICKS_PER_S),
-                index_phase_turns: 0.0,
+                index_phase_turns: INDEX_DEG / 360.0,
                 ..SpindleConfig::default()
             },
             encoder(),
@@ -159,6 +164,7 @@ fn encoder_under_acceleration_sag_and_ripple_stays_within_one_count() {
             ripple_rpm: 8.0,
             encoder_cpr: CPR,
             ticks_per_s: f64::from(TICKS_PER_S),
+            index_phase_turns: INDEX_DEG / 360.0,
             ..SpindleConfig::default()
         },
         encoder(),
@@ -181,6 +187,7 @@ fn encoder_flags_lost_and_spurious_index_pulses_and_keeps_the_phase() {
             encoder_cpr: CPR,
             ticks_per_s: f64::from(TICKS_PER_S),
             seed: 7,
+            index_phase_turns: INDEX_DEG / 360.0,
             ..SpindleConfig::default()
         },
         encoder(),
@@ -211,6 +218,7 @@ fn tach_angle_is_independent_of_speed_after_calibration() {
                 tach_noise_mv: 2.0,
                 ticks_per_s: f64::from(TICKS_PER_S),
                 seed: rpm as u64,
+                index_phase_turns: INDEX_DEG / 360.0,
                 ..SpindleConfig::default()
             },
             tach(),
@@ -239,6 +247,7 @@ fn tach_under_acceleration_and_index_faults() {
             tach_gain_error: -0.02,
             tach_noise_mv: 2.0,
             ticks_per_s: f64::from(TICKS_PER_S),
+            index_phase_turns: INDEX_DEG / 360.0,
             ..SpindleConfig::default()
         },
         tach(),
@@ -258,6 +267,7 @@ fn tach_under_acceleration_and_index_faults() {
             tach_noise_mv: 2.0,
             ticks_per_s: f64::from(TICKS_PER_S),
             seed: 11,
+            index_phase_turns: INDEX_DEG / 360.0,
             ..SpindleConfig::default()
         },
         tach(),
