@@ -131,8 +131,8 @@ pub fn harmonics(sec: &Section, k_max: usize) -> Harmonics {
 
 /// As [`harmonics`] with an explicit sample count `m` (convergence studies).
 pub fn harmonics_with(sec: &Section, k_max: usize, m: usize) -> Harmonics {
-    // sin/cos of 2πj/m from one quadrant-exact table so that the symmetric
-    // samples are bit-identical.
+    // One table of correctly rounded sin/cos(2πj/m), indexed by j·k mod m:
+    // no angle recurrence (FORIF's accumulates rounding over the harmonics).
     let (sin_t, cos_t): (Vec<f64>, Vec<f64>) = (0..m)
         .map(|j| (2.0 * PI * j as f64 / m as f64).sin_cos())
         .unzip();
@@ -484,7 +484,10 @@ pub fn generate(spec: &TableSpec) -> Result<Generated, SpecError> {
         node_count: x.len() as u32,
         x0_raw,
         dx_raw,
-        x_null_raw: (spec.x_null * spec.x_scale()).round() as i32,
+        // A null zone at x_max may round past a last node that a non-binary
+        // step left short of x_max: clamp it onto the grid.
+        x_null_raw: ((spec.x_null * spec.x_scale()).round() as i32)
+            .clamp(x0_raw, x0_raw + dx_raw * (x.len() as i32 - 1)),
         geometry,
     };
     Ok(Generated {
@@ -550,6 +553,9 @@ pub struct ErrorSplit {
     pub total_at_nodes_uin: f64,
     /// `total` midway between nodes.
     pub total_midway_uin: f64,
+    /// Largest peak-to-peak Z motion over φ in the range, inches (the slide
+    /// must be able to make it: ±0.010 in for the 1983 gauge).
+    pub z_peak_to_peak_in: f64,
     /// Where `total` peaks.
     pub worst_x_in: f64,
     pub worst_phi_deg: f64,
@@ -596,6 +602,7 @@ pub fn error_split(
         total_uin: 0.0,
         total_at_nodes_uin: 0.0,
         total_midway_uin: 0.0,
+        z_peak_to_peak_in: 0.0,
         worst_x_in: x_lo,
         worst_phi_deg: 0.0,
     };
@@ -614,8 +621,11 @@ pub fn error_split(
             let interp_q = interpolate(&g.x, &quant, x);
             let at_node = k == 0;
             let midway = 2 * k == per;
+            let (mut z_lo, mut z_hi) = (f64::MAX, f64::MIN);
             for &phi in &phis {
                 let z = sec.z(phi);
+                z_lo = z_lo.min(z);
+                z_hi = z_hi.max(z);
                 let s_exact = eval_columns(rep, &exact_cols, phi);
                 let s_interp = eval_columns(rep, &interp_cols, phi);
                 let s_q = eval_columns(rep, &interp_q, phi);
@@ -638,6 +648,7 @@ pub fn error_split(
                     e.total_midway_uin = e.total_midway_uin.max(to);
                 }
             }
+            e.z_peak_to_peak_in = e.z_peak_to_peak_in.max(z_hi - z_lo);
         }
     }
     Ok(e)

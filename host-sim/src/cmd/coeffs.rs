@@ -23,6 +23,10 @@ use std::io::Write;
 use std::path::PathBuf;
 use zslide::table::Representation;
 
+/// Full range of the 1983 capacitance gauge (±0.010 in): a surface whose Z
+/// motion exceeds it cannot be cut by this slide.
+const SLIDE_RANGE_IN: f64 = 0.020;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// CSV output (the default format; kept for the acceptance interface).
@@ -40,7 +44,8 @@ pub struct Args {
     /// Tool-nose radius for `--fourier`, inches (default: the config's).
     #[arg(long, requires = "fourier", allow_hyphen_values = true)]
     pub tool_radius: Option<f64>,
-    /// Highest harmonic for `--fourier` (default 19, Table 2-1's).
+    /// Highest harmonic for `--fourier` (default 19, Table 2-1's); otherwise
+    /// overrides the config's `series.terms`.
     #[arg(long)]
     pub terms: Option<usize>,
     /// Table configuration (TOML); missing fields take the dissertation's values.
@@ -174,6 +179,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     if args.report {
         let e = coeffgen::error_split(&g, x_lo, x_hi, Sampling::default())?;
+        if e.z_peak_to_peak_in > SLIDE_RANGE_IN {
+            eprintln!(
+                "warning: Z moves {:.6} in peak to peak, more than the slide's {SLIDE_RANGE_IN} in \
+                 gauge range (±0.010 in)",
+                e.z_peak_to_peak_in
+            );
+        }
         return report(&mut out, &g, &e, x_lo, x_hi, args.json);
     }
     if args.json {
@@ -321,6 +333,11 @@ fn report(
         out,
         "  total midway               {:.4}",
         e.total_midway_uin
+    )?;
+    writeln!(
+        out,
+        "Z motion: up to {:.7} in peak to peak over phi",
+        e.z_peak_to_peak_in
     )?;
     Ok(())
 }
