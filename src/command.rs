@@ -388,6 +388,7 @@ pub fn legacy_dac_code(c_q30: i32) -> u16 {
 pub const LEGACY_DAC_ZERO: u16 = 32768;
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     extern crate std;
     use super::*;

@@ -350,6 +350,7 @@ fn to_q30(v: i64, shift: u32) -> i32 {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     extern crate std;
     use super::*;

@@ -142,6 +142,7 @@ pub fn sin_cos(angle: SpindleAngle) -> SinCos {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     extern crate std;
     use super::*;

@@ -346,6 +346,7 @@ impl CountX {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::*;
 
@@ -358,14 +359,14 @@ mod tests {
         for hm in [0u32, 1, 2, 19, 20, 199, 200, 14399, 14400, 19999] {
             assert_eq!(decode(latch_word(hm)), Some(hm));
         }
-        // 3.1415 in = 6283 half-mils.
+        // 3.2415 in = 6483 half-mils.
         assert_eq!(
             decode(XLatchWord(0x3141 | XLatchWord::HALF_MIL)),
             Some(6283)
         );
         assert_eq!(
-            half_mils_to_x(6283).to_f64(),
-            XInches::from_f64(3.1415).to_f64()
+            half_mils_to_x(6483).to_f64(),
+            XInches::from_f64(3.2415).to_f64()
         );
         assert_eq!(cfg().null_from_half_mils, 14400);
     }
@@ -465,8 +466,8 @@ mod tests {
             max_step_counts: 50_000,
         })
         .unwrap();
-        let x = c.on_tick(1_000_000u32.wrapping_sub(3_141_593)).unwrap();
-        assert!((x.to_f64() - 3.141593).abs() < 1e-7, "{x:?}");
+        let x = c.on_tick(1_000_000u32.wrapping_sub(3_241_593)).unwrap();
+        assert!((x.to_f64() - 3.241593).abs() < 1e-7, "{x:?}");
         assert_eq!(
             c.on_tick(1_000_000u32.wrapping_sub(3_000_000)),
             Err(Fault::XGlitchStorm)

@@ -261,14 +261,14 @@ fn replay(cfg: XSlideConfig, until_ns: u64) -> Tally {
                 dac.output(&frame.codes, frame.update).unwrap();
                 let d = chip.borrow();
                 assert_eq!(d.strobes, strobes_before + 1, "one strobe per update");
-                for j in 0..4 {
+                for (j, want) in out.iter().enumerate() {
                     assert_eq!(
-                        out[j].is_some(),
+                        want.is_some(),
                         u.update & (1 << j) != 0,
                         "C0{j} update set differs at {:?}",
                         ev
                     );
-                    if let Some(c) = out[j] {
+                    if let Some(c) = *want {
                         let exact = code_exact(c);
                         let got = f64::from(d.output[j].unwrap());
                         tally.compared += 1;

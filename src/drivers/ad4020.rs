@@ -47,6 +47,7 @@ impl<SPI: SpiDevice> GaugeAdc for Ad4020<SPI> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::super::fake::Spi;
     use super::*;

@@ -64,6 +64,7 @@ impl<SPI: SpiDevice, LDAC: OutputPin> Ad5686<SPI, LDAC> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::super::fake::{Pin, Spi};
     use super::*;

@@ -98,6 +98,7 @@ impl<SPI: SpiDevice> AmplifierDac for Ad5791<SPI> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::super::fake::Spi;
     use super::*;

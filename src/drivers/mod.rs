@@ -22,6 +22,7 @@ pub(crate) fn bytes_frame(b: [u8; 3]) -> u32 {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 pub(crate) mod fake {
     //! A recording SPI device and pin for the driver tests.
     extern crate std;
