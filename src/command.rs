@@ -76,6 +76,99 @@ pub struct LegacyFrame {
     pub update: u8,
 }
 
+/// The legacy coefficient output with the 8080's economy: the table values
+/// at the two ends of the grid interval are fetched only when X enters
+/// another interval (the 8080 recomputed its rates only when the two high
+/// digits changed); each X event then costs one multiply-add and one code
+/// conversion per scheduled coefficient. Results are bit-identical to
+/// [`CommandGen::legacy_frame`] (tested). Use one per [`CommandGen`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LegacyOutput {
+    interval: Option<u32>,
+    lo: [i64; 4],
+    hi: [i64; 4],
+}
+
+impl LegacyOutput {
+    pub const fn new() -> Self {
+        Self {
+            interval: None,
+            lo: [0; 4],
+            hi: [0; 4],
+        }
+    }
+
+    /// Forgets the cached interval (after a table change).
+    pub fn reset(&mut self) {
+        self.interval = None;
+    }
+
+    /// The quad-DAC frame of one accepted legacy X event.
+    pub fn frame(&mut self, gen: &CommandGen, u: &XUpdate) -> Result<LegacyFrame, Fault> {
+        let mut codes = [LEGACY_DAC_ZERO; 4];
+        let at = if u.null { None } else { gen.locate(u.x)? };
+        let Some(at) = at else {
+            return Ok(LegacyFrame {
+                codes,
+                update: 0b1111,
+            });
+        };
+        let it = &gen.interp;
+        let (n, f) = it.interval(at);
+        let cols = gen.legacy_columns();
+        if self.interval != Some(n) {
+            for ((lo, hi), c) in self.lo.iter_mut().zip(self.hi.iter_mut()).zip(cols) {
+                *lo = it.raw(n, c);
+                *hi = it.raw(n + 1, c);
+            }
+            self.interval = Some(n);
+        }
+        let m = u.update;
+        // Source columns the scheduled coefficients need (harmonic: C00 ←
+        // C0, C2; C01 ← S1, S3; C02 ← C2; C03 ← S3, in source order C0, C2,
+        // S1, S3).
+        let need = match gen.repr {
+            Representation::SinPower => m,
+            Representation::Harmonic => {
+                let mut n = 0;
+                if m & 1 != 0 {
+                    n |= 0b0011;
+                }
+                if m & 2 != 0 {
+                    n |= 0b1100;
+                }
+                if m & 4 != 0 {
+                    n |= 0b0010;
+                }
+                if m & 8 != 0 {
+                    n |= 0b1000;
+                }
+                n
+            }
+        };
+        let mut v = [0i64; 4];
+        for (j, ((vj, lo), hi)) in v.iter_mut().zip(&self.lo).zip(&self.hi).enumerate() {
+            if need & (1 << j) != 0 {
+                *vj = i64::from(it.lerp(*lo, *hi, f));
+            }
+        }
+        let [a, b, c, d] = v;
+        let out = match gen.repr {
+            Representation::SinPower => v,
+            Representation::Harmonic => [a + b, c + 3 * d, -2 * b, -4 * d],
+        };
+        for (j, (code, x)) in codes.iter_mut().zip(out).enumerate() {
+            if m & (1 << j) != 0 {
+                *code = legacy_dac_code(sat_i32(x));
+            }
+        }
+        Ok(LegacyFrame {
+            codes,
+            update: m & 0b1111,
+        })
+    }
+}
+
 /// Z and its derivatives at (X, φ).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Command {
@@ -254,18 +347,24 @@ impl<'a> CommandGen<'a> {
         all.get(which as usize).copied().unwrap_or(0)
     }
 
+    /// Table columns the four legacy coefficients are made of: sin-power
+    /// C00..C03 directly; harmonic C0, C2, S1, S3 (eq 2-20..2-23).
+    fn legacy_columns(&self) -> [u8; 4] {
+        match self.repr {
+            Representation::SinPower => [0, 1, 2, 3],
+            // Harmonic columns: 0 C0, 1 C1, 2 S1, 3 C2, 4 S2, 5 C3, 6 S3.
+            Representation::Harmonic => [0, 3, 2, 6],
+        }
+    }
+
     /// C00..C03 at `at` (see [`CommandGen::legacy_coefficient`]), Q30
     /// inches, reading the table rows once.
     pub fn legacy_coefficients(&self, at: Locus) -> [i32; 4] {
         let mut v = [0i32; 4];
+        self.interp.select(at, &self.legacy_columns(), &mut v);
         match self.repr {
-            Representation::SinPower => {
-                self.interp.select(at, &[0, 1, 2, 3], &mut v);
-                v
-            }
+            Representation::SinPower => v,
             Representation::Harmonic => {
-                // Harmonic columns: 0 C0, 1 C1, 2 S1, 3 C2, 4 S2, 5 C3, 6 S3.
-                self.interp.select(at, &[0, 3, 2, 6], &mut v);
                 let [c0, c2, s1, s3] = v.map(i64::from);
                 [c0 + c2, s1 + 3 * s3, -2 * c2, -4 * s3].map(sat_i32)
             }
@@ -549,6 +648,50 @@ mod tests {
             g.z(XInches::from_f64(-1e-6), phi),
             Err(Fault::XOutsideTable)
         );
+    }
+
+    /// The interval-cached legacy output gives exactly the frames of the
+    /// stateless one, across interval changes in both directions.
+    #[test]
+    fn legacy_output_cache_is_exact() {
+        use crate::xpos::{half_mils_to_x, XUpdate};
+        let nodes = 6u32;
+        let mut harm = Vec::new();
+        let mut pow = Vec::new();
+        for n in 0..nodes as i32 {
+            harm.extend([
+                q30(-1e-5) * n,
+                7,
+                q30(2e-4) * n,
+                q30(-1.3e-3) * n,
+                5,
+                3,
+                q30(4e-6) * n,
+            ]);
+            pow.extend([
+                q30(-1e-5) * n,
+                q30(2e-4) * n,
+                q30(-1.3e-3) * n,
+                q30(4e-6) * n,
+            ]);
+        }
+        for (img, repr) in [
+            (table(Representation::Harmonic, 7, &harm, nodes), "harmonic"),
+            (table(Representation::SinPower, 4, &pow, nodes), "sin-power"),
+        ] {
+            let g = CommandGen::new(CoeffTable::parse(&img).unwrap());
+            let mut out = LegacyOutput::new();
+            let sweep = (0..2000u32).chain((0..2000u32).rev()).step_by(7);
+            for (k, hm) in sweep.enumerate() {
+                let u = XUpdate {
+                    half_mils: hm,
+                    x: half_mils_to_x(hm),
+                    update: (k % 16) as u8,
+                    null: hm > 1990,
+                };
+                assert_eq!(out.frame(&g, &u), g.legacy_frame(&u), "{repr} at {hm}");
+            }
+        }
     }
 
     #[test]

@@ -233,7 +233,7 @@ impl<'a> Interpolator<'a> {
     /// The interval `(lower node, Q31 position in it)` that serves `at`: the
     /// last node is served by the last interval at its far end (f = 1).
     #[inline(always)]
-    fn interval(&self, at: Locus) -> (u32, i64) {
+    pub(crate) fn interval(&self, at: Locus) -> (u32, i64) {
         let n = at.node.min(self.table.node_count().saturating_sub(2));
         let f = if at.node > n {
             1 << 31
@@ -245,7 +245,7 @@ impl<'a> Interpolator<'a> {
 
     /// Linear interpolation of one column between its node values, Q30.
     #[inline(always)]
-    fn lerp(&self, lo: i64, hi: i64, f: i64) -> i32 {
+    pub(crate) fn lerp(&self, lo: i64, hi: i64, f: i64) -> i32 {
         if self.fc == 30 {
             // f ≤ 2^31, so the rounded sum lies between lo and hi, both
             // i32: the cast is exact.
@@ -265,6 +265,12 @@ impl<'a> Interpolator<'a> {
             read(self.table.node_row(n + 1), column),
         );
         self.lerp(lo, hi, f)
+    }
+
+    /// Raw value (table units) of one column at one node, zero if absent.
+    #[inline]
+    pub(crate) fn raw(&self, node: u32, column: u8) -> i64 {
+        read(self.table.node_row(node), column)
     }
 
     /// Several columns at `at` (`columns[i]` into `out[i]`), fetching the
