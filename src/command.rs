@@ -197,6 +197,11 @@ pub struct CommandGen<'a> {
     repr: Representation,
     terms: u8,
     x_null: XInches,
+    /// Every Horner state of a sin-power evaluation stays below 2²⁹ (proved
+    /// from the table's largest coefficient at load), so the single-multiply
+    /// product [`mul_small`] and plain adds give the same bits as the
+    /// saturating path.
+    small: bool,
 }
 
 #[inline(always)]
@@ -217,11 +222,18 @@ fn fx30(v: i64) -> I2F30 {
 
 impl<'a> CommandGen<'a> {
     pub fn new(table: CoeffTable<'a>) -> Self {
+        let interp = Interpolator::new(table);
+        // |P|, |P'|, |P''| and the change series are all bounded by
+        // 2·max|c|·Σ_j (j² + 1) (Horner partial sums with |sin φ| ≤ 1; the
+        // changes are at most twice the values).
+        let weight: i128 = (0..i128::from(table.terms())).map(|j| j * j + 1).sum();
+        let bound = 2 * i128::from(interp.max_abs_q30().min(i64::from(COEFF_LIMIT))) * weight;
         Self {
-            interp: Interpolator::new(table),
+            interp,
             repr: table.representation(),
             terms: table.terms(),
             x_null: table.x_null(),
+            small: bound < (1 << 29),
         }
     }
 
@@ -291,7 +303,11 @@ impl<'a> CommandGen<'a> {
         let (z, d1, d2, dn) = match self.repr {
             Representation::Harmonic => harmonic::<true>(&c.value[..n], &c.delta[..n], phi),
             Representation::SinPower => {
-                sin_power::<true>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                if self.small {
+                    sin_power::<true, true>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                } else {
+                    sin_power::<true, false>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                }
             }
         };
         Command {
@@ -313,7 +329,11 @@ impl<'a> CommandGen<'a> {
         let (z, d1, d2, _) = match self.repr {
             Representation::Harmonic => harmonic::<false>(&c.value[..n], &c.delta[..n], phi),
             Representation::SinPower => {
-                sin_power::<false>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                if self.small {
+                    sin_power::<false, true>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                } else {
+                    sin_power::<false, false>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                }
             }
         };
         Command {
@@ -456,20 +476,39 @@ fn sat(a: i32, b: i32) -> i32 {
 /// Z = Σ c_j sin^j φ (eq 2-19) by Horner, with P'(s) and P''(s) alongside:
 /// ∂Z/∂φ = P'(s) cos φ, ∂²Z/∂φ² = P''(s) cos²φ − P'(s) sin φ. All in i32
 /// Q30 with saturating adds (one instruction each on the M4's DSP unit).
-fn sin_power<const DX: bool>(v: &[i32], d: &[i32], sc: SinCos) -> (i64, i64, i64, i64) {
+fn sin_power<const DX: bool, const SMALL: bool>(
+    v: &[i32],
+    d: &[i32],
+    sc: SinCos,
+) -> (i64, i64, i64, i64) {
     let (s, c) = (sc.sin, sc.cos);
+    let mul = |a: i32, b: i32| {
+        if SMALL {
+            mul_small(a, b)
+        } else {
+            mul_q30(a, b)
+        }
+    };
+    let add = |a: i32, b: i32| if SMALL { a.wrapping_add(b) } else { sat(a, b) };
     let (mut p, mut dp, mut ddp, mut pn) = (0i32, 0i32, 0i32, 0i32);
     for (cj, dj) in v.iter().rev().zip(d.iter().rev()) {
-        ddp = sat(mul_q30(ddp, s), sat(dp, dp));
-        dp = sat(mul_q30(dp, s), p);
-        p = sat(mul_q30(p, s), *cj);
+        ddp = add(mul(ddp, s), add(dp, dp));
+        dp = add(mul(dp, s), p);
+        p = add(mul(p, s), *cj);
         if DX {
-            pn = sat(mul_q30(pn, s), *dj);
+            pn = add(mul(pn, s), *dj);
         }
     }
-    let d1 = mul_q30(dp, c);
-    let d2 = sat(mul_q30(mul_q30(ddp, c), c), -mul_q30(dp, s));
+    let d1 = mul(dp, c);
+    let d2 = add(mul(mul(ddp, c), c), -mul(dp, s));
     (i64::from(p), i64::from(d1), i64::from(d2), i64::from(pn))
+}
+
+/// [`mul_q30`] for |a| < 2²⁹: `(4a·b + 2³¹) >> 32` is the same rounded
+/// quotient, and is one `SMMULR` on the Cortex-M4.
+#[inline(always)]
+fn mul_small(a: i32, b: i32) -> i32 {
+    ((i64::from(a << 2) * i64::from(b) + (1 << 31)) >> 32) as i32
 }
 
 /// Table 3-1 scaling of the coefficient DACs: ±10 V ↔ ±0.010 in, 16 bits over
@@ -623,6 +662,25 @@ mod tests {
                 (c.d2z_dphi2.to_num::<f64>() - curv).abs() < 2e-5,
                 "k={k} {} {curv}",
                 c.d2z_dphi2
+            );
+        }
+    }
+
+    /// The single-multiply path taken for tables of machine size gives the
+    /// same bits as the saturating path.
+    #[test]
+    fn small_path_equals_saturating_path() {
+        let g = CommandGen::new(CoeffTable::parse(crate::DEFAULT_TABLE).unwrap());
+        assert!(g.small);
+        let slow = CommandGen { small: false, ..g };
+        let mut a: u32 = 99;
+        for k in 0..3000u32 {
+            a = a.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let x = XInches::from_bits((k * 40_427) as i32 % (121 << 20));
+            let c = g.coefficients(x).unwrap();
+            assert_eq!(
+                g.evaluate(&c, SpindleAngle(a)),
+                slow.evaluate(&c, SpindleAngle(a))
             );
         }
     }
