@@ -61,6 +61,8 @@ pub const ALL: UpdateMask = C00 | C01 | C02 | C03;
 
 /// Half-mils (0.0005 in) per inch.
 pub const HALF_MILS_PER_INCH: u32 = 2000;
+/// Positions the latched digits can show: 0.0000 ..= 9.9995 in.
+pub const DISPLAY_HALF_MILS: u32 = 20_000;
 
 /// Legacy X configuration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -221,7 +223,10 @@ impl LegacyX {
         let first = match self.last_half_mils {
             None => true,
             Some(prev) => {
-                let step = prev.abs_diff(hm);
+                // The four-digit display wraps (ten's complement below zero:
+                // 0.0000 − 0.0005 reads 9.9995), so distance is modular.
+                let d = prev.abs_diff(hm);
+                let step = d.min(DISPLAY_HALF_MILS - d);
                 if step > self.cfg.max_jump_half_mils {
                     return Err(Fault::XGlitchStorm);
                 }
@@ -425,6 +430,24 @@ mod tests {
             r = x.on_interrupt(latch_word(100), 200_000 + k * 100);
         }
         assert_eq!(r, Err(Fault::XGlitchStorm));
+    }
+
+    /// Crossing the spindle axis: the counter borrows through zero and the
+    /// display reads 9.9995 in, a one-step move that lands in the null zone
+    /// (as with the 8080), not a glitch.
+    #[test]
+    fn crossing_zero_is_a_step_into_the_null_zone() {
+        let mut x = LegacyX::new(cfg());
+        x.on_interrupt(latch_word(1), 0).unwrap();
+        x.on_interrupt(latch_word(0), 1000).unwrap();
+        let XEvent::Update(u) = x.on_interrupt(latch_word(19_999), 2000).unwrap() else {
+            panic!()
+        };
+        assert!(u.null);
+        let XEvent::Update(u) = x.on_interrupt(latch_word(0), 3000).unwrap() else {
+            panic!()
+        };
+        assert!(!u.null && u.update == ALL, "back on the table: refresh all");
     }
 
     #[test]
