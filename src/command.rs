@@ -3,9 +3,11 @@
 //! legacy coefficient output (C00..C03 for the 1983 analog electronics).
 //!
 //! # Split by rate
-//! [`CommandGen::coefficients`] depends on X only (the X event, or once per
-//! loop tick in modern mode); [`CommandGen::evaluate`] depends on φ and runs
-//! every loop tick. Both are integer-only, allocation-free and total.
+//! [`CommandGen::coefficients_into`] depends on X only (the X event, or
+//! every loop tick in modern mode); [`CommandGen::evaluate_phi`] (Z, ∂Z/∂φ,
+//! ∂²Z/∂φ²) or [`CommandGen::evaluate`] (also ∂Z/∂X) depends on φ and runs
+//! every loop tick. [`LegacyOutput::frame`] serves the legacy X event in the
+//! coefficient-output mode. All are integer-only, allocation-free, total.
 //!
 //! # Formats and error budget
 //! Coefficients at X arrive in Q30 inches (`I2F30`, LSB 9.3e-10 in), each
@@ -13,9 +15,10 @@
 //! ([`crate::trig`]).
 //! * Harmonic tables: every product `C_k cos kφ` is formed exactly in Q60
 //!   and summed exactly; Z is rounded once. Error ≤ Σ|C_k|·3·2⁻³⁰ +
-//!   (terms/2 + 1/2) LSB ≈ 5e-9 in for 7 harmonics.
+//!   (columns/2 + 1/2) LSB ≈ 7e-9 in for 7 harmonics (15 columns).
 //! * Sin-power tables: Horner in Q30, one rounding per step: ≤ (terms) LSB +
-//!   Σ j|c_j|·3·2⁻³⁰ ≈ 4e-9 in for the four terms of eq 2-19.
+//!   Σ j|c_j|·3·2⁻³⁰ ≈ 5e-9 in for the default table's five terms
+//!   (`host-sim accuracy` measures 0.004 µin for the whole fixed-point share).
 //!
 //! Both are below 0.01 µin (1e-8 in), a tenth of the 0.1 µin goal; the rest
 //! belongs to the table (series truncation, grid, coefficient rounding).
@@ -35,7 +38,7 @@ use fixed::types::I2F30;
 const COLS: usize = MAX_TERMS as usize;
 /// Coefficients saturate at ±1/8 in (Q30), twelve times the slide's whole
 /// travel: no real table comes near it, and it bounds every sum in
-/// [`harmonic`] without per-step saturation.
+/// the harmonic series without per-step saturation.
 pub const COEFF_LIMIT: i32 = 1 << 27;
 
 /// The coefficients at one X, ready for [`CommandGen::evaluate`].
