@@ -44,7 +44,11 @@
 //! # Modern interface
 //! [`CountX`] maps a quadrature/interferometer count to X with a
 //! configurable counts-per-inch (sign = direction) and zero offset, by one
-//! multiply by a reciprocal computed at configuration.
+//! multiply by a reciprocal computed at configuration. The loop tick
+//! re-interpolates the coefficients at that X every tick
+//! ([`crate::command::CommandGen::coefficients_into`]); when the count has
+//! not changed since the last tick X is bit-identical, so skipping the
+//! re-interpolation then changes nothing but the cost.
 
 use crate::hw::XLatchWord;
 use crate::safety::Fault;
