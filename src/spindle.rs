@@ -113,6 +113,12 @@ impl EncoderAngle {
         })
     }
 
+    /// Whether an index has set the phase (before it the angle is
+    /// meaningless and the command must stay nulled).
+    pub fn referenced(&self) -> bool {
+        self.reference.is_some()
+    }
+
     /// Angle of a count relative to the index reference, wrapping.
     #[inline]
     fn angle_of(&self, delta_counts: i64) -> i64 {
