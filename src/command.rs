@@ -453,8 +453,10 @@ fn harmonic<const DX: bool>(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i6
         .zip(d.get(1..).unwrap_or(&[]).chunks_exact(2));
     let first = sin_cos(phi);
     let (s1, c1) = (i64::from(first.sin), i64::from(first.cos));
-    let (mut s, mut c) = (s1, c1);
+    // i32 state: every product below is a single 32×32→64 multiply.
+    let (mut si, mut ci) = (first.sin, first.cos);
     for (k, (pv, pd)) in (1i64..).zip(pairs) {
+        let (s, c) = (i64::from(si), i64::from(ci));
         let (ck, sk) = (i64::from(pv[0]), i64::from(pv[1]));
         let zk = ck * c + sk * s;
         z += zk;
@@ -464,10 +466,9 @@ fn harmonic<const DX: bool>(v: &[i32], d: &[i32], phi: SpindleAngle) -> (i64, i6
         }
         d1 += q60_to_q30(sk * c - ck * s) * k;
         d2 -= q60_to_q30(zk) * k * k;
-        // (k+1)φ = kφ + φ.
-        let ns = (s * c1 + c * s1 + (1 << 29)) >> 30;
-        c = (c * c1 - s * s1 + (1 << 29)) >> 30;
-        s = ns;
+        // (k+1)φ = kφ + φ; |result| ≤ 2³⁰ + 4k: fits an i32.
+        si = ((s * c1 + c * s1 + (1 << 29)) >> 30) as i32;
+        ci = ((c * c1 - s * s1 + (1 << 29)) >> 30) as i32;
     }
     (q60_to_q30(z), d1, d2, q60_to_q30(zn))
 }
