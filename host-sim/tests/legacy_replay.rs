@@ -11,7 +11,7 @@
 
 use host_sim::machine::xslide::{FeedSegment, XSlide, XSlideConfig};
 use std::convert::Infallible;
-use zslide::command::CommandGen;
+use zslide::command::{CommandGen, LegacyOutput};
 use zslide::drivers::ad5686::Ad5686;
 use zslide::hw::XLatchWord;
 use zslide::table::{CoeffTable, Geometry, Representation, TableHeader};
@@ -231,6 +231,7 @@ fn replay(cfg: XSlideConfig, until_ns: u64) -> Tally {
     });
     let chip = std::cell::RefCell::new(QuadDac::default());
     let mut dac = Ad5686::new(Bus(&chip), Ldac(&chip)).unwrap();
+    let mut legacy_out = LegacyOutput::new();
 
     let mut slide = XSlide::new(cfg);
     let mut events = Vec::new();
@@ -256,8 +257,9 @@ fn replay(cfg: XSlideConfig, until_ns: u64) -> Tally {
                 );
             }
             (Some(out), XEvent::Update(u)) => {
-                let frame = gen.legacy_frame(&u).unwrap();
+                let frame = legacy_out.frame(&gen, &u).unwrap();
                 assert_eq!(frame.update, u.update);
+                assert_eq!(frame, gen.legacy_frame(&u).unwrap());
                 dac.output(&frame.codes, frame.update).unwrap();
                 let d = chip.borrow();
                 assert_eq!(d.strobes, strobes_before + 1, "one strobe per update");
