@@ -1,4 +1,600 @@
-fn main() {
-    eprintln!("xtask: not written yet");
-    std::process::exit(2);
+//! Project automation (std only): `cargo xtask <command>`.
+//!
+//! * `test`    – everything: host tests, the board firmware, the QEMU image
+//!   built, run and its log checked; image sizes. Installs what is missing
+//!   when it can (Rust target, flip-link, defmt-print, QEMU) and otherwise
+//!   says exactly what is missing.
+//! * `qemu [--bless]` – builds and runs the QEMU image, decodes its defmt
+//!   log, compares it (timestamps stripped) with `boards/qemu/expected.log`
+//!   (`--bless` rewrites that file), and exits with the image's status.
+//! * `size`    – flash and RAM use of both images (builds them first).
+//! * `isr-cost [--json]` – instructions per interrupt handler under QEMU.
+
+mod elf;
+mod isr_cost;
+
+use std::env;
+use std::fs;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::time::{Duration, Instant};
+
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
+
+type Result<T> = std::result::Result<T, String>;
+
+fn main() -> ExitCode {
+    let args: Vec<String> = env::args().skip(1).collect();
+    let cmd = args.first().map(String::as_str).unwrap_or("help");
+    let flags = &args[args.len().min(1)..];
+    let result = match cmd {
+        "test" => cmd_test(),
+        "qemu" => cmd_qemu(flags.iter().any(|a| a == "--bless")),
+        "size" => cmd_size(),
+        "isr-cost" => isr_cost::run(flags.iter().any(|a| a == "--json")),
+        _ => {
+            eprintln!(
+                "usage: cargo xtask <test | qemu [--bless] | size | isr-cost [--json]>\n\
+                 \n  test      host tests, board firmware, QEMU image run (installs what it can)\
+                 \n  qemu      build and run the QEMU image; exit status passed through\
+                 \n  size      flash and RAM use of both images\
+                 \n  isr-cost  instructions per interrupt handler under QEMU"
+            );
+            return ExitCode::from(if cmd == "help" { 0 } else { 2 });
+        }
+    };
+    match result {
+        Ok(code) => ExitCode::from(code),
+        Err(e) => {
+            eprintln!("xtask: error: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+pub fn root() -> PathBuf {
+    // xtask/Cargo.toml lives one level below the workspace root.
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
+}
+
+pub fn qemu_dir() -> PathBuf {
+    root().join("boards/qemu")
+}
+
+/// Both workspaces build into the root's target directory (boards/qemu's
+/// config points there), unless CARGO_TARGET_DIR overrides it for both.
+fn target_dir() -> PathBuf {
+    match env::var_os("CARGO_TARGET_DIR") {
+        Some(dir) => root().join(dir),
+        None => root().join("target"),
+    }
+}
+
+pub fn board_elf() -> PathBuf {
+    target_dir().join(TARGET).join("release/zslide-fw")
+}
+
+pub fn qemu_elf() -> PathBuf {
+    target_dir().join(TARGET).join("release/zslide-qemu")
+}
+
+fn cargo() -> Command {
+    Command::new(env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+}
+
+fn step(title: &str) {
+    eprintln!("\n==> {title}");
+}
+
+/// Runs a command to completion; Ok if it exits 0.
+fn run(cmd: &mut Command, what: &str) -> Result<()> {
+    let status = cmd
+        .status()
+        .map_err(|e| format!("{what}: cannot start {:?}: {e}", cmd.get_program()))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{what} failed ({status})"))
+    }
+}
+
+/// Whether `program args` starts and exits 0 (used to probe for tools).
+fn works(program: &str, args: &[&str]) -> bool {
+    Command::new(program)
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false)
+}
+
+/// Whether an executable named `bin` is on PATH (for tools, like flip-link,
+/// that have no harmless "print your version" call).
+fn on_path(bin: &str) -> bool {
+    env::var_os("PATH")
+        .map(|paths| env::split_paths(&paths).any(|dir| dir.join(bin).is_file()))
+        .unwrap_or(false)
+}
+
+pub fn output_of(program: &str, args: &[&str]) -> Option<String> {
+    output(program, args)
+}
+
+fn output(program: &str, args: &[&str]) -> Option<String> {
+    let out = Command::new(program).args(args).output().ok()?;
+    out.status
+        .success()
+        .then(|| String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+// ---------------------------------------------------------------- tools
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Tool {
+    Target,
+    FlipLink,
+    DefmtPrint,
+    Qemu,
+}
+
+/// Makes sure each tool is there, installing it when possible. Returns the
+/// list of what is still missing, each with the exact remedy.
+fn ensure(tools: &[Tool]) -> Vec<String> {
+    let mut missing = Vec::new();
+    for &tool in tools {
+        if let Err(e) = ensure_one(tool) {
+            missing.push(e);
+        }
+    }
+    missing
+}
+
+fn ensure_one(tool: Tool) -> Result<()> {
+    match tool {
+        Tool::Target => {
+            let installed = output("rustup", &["target", "list", "--installed"]);
+            match installed {
+                Some(list) if list.lines().any(|l| l.trim() == TARGET) => Ok(()),
+                Some(_) => {
+                    step(&format!("installing the Rust target {TARGET}"));
+                    run(
+                        Command::new("rustup").args(["target", "add", TARGET]),
+                        "rustup target add",
+                    )
+                    .map_err(|e| {
+                        format!("Rust target {TARGET} ({e}); run `rustup target add {TARGET}`")
+                    })
+                }
+                None => Err(format!(
+                    "rustup (to add the {TARGET} target); install rustup from https://rustup.rs, \
+                     or provide a toolchain with the {TARGET} standard library"
+                )),
+            }
+        }
+        Tool::FlipLink => cargo_install("flip-link", &["flip-link", "--locked"]),
+        Tool::DefmtPrint => cargo_install(
+            "defmt-print",
+            // defmt-print 1.x decodes defmt 1.x frames.
+            &["defmt-print", "--locked", "--version", "^1"],
+        ),
+        Tool::Qemu => {
+            if works("qemu-system-arm", &["--version"]) {
+                return Ok(());
+            }
+            let root = output("id", &["-u"])
+                .map(|s| s.trim() == "0")
+                .unwrap_or(false);
+            let apt = works("apt-get", &["--version"]);
+            if root && apt {
+                step("installing qemu-system-arm (apt-get)");
+                let env = [("DEBIAN_FRONTEND", "noninteractive")];
+                run(
+                    Command::new("apt-get").arg("update").envs(env),
+                    "apt-get update",
+                )
+                .and_then(|()| {
+                    run(
+                        Command::new("apt-get")
+                            .args([
+                                "install",
+                                "-y",
+                                "--no-install-recommends",
+                                "qemu-system-arm",
+                            ])
+                            .envs(env),
+                        "apt-get install qemu-system-arm",
+                    )
+                })
+                .map_err(|e| format!("qemu-system-arm ({e})"))?;
+                if works("qemu-system-arm", &["--version"]) {
+                    Ok(())
+                } else {
+                    Err("qemu-system-arm (installed but does not run)".into())
+                }
+            } else if apt {
+                Err(
+                    "qemu-system-arm: run `sudo apt-get update && sudo apt-get install -y \
+                     qemu-system-arm` (not root, so xtask does not)"
+                        .into(),
+                )
+            } else {
+                Err(
+                    "qemu-system-arm (QEMU ≥ 7 with the mps2-an386 machine): no apt-get here; \
+                     install it with your package manager"
+                        .into(),
+                )
+            }
+        }
+    }
+}
+
+fn cargo_install(bin: &str, install: &[&str]) -> Result<()> {
+    if on_path(bin) {
+        return Ok(());
+    }
+    step(&format!("installing {bin} (cargo install)"));
+    let mut cmd = cargo();
+    cmd.arg("install").args(install);
+    run(&mut cmd, &format!("cargo install {bin}"))
+        .map_err(|e| format!("{bin} ({e}); run `cargo install {}`", install.join(" ")))?;
+    if on_path(bin) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{bin}: installed but not on PATH; add ~/.cargo/bin to PATH"
+        ))
+    }
+}
+
+fn require(tools: &[Tool]) -> Result<()> {
+    let missing = ensure(tools);
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let mut msg = String::from("missing, and could not be installed:");
+    for m in &missing {
+        msg.push_str("\n  - ");
+        msg.push_str(m);
+    }
+    Err(msg)
+}
+
+// ---------------------------------------------------------------- builds
+
+fn build_board() -> Result<()> {
+    step("board firmware: cargo fw (NUCLEO-H743ZI2)");
+    run(cargo().current_dir(root()).arg("fw"), "cargo fw")
+}
+
+pub fn require_for_qemu() -> Result<()> {
+    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu])
+}
+
+pub fn build_qemu_image() -> Result<()> {
+    build_qemu()
+}
+
+fn build_qemu() -> Result<()> {
+    step("QEMU image: cargo build --release (boards/qemu, mps2-an386)");
+    // From its own directory: that picks up its .cargo/config.toml (target,
+    // runner) on top of the root one (linker, rustflags).
+    run(
+        cargo().current_dir(qemu_dir()).args(["build", "--release"]),
+        "QEMU image build",
+    )
+}
+
+/// The QEMU command line, the same as the runner in boards/qemu/.cargo.
+pub fn qemu_command(elf: &Path) -> Command {
+    let mut cmd = Command::new("qemu-system-arm");
+    cmd.args([
+        "-machine",
+        "mps2-an386",
+        "-cpu",
+        "cortex-m4",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        "null",
+        "-semihosting-config",
+        "enable=on,target=native",
+        "-icount",
+        "shift=0,sleep=off",
+        "-kernel",
+    ])
+    .arg(elf);
+    cmd
+}
+
+fn wait_timeout(
+    child: &mut Child,
+    limit: Duration,
+    what: &str,
+) -> Result<std::process::ExitStatus> {
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().map_err(|e| format!("{what}: {e}"))? {
+            return Ok(status);
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Err(format!(
+                "{what}: no exit within {} s, killed",
+                limit.as_secs()
+            ));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Runs the QEMU image with its log decoded; returns (exit code, log lines).
+fn run_qemu() -> Result<(u8, Vec<String>)> {
+    let elf = qemu_elf();
+    step("QEMU run: qemu-system-arm -machine mps2-an386 | defmt-print");
+    let mut qemu = qemu_command(&elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
+    let qemu_out = qemu.stdout.take().ok_or("no QEMU stdout")?;
+    let mut print = Command::new("defmt-print")
+        .args(["-e"])
+        .arg(&elf)
+        .args(["--log-format", "{t} {L} {s}", "stdin"])
+        .stdin(Stdio::from(qemu_out))
+        .stdout(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("cannot start defmt-print: {e}"))?;
+    let print_out = print.stdout.take().ok_or("no defmt-print stdout")?;
+    let reader = std::thread::spawn(move || {
+        let mut lines = Vec::new();
+        for line in BufReader::new(print_out)
+            .lines()
+            .map_while(std::result::Result::ok)
+        {
+            println!("{line}");
+            lines.push(line);
+        }
+        lines
+    });
+    let status = wait_timeout(&mut qemu, QEMU_TIMEOUT, "qemu-system-arm")?;
+    // defmt-print ends when QEMU closes the pipe.
+    let print_status = wait_timeout(&mut print, Duration::from_secs(10), "defmt-print")?;
+    let lines = reader.join().map_err(|_| "log reader panicked")?;
+    if !print_status.success() {
+        return Err(format!("defmt-print failed ({print_status})"));
+    }
+    let code = status.code().map(|c| c.clamp(0, 255) as u8).unwrap_or(1);
+    Ok((code, lines))
+}
+
+/// A decoded log line without its timestamp (the first field).
+fn strip_timestamp(line: &str) -> &str {
+    match line.split_once(' ') {
+        Some((t, rest)) if t.chars().all(|c| c.is_ascii_digit() || c == '.') => rest,
+        _ => line,
+    }
+}
+
+fn check_snapshot(lines: &[String], bless: bool) -> Result<()> {
+    let path = qemu_dir().join("expected.log");
+    let got: Vec<&str> = lines.iter().map(|l| strip_timestamp(l)).collect();
+    let text = got.join("\n") + "\n";
+    if bless {
+        fs::write(&path, &text).map_err(|e| format!("{}: {e}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+        return Ok(());
+    }
+    let want = fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if want == text {
+        eprintln!("QEMU log matches {} ({} lines)", path.display(), got.len());
+        return Ok(());
+    }
+    let mut msg = format!("QEMU log differs from {}:", path.display());
+    for (i, (w, g)) in want.lines().zip(got.iter()).enumerate() {
+        if w != *g {
+            msg.push_str(&format!(
+                "\n  line {}:\n    expected: {w}\n    got:      {g}",
+                i + 1
+            ));
+        }
+    }
+    if want.lines().count() != got.len() {
+        msg.push_str(&format!(
+            "\n  expected {} lines, got {}",
+            want.lines().count(),
+            got.len()
+        ));
+    }
+    msg.push_str("\n  (if the change is intended: cargo xtask qemu --bless)");
+    Err(msg)
+}
+
+// ---------------------------------------------------------------- commands
+
+fn cmd_qemu(bless: bool) -> Result<u8> {
+    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])?;
+    build_qemu()?;
+    let (code, lines) = run_qemu()?;
+    eprintln!("QEMU image exited with status {code}");
+    if code == 0 {
+        check_snapshot(&lines, bless)?;
+    }
+    Ok(code)
+}
+
+fn cmd_size() -> Result<u8> {
+    require(&[Tool::Target, Tool::FlipLink])?;
+    build_board()?;
+    build_qemu()?;
+    print_sizes()?;
+    Ok(0)
+}
+
+fn print_sizes() -> Result<()> {
+    step("image sizes");
+    for (name, path, flash_total, ram_total) in [
+        (
+            "NUCLEO-H743ZI2 (zslide-fw)",
+            board_elf(),
+            2048 * 1024,
+            128 * 1024,
+        ),
+        (
+            "QEMU mps2-an386 (zslide-qemu)",
+            qemu_elf(),
+            4096 * 1024,
+            4096 * 1024,
+        ),
+    ] {
+        let s = elf::sizes(&path)?;
+        eprintln!(
+            "{name}: flash {} B ({:.2} % of {} KiB), static RAM {} B ({:.2} % of {} KiB)  \
+             [text+rodata {} B, data {} B, bss+uninit {} B]",
+            s.flash(),
+            100.0 * s.flash() as f64 / flash_total as f64,
+            flash_total / 1024,
+            s.ram(),
+            100.0 * s.ram() as f64 / ram_total as f64,
+            ram_total / 1024,
+            s.text,
+            s.data,
+            s.bss
+        );
+    }
+    Ok(())
+}
+
+/// (passed, failed, ignored) of a libtest summary line,
+/// "test result: ok. 11 passed; 0 failed; 0 ignored; 0 measured; ...".
+fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
+    let rest = line.strip_prefix("test result: ")?;
+    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
+    for part in rest.split(';') {
+        let mut words = part.split_whitespace().rev();
+        let (Some(what), Some(n)) = (words.next(), words.next()) else {
+            continue;
+        };
+        let Ok(n) = n.parse::<u64>() else { continue };
+        match what {
+            "passed" => passed = n,
+            "failed" => failed = n,
+            "ignored" => ignored = n,
+            _ => {}
+        }
+    }
+    Some((passed, failed, ignored))
+}
+
+/// `cargo test --workspace`, its output shown as it comes; returns the
+/// summed counts of its "test result:" lines.
+fn host_tests() -> Result<(u64, u64, u64)> {
+    let mut child = cargo()
+        .current_dir(root())
+        .args(["test", "--workspace"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("cannot start cargo test: {e}"))?;
+    let out = child.stdout.take().ok_or("no cargo test stdout")?;
+    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
+    for line in BufReader::new(out)
+        .lines()
+        .map_while(std::result::Result::ok)
+    {
+        println!("{line}");
+        if let Some((p, f, i)) = parse_test_result(&line) {
+            passed += p;
+            failed += f;
+            ignored += i;
+        }
+    }
+    let status = child.wait().map_err(|e| format!("cargo test: {e}"))?;
+    if !status.success() {
+        return Err(format!("cargo test --workspace failed ({status})"));
+    }
+    Ok((passed, failed, ignored))
+}
+
+fn cmd_test() -> Result<u8> {
+    let started = Instant::now();
+    let missing = ensure(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint]);
+    let firmware_possible = !missing.iter().any(|m| {
+        m.starts_with("Rust target") || m.starts_with("rustup") || m.starts_with("flip-link")
+    });
+    let qemu_possible = firmware_possible
+        && !missing
+            .iter()
+            .any(|m| m.starts_with("qemu") || m.starts_with("defmt-print"));
+
+    step("host tests: cargo test --workspace");
+    let results = host_tests()?;
+
+    if firmware_possible {
+        build_board()?;
+        build_qemu()?;
+        print_sizes()?;
+    }
+    let mut qemu_code = None;
+    if qemu_possible {
+        let (code, lines) = run_qemu()?;
+        if code != 0 {
+            return Err(format!("the QEMU image exited with status {code}"));
+        }
+        check_snapshot(&lines, false)?;
+        qemu_code = Some(code);
+    }
+
+    eprintln!("\n==> summary ({:.0} s)", started.elapsed().as_secs_f64());
+    let (passed, failed, ignored) = results;
+    eprintln!("host tests: passed ({passed} passed, {failed} failed, {ignored} ignored)");
+    eprintln!(
+        "board firmware: {}",
+        if firmware_possible {
+            "built"
+        } else {
+            "NOT BUILT"
+        }
+    );
+    eprintln!(
+        "QEMU image: {}",
+        match qemu_code {
+            Some(_) => "ran, exit status 0, log as expected",
+            None => "NOT RUN",
+        }
+    );
+    if missing.is_empty() {
+        Ok(0)
+    } else {
+        eprintln!("incomplete: missing, and could not be installed:");
+        for m in &missing {
+            eprintln!("  - {m}");
+        }
+        Ok(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn test_result_lines_are_summed_by_field() {
+        let line = "test result: ok. 19 passed; 2 failed; 3 ignored; 0 measured; 0 filtered out; finished in 0.01s";
+        assert_eq!(parse_test_result(line), Some((19, 2, 3)));
+        assert_eq!(parse_test_result("running 19 tests"), None);
+    }
+
+    #[test]
+    fn timestamps_are_stripped_only_when_present() {
+        assert_eq!(strip_timestamp("0.200019 INFO  PASS"), "INFO  PASS");
+        assert_eq!(strip_timestamp("INFO  tick 1: x"), "INFO  tick 1: x");
+    }
 }

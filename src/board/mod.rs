@@ -1,0 +1,143 @@
+//! NUCLEO-H743ZI2 board support: pins, clocks, timers, SPI, converters.
+//! `docs/BOARD.md` is the wiring reference; this module is its source of
+//! truth (the pin constants below).
+
+pub mod clocks;
+pub mod converters;
+pub mod gpio;
+pub mod spi;
+pub mod timers;
+
+use gpio::{Mode, Pin};
+use stm32h7::stm32h743v::{EXTI, SYSCFG};
+use zslide::hw::{XLatch, XLatchWord};
+
+/// The pin map. Chosen clear of the NUCLEO's LEDs (PB0, PE1, PB14), user
+/// button (PC13), Ethernet RMII (PA1, PA2, PA7, PB13, PC1, PC4, PC5, PG11,
+/// PG13), USB (PA8..PA12, PG6, PG7) and ST-LINK VCP (PD8, PD9) lines.
+pub mod pins {
+    use super::gpio::{Pin, Port};
+
+    /// Amplifier enable, active high. Must have an external pull-down so
+    /// that reset, power-up and a watchdog reset keep the amplifier off.
+    pub const AMP_ENABLE: Pin = Pin::new(Port::G, 4);
+
+    /// SPI1 (AF5), amplifier DAC AD5791, mode 1, 25 MHz.
+    pub const AMP_DAC_SCK: Pin = Pin::new(Port::A, 5);
+    pub const AMP_DAC_MISO: Pin = Pin::new(Port::A, 6);
+    pub const AMP_DAC_MOSI: Pin = Pin::new(Port::B, 5);
+    /// AD5791 SYNC (chip select), GPIO, active low.
+    pub const AMP_DAC_SYNC: Pin = Pin::new(Port::D, 14);
+
+    /// SPI4 (AF5), gauge ADC AD4020, mode 0, 50 MHz. SDI tied high.
+    pub const GAUGE_SCK: Pin = Pin::new(Port::E, 12);
+    pub const GAUGE_MISO: Pin = Pin::new(Port::E, 13);
+    pub const GAUGE_MOSI: Pin = Pin::new(Port::E, 14);
+    /// AD4020 CNV, TIM3_CH1 (AF2): conversion start from the loop timer.
+    pub const GAUGE_CNV: Pin = Pin::new(Port::C, 6);
+
+    /// SPI3 (AF6), quad coefficient DAC AD5686, mode 1, 25 MHz.
+    pub const QUAD_DAC_SCK: Pin = Pin::new(Port::C, 10);
+    pub const QUAD_DAC_MISO: Pin = Pin::new(Port::C, 11);
+    pub const QUAD_DAC_MOSI: Pin = Pin::new(Port::C, 12);
+    /// AD5686 SYNC, GPIO, active low.
+    pub const QUAD_DAC_SYNC: Pin = Pin::new(Port::A, 4);
+    /// AD5686 LDAC, GPIO, active low: a low pulse updates all four outputs.
+    pub const QUAD_DAC_LDAC: Pin = Pin::new(Port::G, 5);
+
+    /// Legacy X interface: the four latched BCD digits on PF0..PF15
+    /// (`hw::XLatchWord` bits 0..15, one port read), the half-mil flag and
+    /// the mil-zero flag.
+    pub const BCD_PORT: Port = Port::F;
+    pub const X_HALF_MIL_FLAG: Pin = Pin::new(Port::G, 0);
+    pub const X_MIL_ZERO_FLAG: Pin = Pin::new(Port::G, 1);
+    /// The half-mil interrupt, EXTI2 on its rising edge.
+    pub const X_HALF_MIL_IRQ: Pin = Pin::new(Port::G, 2);
+    /// Spindle once-per-revolution index, EXTI3 on its rising edge.
+    pub const SPINDLE_INDEX: Pin = Pin::new(Port::G, 3);
+}
+
+/// Configures every pin of the map; outputs start at their safe level
+/// (amplifier off, chip selects and LDAC high).
+pub fn configure_pins() {
+    use pins::*;
+    AMP_ENABLE.configure(Mode::Output(false));
+    AMP_DAC_SYNC.configure(Mode::Output(true));
+    QUAD_DAC_SYNC.configure(Mode::Output(true));
+    QUAD_DAC_LDAC.configure(Mode::Output(true));
+    for p in [
+        AMP_DAC_SCK,
+        AMP_DAC_MISO,
+        AMP_DAC_MOSI,
+        GAUGE_SCK,
+        GAUGE_MISO,
+        GAUGE_MOSI,
+    ] {
+        p.configure(Mode::Alternate(5));
+    }
+    for p in [QUAD_DAC_SCK, QUAD_DAC_MISO, QUAD_DAC_MOSI] {
+        p.configure(Mode::Alternate(6));
+    }
+    GAUGE_CNV.configure(Mode::Alternate(2));
+    for n in 0..16 {
+        Pin::new(BCD_PORT, n).configure(Mode::Input(0));
+    }
+    for p in [
+        X_HALF_MIL_FLAG,
+        X_MIL_ZERO_FLAG,
+        X_HALF_MIL_IRQ,
+        SPINDLE_INDEX,
+    ] {
+        p.configure(Mode::Input(0));
+    }
+}
+
+/// Routes PG2 to EXTI2 and PG3 to EXTI3, rising edges, unmasked for the
+/// CPU (the NVIC lines stay masked until `main` unmasks them).
+pub fn configure_exti(syscfg: &SYSCFG, exti: &EXTI) {
+    const PORT_G: u32 = 6;
+    const LINES: u32 = (1 << 2) | (1 << 3);
+    // SAFETY: EXTICR1 fields EXTI2 (bits 11..8) and EXTI3 (bits 15..12)
+    // select port G; RTSR1/CPUIMR1 bits 2 and 3 enable rising-edge events
+    // and their interrupts; CPUPR1 clears stale pending bits (write 1).
+    unsafe {
+        syscfg
+            .exticr1()
+            .modify(|r, w| w.bits((r.bits() & !0xFF00) | (PORT_G << 8) | (PORT_G << 12)));
+        exti.rtsr1().modify(|r, w| w.bits(r.bits() | LINES));
+        exti.cpupr1().write(|w| w.bits(LINES));
+        exti.cpuimr1().modify(|r, w| w.bits(r.bits() | LINES));
+    }
+}
+
+/// Clears a pending EXTI line (`line` < 16).
+pub fn ack_exti(line: u32) {
+    // SAFETY: writing 1 to a CPUPR1 bit clears only that line's pending flag.
+    unsafe { (*EXTI::ptr()).cpupr1().write(|w| w.bits(1 << (line & 15))) };
+}
+
+/// The legacy X latch on the pins above.
+pub struct LatchPins;
+
+impl XLatch for LatchPins {
+    fn read(&mut self) -> XLatchWord {
+        let digits = u32::from(pins::BCD_PORT.read());
+        let half = if pins::X_HALF_MIL_FLAG.is_high() {
+            XLatchWord::HALF_MIL
+        } else {
+            0
+        };
+        let zero = if pins::X_MIL_ZERO_FLAG.is_high() {
+            XLatchWord::MIL_ZERO
+        } else {
+            0
+        };
+        XLatchWord(digits | half | zero)
+    }
+}
+
+/// Forces the amplifier off from any context, owning nothing: one store to
+/// GPIOG_BSRR. Used by the panic and fault handlers before anything else.
+pub fn force_amplifier_off() {
+    pins::AMP_ENABLE.set(false);
+}

@@ -1,0 +1,122 @@
+//! Timers: the loop tick with the gauge's conversion start, the hardware
+//! clock, the defmt timestamp, and the independent watchdog.
+//!
+//! | timer | clock | use |
+//! |---|---|---|
+//! | TIM3 | 200 MHz, ARR = 200 MHz / [`LOOP_HZ`] − 1 | loop period; CH1 PWM = gauge CNV pulse on PC6, high for [`CNV_HIGH_TICKS`] from each update; CH2 compare at [`READ_AT_TICKS`] raises the loop-tick interrupt |
+//! | TIM2 | 200 MHz, free-running 32 bit | `hw::Clock` (5 ns ticks, wraps every 21.5 s) |
+//! | TIM5 | 1 MHz, free-running 32 bit | defmt timestamp, µs (wraps every 71.6 min) |
+//! | IWDG1 | LSI 32 kHz / 4 | 10 ms watchdog, refreshed by the loop tick |
+//!
+//! The AD4020 converts on CNV's rising edge (t_CONV ≤ 320 ns) and, in its
+//! three-wire mode with SDI high, puts its result on SDO once CNV falls; so
+//! the interrupt comes after CNV has fallen, and the sample instant is fixed
+//! by hardware, free of interrupt-latency jitter.
+
+use stm32h7::stm32h743v::{DBGMCU, IWDG, TIM2, TIM3, TIM5};
+
+use super::clocks::APB1_TIMER_HZ;
+
+/// Loop-tick rate, Hz (≥ 20 kHz per the brief). Must divide 200 MHz into
+/// at most 65 536 timer counts (≥ 3052 Hz).
+pub const LOOP_HZ: u32 = 20_000;
+const LOOP_ARR: u32 = APB1_TIMER_HZ / LOOP_HZ - 1;
+const _: () = assert!(LOOP_ARR <= 0xFFFF && LOOP_ARR > 2 * READ_AT_TICKS);
+/// CNV high time after each update: 1 µs (≥ t_CONV of 320 ns).
+pub const CNV_HIGH_TICKS: u32 = 200;
+/// Loop interrupt 100 ns after CNV falls.
+pub const READ_AT_TICKS: u32 = 220;
+/// Rate of [`now_ticks`].
+pub const CLOCK_HZ: u32 = APB1_TIMER_HZ;
+
+const SR_CC2IF: u32 = 1 << 2;
+
+/// Starts TIM2 (hardware clock) and TIM5 (timestamp), free-running.
+pub fn start_free_running(tim2: &TIM2, tim5: &TIM5) {
+    // SAFETY: PSC/ARR/EGR/CR1 of two timers owned by this module: prescaler
+    // (n − 1), full 32-bit period, an update event to load the prescaler,
+    // then count enable.
+    unsafe {
+        tim2.psc().write(|w| w.bits(0));
+        tim2.arr().write(|w| w.bits(u32::MAX));
+        tim2.egr().write(|w| w.bits(1));
+        tim2.cr1().write(|w| w.bits(1));
+        tim5.psc().write(|w| w.bits(APB1_TIMER_HZ / 1_000_000 - 1));
+        tim5.arr().write(|w| w.bits(u32::MAX));
+        tim5.egr().write(|w| w.bits(1));
+        tim5.cr1().write(|w| w.bits(1));
+    }
+}
+
+/// TIM2's count (read-only register, so any context may call this).
+pub fn now_ticks() -> u32 {
+    // SAFETY: reading TIM2_CNT has no side effect.
+    unsafe { (*TIM2::ptr()).cnt().read().bits() }
+}
+
+/// TIM5's count in µs.
+pub fn micros() -> u32 {
+    // SAFETY: reading TIM5_CNT has no side effect.
+    unsafe { (*TIM5::ptr()).cnt().read().bits() }
+}
+
+/// `hw::Clock` on TIM2, for the spindle-angle and X-position logic.
+#[allow(dead_code)] // their board glue arrives with those modules
+pub struct Tim2Clock;
+impl zslide::hw::Clock for Tim2Clock {
+    fn now_ticks(&mut self) -> u32 {
+        now_ticks()
+    }
+}
+
+/// Configures TIM3 for the loop tick and starts it (the NVIC line stays
+/// masked until `main` unmasks it).
+pub fn start_loop_timer(tim3: &TIM3) {
+    // SAFETY: raw values into TIM3, which only this function and the loop
+    // handler touch: CCMR1 OC1M = PWM mode 1 with preload (bits 6..4 = 110,
+    // bit 3), CC2 as frozen output compare (its flag is the interrupt);
+    // CCER CC1E; DIER CC2IE; CR1 ARPE | CEN.
+    unsafe {
+        tim3.cr1().write(|w| w.bits(0));
+        tim3.psc().write(|w| w.bits(0));
+        tim3.arr().write(|w| w.bits(LOOP_ARR));
+        tim3.ccmr1_output()
+            .write(|w| w.bits((0b110 << 4) | (1 << 3)));
+        tim3.ccr1().write(|w| w.bits(CNV_HIGH_TICKS));
+        tim3.ccr2().write(|w| w.bits(READ_AT_TICKS));
+        tim3.ccer().write(|w| w.bits(1));
+        tim3.egr().write(|w| w.bits(1));
+        tim3.sr().write(|w| w.bits(0));
+        tim3.dier().write(|w| w.bits(SR_CC2IF));
+        tim3.cr1().write(|w| w.bits((1 << 7) | 1));
+    }
+}
+
+/// Acknowledges the loop-tick interrupt (TIM3 CC2IF, write-0-to-clear).
+pub fn ack_loop_tick() {
+    // SAFETY: writing 0 to CC2IF and 1 to every other rc_w0 flag clears
+    // exactly CC2IF; the loop handler is the only user of TIM3 SR.
+    unsafe { (*TIM3::ptr()).sr().write(|w| w.bits(!SR_CC2IF)) };
+}
+
+/// Starts IWDG1 with a 10 ms timeout; frozen while a debugger halts the core.
+pub fn start_watchdog(iwdg: &IWDG, dbgmcu: &DBGMCU) {
+    // SAFETY: DBGMCU_APB4FZ1 bit 18 (DBG_IWDG1) only affects debug halts.
+    // IWDG key sequence of RM0433 §45.3: start, unlock, prescaler /4
+    // (PR = 0), reload 79 (80 counts of 125 µs), wait for the update, reload.
+    unsafe {
+        dbgmcu.apb4fz1().modify(|r, w| w.bits(r.bits() | (1 << 18)));
+        iwdg.kr().write(|w| w.bits(0xCCCC));
+        iwdg.kr().write(|w| w.bits(0x5555));
+        iwdg.pr().write(|w| w.bits(0));
+        iwdg.rlr().write(|w| w.bits(79));
+        while iwdg.sr().read().bits() != 0 {}
+        iwdg.kr().write(|w| w.bits(0xAAAA));
+    }
+}
+
+/// Reloads the watchdog (from the loop tick).
+pub fn feed_watchdog() {
+    // SAFETY: 0xAAAA into IWDG_KR only reloads the counter.
+    unsafe { (*IWDG::ptr()).kr().write(|w| w.bits(0xAAAA)) };
+}
