@@ -15,6 +15,12 @@ pub mod hw;
 pub mod safety;
 pub mod table;
 pub mod units;
+pub mod command;
+pub mod drivers;
+pub mod interp;
+pub mod spindle;
+pub mod trig;
+pub mod xpos;
 
 /// The default coefficient table, embedded in the firmware: the dissertation's
 /// part (c = 316.7 in, S_y = 28 in, r_t = 0.125 in), 5-term sin-power series on

@@ -317,6 +317,16 @@ impl<'a> CoeffTable<'a> {
         x_from_raw(self.header.x_null_raw, self.header.x_frac_bits).unwrap_or(XInches::ZERO)
     }
 
+    /// The raw bytes of one node's row (`terms` little-endian `i32`s), or an
+    /// empty slice past the last node. Lets a reader that needs several
+    /// columns of two adjacent nodes check bounds once per row instead of
+    /// once per value (the interpolator's hot path).
+    pub fn node_row(&self, node: u32) -> &'a [u8] {
+        let w = usize::from(self.header.terms) * 4;
+        let at = (node as usize).saturating_mul(w);
+        self.payload.get(at..at.saturating_add(w)).unwrap_or(&[])
+    }
+
     /// Raw coefficient at (node, column), `coeff_frac_bits` fraction bits.
     /// Out-of-range indices read as zero rather than panicking.
     pub fn coeff_raw(&self, node: u32, column: u8) -> i32 {

@@ -6,6 +6,7 @@ pub mod cmd;
 pub mod coeffgen;
 pub mod csmp;
 pub mod geometry;
+pub mod machine;
 pub mod plant;
 pub mod sched;
 pub mod surface;
