@@ -311,7 +311,8 @@ impl World for FirmwareWorld {
 impl FirmwareWorld {
     pub fn tick(&mut self) {
         self.rig.cnv();
-        self.fw.loop_tick(&mut self.adc, &mut self.dac);
+        self.fw
+            .loop_tick(&zslide::firmware::TickInput::NONE, &mut self.adc, &mut self.dac);
         let on = self.fw.amplifier_enable();
         if on != self.rig.enable.state.borrow().enable {
             let _ = if on {
