@@ -1179,6 +1179,7 @@ const fn step_toward(from: i32, to: i32, max_step: i32) -> i32 {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     extern crate std;
 
