@@ -61,8 +61,9 @@
 //! e[n]  = c[n] - y[n]                               (gauge codes)
 //! v[n]  = ∂Z/∂φ·(φ[n] − φ[n−1]) if c[n] = g[n], else c[n] − c[n−1]
 //! I[n]  = clamp(I[n-1] + ki·e[n], ±output_limit)
-//! u[n]  = clamp(kp·e[n] + I[n] - kd·(y[n] - y[n-1]) + kff·v[n],
+//! u[n]  = clamp(kp·e[n] + I[n] - kd·(y[n] - y[n-1]) + kv·v[n],
 //!               ±output_limit)                      (DAC codes)
+//! kv    = kff + kd while following the table, kff while slewing
 //! ```
 //!
 //! The derivative acts on the measurement, not the error, so command steps
@@ -135,6 +136,9 @@ pub struct LoopConfig {
     pub kd_bits: i32,
     /// DAC codes per gauge code per tick of command velocity, `I8F24` bits.
     pub kff_bits: i32,
+    /// DAC codes per gauge code per tick² of command acceleration, Q8
+    /// (acceleration feedforward on the table's command).
+    pub ka_q8: i32,
     /// |DAC code| never exceeds this (≤ [`CODE_MAX`]).
     pub output_limit: i32,
     /// Largest command step per tick, gauge codes (> 0).
@@ -151,6 +155,12 @@ impl LoopConfig {
     /// damping) moves at 4.178 in/s per DAC volt; the gauge gives 1000 V/in,
     /// so one volt of DAC per 4178 gauge volts per second holds a ramp.
     const KFF_NS: i64 = 239_300;
+    /// Acceleration feedforward as a time²: 0.7805 s²·10⁻⁶ = 780 500 µs².
+    /// One in/s² of the brief's slide takes m·a = 0.01617 lbf, i.e.
+    /// 5.575 mA of the Model 15 motor (2.9 lbf/A), 7.805 mV across its
+    /// 1.4 Ω coil, 0.7805 mV at the ×10 amplifier's input; per gauge volt
+    /// (1000 V/in) per s² that is 7.805e-7 s².
+    const KA_US2: i128 = 780_500;
     /// Integral gain: 80 volts per gauge volt·second.
     const KI_PER_S: i64 = 80;
     /// Command slew: 0.25 in/s, the brief's worst-case Z speed, in gauge
@@ -177,6 +187,15 @@ impl LoopConfig {
             ki_bits: ((Self::KI_PER_S * q24 + rate / 2) / rate) as i32,
             kd_bits: time_gain_per_tick(Self::KD_NS, rate),
             kff_bits: time_gain_per_tick(Self::KFF_NS, rate),
+            ka_q8: {
+                let q8 = (Self::KA_US2 * rate as i128 * rate as i128 * 256 + 500_000_000_000)
+                    / 1_000_000_000_000;
+                if q8 > i32::MAX as i128 {
+                    i32::MAX
+                } else {
+                    q8 as i32
+                }
+            },
             output_limit: CODE_MAX,
             slew_per_tick: if slew < 1 { 1 } else { slew as i32 },
         }
@@ -638,7 +657,10 @@ enum LoopX {
 
 /// Gauge codes per tick (Q16) from ∂Z/∂φ (Q30 in/rad) × Δφ (binary angle):
 /// `v = p · 2π · 25 · 2²¹ / 2⁶² · 2¹⁶ = p · K / 2²⁵`, K = 50π, here Q16.
-const FF_K_Q16: i64 = 10_294_407;
+const FF_K_Q16: i64 = 10_294_371;
+/// 100π² in Q8: codes/tick² from ∂²Z/∂φ² (Q30 in/rad²) × Δφ² (binary angle):
+/// `a = d2 · Δφ² · (2π/2³²)² · 25·2²¹ / 2³⁰`, here as `d2·Δφ²·100π²/2⁷³`.
+const FF_K2_Q8: i64 = 252_662;
 
 /// State of the loop-tick handler (highest priority).
 #[derive(Clone, Debug)]
@@ -660,6 +682,8 @@ pub struct LoopState {
     table_code: i32,
     /// Velocity feedforward input of the last tick, codes/tick Q16.
     ff_q16: i64,
+    /// Acceleration feedforward input of the last tick, codes/tick², Q16.
+    accel_q16: i64,
     /// Goal of the last tick, gauge codes.
     goal: i32,
     /// The slew-limited command the loop follows, gauge codes.
@@ -698,6 +722,7 @@ impl LoopState {
             target: 0,
             table_code: 0,
             ff_q16: 0,
+            accel_q16: 0,
             goal: 0,
             command: 0,
             integral: 0,
@@ -884,21 +909,27 @@ impl LoopState {
         }
 
         // The command and its slope.
-        let (table_code, slope) = match (self.gen.as_ref(), phi) {
+        let (table_code, slope, accel) = match (self.gen.as_ref(), phi) {
             (Some(g), Some(phi)) if self.fault.is_none() => {
                 let c = g.evaluate_phi(&self.coeffs, phi);
                 let dphi = match self.last_phi {
                     Some(p) => phi.0.wrapping_sub(p.0) as i32,
                     None => 0,
                 };
-                let p = i64::from(c.dz_dphi.to_bits()) * i64::from(dphi);
+                let (dphi64, d2) = (i64::from(dphi), i64::from(c.d2z_dphi2.to_bits()));
+                let p = i64::from(c.dz_dphi.to_bits()) * dphi64;
                 let v = (p >> 16).saturating_mul(FF_K_Q16) >> 25;
-                (gauge_code_from_z(c.z), v)
+                // ∂²Z/∂φ²·Δφ² in codes/tick², Q16: d2·Δφ²·100π²/2⁵⁷,
+                // in two steps that keep every product inside 64 bits.
+                let t = ((d2 * dphi64) >> 24).saturating_mul(dphi64) >> 24;
+                let a = t.saturating_mul(FF_K2_Q8) >> 17;
+                (gauge_code_from_z(c.z), v, a)
             }
-            _ => (0, 0),
+            _ => (0, 0, 0),
         };
         self.last_phi = phi;
         self.table_code = table_code;
+        self.accel_q16 = accel;
         let goal = if self.fault.is_some() {
             0
         } else {
@@ -910,11 +941,19 @@ impl LoopState {
         self.command = step_toward(self.command, goal, self.cfg.slew_per_tick);
         let command_step = i64::from(self.command) - i64::from(previous_command);
         // Analytic slope while the command follows its goal; the slew
-        // ramp's own rate while it is catching up.
-        self.ff_q16 = if self.command == goal && previous_command == self.goal {
-            slope
+        // ramp's own rate while it is catching up. On the table's smooth
+        // command the derivative gain acts on the command velocity too (so
+        // the D term damps the tracking error, not the motion itself); on
+        // slew ramps and target steps it stays on the measurement (no kick).
+        let tracking = self.command == goal && previous_command == self.goal;
+        self.ff_q16 = if tracking { slope } else { command_step << 16 };
+        let (ff_gain, accel_term) = if tracking {
+            (
+                i64::from(self.cfg.kff_bits) + i64::from(self.cfg.kd_bits),
+                i64::from(self.cfg.ka_q8).saturating_mul(accel),
+            )
         } else {
-            command_step << 16
+            (i64::from(self.cfg.kff_bits), 0)
         };
         self.goal = goal;
 
@@ -930,7 +969,8 @@ impl LoopState {
         let sum = (i64::from(self.cfg.kp_bits) * error)
             .saturating_add(self.integral)
             .saturating_sub(i64::from(self.cfg.kd_bits) * velocity)
-            .saturating_add(i64::from(self.cfg.kff_bits).saturating_mul(self.ff_q16) >> 16);
+            .saturating_add(ff_gain.saturating_mul(self.ff_q16) >> 16)
+            .saturating_add(accel_term);
         let rounded = sum.saturating_add(1 << 23) >> 24;
         let limit = i64::from(self.cfg.output_limit);
         // The clamp bounds the value to ±2¹⁹, so the cast is exact.
@@ -993,6 +1033,11 @@ impl LoopState {
     /// Velocity feedforward input of the last tick, gauge codes per tick, Q16.
     pub fn feedforward_q16(&self) -> i64 {
         self.ff_q16
+    }
+    /// Acceleration feedforward input of the last tick (∂²Z/∂φ²·Δφ²),
+    /// gauge codes per tick², Q16.
+    pub fn accel_q16(&self) -> i64 {
+        self.accel_q16
     }
     /// Whether the DAC has acknowledged its clamp to ground.
     pub fn dac_clamped(&self) -> bool {
@@ -1243,6 +1288,7 @@ mod tests {
             ki_bits: ki,
             kd_bits: kd,
             kff_bits: 0,
+            ka_q8: 0,
             output_limit: CODE_MAX,
             slew_per_tick: CODE_MAX,
         }
@@ -1656,6 +1702,7 @@ mod tests {
         let codes = |phi: SpindleAngle| f64::from(gen.z(x, phi).unwrap().to_bits()) * 25.0 / 512.0;
         let mut worst_ff = 0f64;
         let mut largest_ff = 0f64;
+        let (mut worst_acc, mut largest_acc) = (0f64, 0f64);
         let mut deepest = 0;
         for n in 1..=CPR + 10 {
             if n == CPR {
@@ -1676,12 +1723,28 @@ mod tests {
                 let ff = fw.loop_state().feedforward_q16() as f64 / 65536.0;
                 worst_ff = worst_ff.max((ff - central).abs());
                 largest_ff = largest_ff.max(ff.abs());
+                // Over ±10 steps, scaled back: the Q30 quantisation of Z
+                // (0.05 code) would swamp a one-step second difference.
+                let h = step.wrapping_mul(10);
+                let second = (codes(SpindleAngle(phi.0.wrapping_add(h))) - 2.0 * codes(phi)
+                    + codes(SpindleAngle(phi.0.wrapping_sub(h))))
+                    / 100.0;
+                let acc = fw.loop_state().accel_q16() as f64 / 65536.0;
+                worst_acc = worst_acc.max((acc - second).abs());
+                largest_acc = largest_acc.max(acc.abs());
             }
         }
         // Slopes up to ~150 codes/tick; the central difference's own error
         // at Δφ = 2π/4000 (third derivative · Δφ²/6) is ≈ 0.1 code.
         assert!(largest_ff > 50.0, "slope {largest_ff}");
         assert!(worst_ff < 0.5, "feedforward off by {worst_ff} codes/tick");
+        // ∂²Z/∂φ²·Δφ² (~0.25 codes/tick² at most) against the second
+        // difference, to 1 %.
+        assert!(largest_acc > 0.1, "acceleration {largest_acc}");
+        assert!(
+            worst_acc < 0.01,
+            "acceleration off by {worst_acc} codes/tick² (largest {largest_acc})"
+        );
         assert_eq!(fw.fault(), None);
         // A real command at 3.14 in: tens of µin deep (1 µin = 52 codes).
         assert!(deepest < -5000, "deepest {deepest}");

@@ -5,7 +5,7 @@
 //! | block | base | IRQ | use |
 //! |---|---|---|---|
 //! | CMSDK APB timer 0 | `0x4000_0000` | 8 | loop tick |
-//! | CMSDK APB timer 1 | `0x4000_1000` | 9 | free-running timestamp counter |
+//! | CMSDK APB timer 1 | `0x4000_1000` | 9 | machine events (X, index), lower priority |
 //!
 //! Both count PCLK = 25 MHz (`SYSCLK_FRQ`) down from `RELOAD` to 0 and
 //! raise their interrupt when they reach 0.
@@ -69,14 +69,13 @@ pub struct CmsdkTimer {
 }
 
 const CTRL: usize = 0x00;
-const VALUE: usize = 0x04;
 const RELOAD: usize = 0x08;
 const INTCLEAR: usize = 0x0C;
 const CTRL_ENABLE: u32 = 1 << 0;
 const CTRL_IRQ_ENABLE: u32 = 1 << 3;
 
 pub const TIMER0_LOOP: CmsdkTimer = CmsdkTimer { base: 0x4000_0000 };
-pub const TIMER1_STAMP: CmsdkTimer = CmsdkTimer { base: 0x4000_1000 };
+pub const TIMER1_EVENTS: CmsdkTimer = CmsdkTimer { base: 0x4000_1000 };
 
 impl CmsdkTimer {
     fn write(self, offset: usize, value: u32) {
@@ -84,10 +83,6 @@ impl CmsdkTimer {
         // memory map and `offset` one of its word registers: a volatile word
         // write there has no effect on memory Rust owns.
         unsafe { core::ptr::write_volatile((self.base + offset) as *mut u32, value) }
-    }
-    fn read(self, offset: usize) -> u32 {
-        // SAFETY: as for `write`; reading a timer register has no side effect.
-        unsafe { core::ptr::read_volatile((self.base + offset) as *const u32) }
     }
 
     /// Starts a periodic interrupt every `period` PCLK cycles (≥ 2).
@@ -99,14 +94,6 @@ impl CmsdkTimer {
         self.write(CTRL, CTRL_ENABLE | CTRL_IRQ_ENABLE);
     }
 
-    /// Starts counting down from 2³² − 1 without interrupts.
-    pub fn start_free_running(self) {
-        self.write(CTRL, 0);
-        self.write(RELOAD, u32::MAX);
-        self.write(VALUE, u32::MAX);
-        self.write(CTRL, CTRL_ENABLE);
-    }
-
     pub fn stop(self) {
         self.write(CTRL, 0);
         self.write(INTCLEAR, 1);
@@ -114,10 +101,5 @@ impl CmsdkTimer {
 
     pub fn clear_interrupt(self) {
         self.write(INTCLEAR, 1);
-    }
-
-    /// PCLK cycles since [`Self::start_free_running`], wrapping.
-    pub fn elapsed(self) -> u32 {
-        u32::MAX - self.read(VALUE)
     }
 }

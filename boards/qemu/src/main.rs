@@ -1,20 +1,34 @@
 //! The Z-slide firmware on the emulated board: QEMU `mps2-an386`
-//! (Cortex-M4F). CMSDK timer 0 interrupts at the loop rate; its handler runs
-//! the same `Firmware::loop_tick` as the NUCLEO-H743ZI2, against the plant
-//! model in `plant.rs` instead of converters. defmt goes out over semihosting
-//! (timestamps from timer 1), and the run ends with a semihosting exit:
-//! status 0 when every check below passed, 1 otherwise.
+//! (Cortex-M4F). The same integrated `zslide::firmware` as the
+//! NUCLEO-H743ZI2, fed by a synthetic machine:
 //!
-//! The run: the slide rests at −0.001 in; the loop engages there (bumpless)
-//! and ramps the command to +0.001 in at the slew limit against a 5 mV
-//! amplifier offset. Checks, in order:
-//! 1. no fault and |command − position| ≤ [`SETTLE_BOUND`] codes over the
-//!    [`SETTLE_WINDOW`] ticks before [`INJECT_AT`], command on target;
-//! 2. a gauge bus error injected after tick [`INJECT_AT`] latches
+//! * CMSDK timer 0 (IRQ 8, highest priority) is the loop tick: the synthetic
+//!   spindle encoder is sampled, `LoopState::loop_tick` reads the gauge
+//!   through the real `Ad4020` driver, evaluates the command of
+//!   `zslide::DEFAULT_TABLE` and writes the real `Ad5791` driver; the slide
+//!   model (`plant.rs`, behind `SpiDevice`s that speak the chips' frames)
+//!   then moves one tick.
+//! * CMSDK timer 1 (IRQ 9, lower priority) plays the machine's events up to
+//!   the present world time: legacy half-mil X events from a synthetic feed
+//!   (with duplicate words the debounce must ignore and a reversal), and the
+//!   spindle's index pulses, into `EventState::x_event` / `index_event`.
+//! * The two handlers share only `SHARED` (atomics, `zslide::firmware`).
+//!
+//! World time is the loop tick count × 50 µs (the firmware's clock counts
+//! 25 MHz from it), so the run and its log are deterministic. defmt goes out
+//! over semihosting; the run ends with a semihosting exit, status 0 when
+//! every check passed. Checks:
+//! 1. no fault; the slide follows the table's command within
+//!    [`TRACK_BOUND`] gauge codes over ticks [`TRACK_FROM`]..=[`INJECT_AT`];
+//!    the command is a real one (its swing exceeds [`MIN_SWING`]);
+//! 2. every X event was accepted or ignored as scripted, the loop tick took
+//!    every published coefficient set, and ends with the coefficients of the
+//!    last X; every index pulse arrived;
+//! 3. a gauge bus error injected after tick [`INJECT_AT`] latches
 //!    `Fault::Bus(GaugeAdc)`, clamps the DAC, drops the amplifier enable, and
 //!    no DAC write follows;
-//! 3. the interrupt ran exactly [`TICKS`] times and the firmware counted as
-//!    many.
+//! 4. the timer interrupt ran exactly [`TICKS`] times and the firmware
+//!    counted as many.
 #![no_std]
 #![no_main]
 
@@ -30,34 +44,113 @@ use cortex_m_semihosting::debug;
 use critical_section::Mutex;
 use defmt_semihosting as _;
 
-use board::{interrupt, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_STAMP};
-use plant::{Dac, Plant};
-use zslide::firmware::{Firmware, LoopConfig};
+use board::{interrupt, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS};
+use plant::{Dac, DacSpi, GaugeSpi, Plant};
+use zslide::drivers::{ad4020::Ad4020, ad5791::Ad5791};
+use zslide::firmware::{
+    EventState, Firmware, FirmwareConfig, LoopConfig, LoopState, NoCoefficientDac, Shared,
+    SpindleMode, SpindleReading, TickInput, XMode,
+};
+use zslide::hw::EncoderSample;
 use zslide::safety::{Device, Fault};
+use zslide::spindle::EncoderConfig;
+use zslide::units::SpindleAngle;
+use zslide::xpos::{half_mils_to_x, latch_word};
 
 /// Loop-tick rate, Hz (the real board's rate).
 const LOOP_HZ: u32 = 20_000;
-/// Loop ticks the run lasts (0.1 s of virtual time).
-const TICKS: u32 = 2_000;
+/// Firmware clock (`hw::Clock`): 25 MHz, 1250 counts per loop tick.
+const CLOCK_HZ: u32 = 25_000_000;
+const CLOCK_PER_TICK: u32 = CLOCK_HZ / LOOP_HZ;
+/// Loop ticks the run lasts (0.2 s of world time).
+const TICKS: u32 = 4_000;
 /// The gauge bus breaks after this tick.
-const INJECT_AT: u32 = 1_600;
-/// Ticks before the injection over which the loop must have settled.
-const SETTLE_WINDOW: u32 = 200;
-/// Settling bound: 8 gauge codes = 0.15 µin.
-const SETTLE_BOUND: u32 = 8;
-/// Start and target positions, gauge codes (52 429 codes = 0.001 in).
+const INJECT_AT: u32 = 3_600;
+/// Tracking is checked from this tick to [`INJECT_AT`].
+const TRACK_FROM: u32 = 1_001;
+/// Tracking bound: 200 gauge codes = 3.8 µin (measured: 139).
+const TRACK_BOUND: u32 = 200;
+/// The command must swing at least this much (codes; 1 µin = 52.4 codes).
+const MIN_SWING: i32 = 5_000;
+/// The slide rests here at power-up, gauge codes (−0.001 in).
 const START_CODE: i32 = -52_429;
-const TARGET_CODE: i32 = 52_429;
 /// Amplifier input offset of the plant, volts.
 const OFFSET_V: f64 = 0.005;
-/// Ticks at which the handler records a trace sample for the log.
-const TRACE_AT: [u32; 12] = [1, 25, 50, 75, 100, 150, 200, 400, 800, 1600, 1601, 2000];
 
-defmt::timestamp!("{=u32:us}", TIMER1_STAMP.elapsed() / (PCLK_HZ / 1_000_000));
+/// Synthetic spindle: 1200 rpm, 4096 counts per turn, the first index at
+/// count [`INDEX0`], then every turn.
+const RPM: u64 = 1_200;
+const CPR: u32 = 4_096;
+const INDEX0: u32 = 300;
+/// Synthetic X feed: from 2.0000 in, one half-mil every [`X_EVERY`] ticks
+/// (0.0005 in / 1.5 ms = 20 in/min) from tick [`X_FIRST`].
+const X_START_HM: u32 = 4_000;
+const X_FIRST: u32 = 10;
+const X_EVERY: u32 = 30;
+/// Events (by number) that the latch repeats right away: debounced.
+const DUPLICATES: [u32; 4] = [15, 45, 75, 105];
+/// From this event on the feed reverses one half-mil and resumes.
+const REVERSAL: u32 = 60;
+/// No machine events after this tick (the bus-error phase follows).
+const EVENTS_UNTIL: u32 = INJECT_AT - 100;
+/// Ticks at which the handler records a trace sample for the log.
+const TRACE_AT: [u32; 12] = [
+    1, 50, 100, 200, 400, 800, 1600, 2400, 3200, 3600, 3601, 4000,
+];
+
+/// World time in loop ticks, published by the loop tick.
+static WORLD_TICK: AtomicU32 = AtomicU32::new(0);
+
+defmt::timestamp!(
+    "{=u32:us}",
+    WORLD_TICK.load(Ordering::Relaxed) * (1_000_000 / LOOP_HZ)
+);
+
+/// Spindle count at clock time `t`.
+fn spindle_count(t: u64) -> u32 {
+    (t * RPM * u64::from(CPR) / (60 * u64::from(CLOCK_HZ))) as u32
+}
+/// Clock time of the edge that brought count `c` (first instant at it).
+fn spindle_edge(c: u32) -> u64 {
+    let per = RPM * u64::from(CPR);
+    (u64::from(c) * 60 * u64::from(CLOCK_HZ)).div_ceil(per)
+}
+/// The encoder reading at clock time `t`.
+fn encoder_at(t: u64) -> EncoderSample {
+    let count = spindle_count(t);
+    EncoderSample {
+        count,
+        edge_ticks: spindle_edge(count) as u32,
+    }
+}
+/// Half-mil position of X event number `i`.
+fn x_script(i: u32) -> u32 {
+    if i < REVERSAL {
+        X_START_HM + i
+    } else {
+        X_START_HM + i - 2
+    }
+}
+/// Tick of X event number `i`.
+fn x_tick(i: u32) -> u32 {
+    X_FIRST + X_EVERY * i
+}
+/// X events scheduled before [`EVENTS_UNTIL`].
+fn x_events() -> u32 {
+    (EVENTS_UNTIL - X_FIRST).div_ceil(X_EVERY)
+}
+/// Index pulses before [`EVENTS_UNTIL`].
+fn index_pulses() -> u32 {
+    let until = u64::from(EVENTS_UNTIL) * u64::from(CLOCK_PER_TICK);
+    (0..16)
+        .filter(|m| spindle_edge(INDEX0 + CPR * m) <= until)
+        .count() as u32
+}
 
 #[derive(Clone, Copy, Default, defmt::Format)]
 struct Sample {
     tick: u32,
+    table: i32,
     command: i32,
     position: i32,
     output: i32,
@@ -68,8 +161,11 @@ struct Sample {
 struct Summary {
     fw_ticks: u32,
     fault_before: Option<Fault>,
-    settle_max_error: u32,
-    on_target: bool,
+    track_max_error: u32,
+    table_min: i32,
+    table_max: i32,
+    coeff_x_bits: i32,
+    coeff_null: bool,
     fault_after: Option<Fault>,
     dac_clamped: bool,
     amplifier_enable: bool,
@@ -80,15 +176,25 @@ struct Summary {
 
 /// Everything the loop-tick handler owns.
 struct Run {
-    fw: Firmware,
+    lp: LoopState,
     plant: Plant,
-    dac: Dac,
+    gauge: Ad4020<GaugeSpi>,
+    dac: Ad5791<DacSpi>,
     summary: Summary,
     traced: usize,
 }
 
-/// Hands the run to the handler once, before its interrupt is unmasked.
+/// Everything the event handler owns.
+struct Events {
+    ev: EventState,
+    next_x: u32,
+    next_index: u32,
+}
+
+static SHARED: Shared = Shared::new();
+/// Hands the parts to the handlers once, before their interrupts are unmasked.
 static HANDOFF: Mutex<Cell<Option<Run>>> = Mutex::new(Cell::new(None));
+static HANDOFF_EVENTS: Mutex<Cell<Option<Events>>> = Mutex::new(Cell::new(None));
 static RESULT: Mutex<Cell<Option<Summary>>> = Mutex::new(Cell::new(None));
 static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
 static DONE: AtomicBool = AtomicBool::new(false);
@@ -104,96 +210,206 @@ fn TIMER0() {
     let Some(run) = RUN.as_mut() else {
         return;
     };
+    WORLD_TICK.store(n, Ordering::Release);
+    let now = u64::from(n) * u64::from(CLOCK_PER_TICK);
+    let input = TickInput {
+        now: now as u32,
+        spindle: SpindleReading::Encoder(encoder_at(now)),
+        x_count: 0,
+    };
 
-    run.fw.loop_tick(&zslide::firmware::TickInput::NONE, &mut run.plant, &mut run.dac);
-    let enabled = run.fw.amplifier_enable();
-    run.plant.step(run.dac.volts(), enabled);
+    run.lp
+        .loop_tick(&SHARED, &input, &mut run.gauge, &mut run.dac);
+    let enabled = run.lp.amplifier_enable();
+    run.plant.step(Dac::volts(), enabled);
 
     let s = &mut run.summary;
-    let error = run.fw.command_code().abs_diff(run.plant.gauge_code());
-    if n > INJECT_AT - SETTLE_WINDOW && n <= INJECT_AT {
-        s.settle_max_error = s.settle_max_error.max(error);
+    let error = run.lp.command_code().abs_diff(run.plant.gauge_code());
+    if (TRACK_FROM..=INJECT_AT).contains(&n) {
+        s.track_max_error = s.track_max_error.max(error);
+        s.table_min = s.table_min.min(run.lp.table_code());
+        s.table_max = s.table_max.max(run.lp.table_code());
     }
     if let Some(&at) = TRACE_AT.get(run.traced) {
         if at == n {
             if let Some(slot) = s.trace.get_mut(run.traced) {
                 *slot = Sample {
                     tick: n,
-                    command: run.fw.command_code(),
+                    table: run.lp.table_code(),
+                    command: run.lp.command_code(),
                     position: run.plant.gauge_code(),
-                    output: run.fw.output_code(),
+                    output: run.lp.output_code(),
                 };
             }
             run.traced += 1;
         }
     }
     if n == INJECT_AT {
-        s.fault_before = run.fw.fault();
-        s.on_target = run.fw.command_code() == run.fw.target_code();
-        s.writes_at_inject = run.dac.writes;
+        s.fault_before = run.lp.fault();
+        s.writes_at_inject = Dac::writes();
+        let c = run.lp.coefficients();
+        s.coeff_x_bits = c.x().to_bits();
+        s.coeff_null = c.null;
         run.plant.gauge_bus_broken = true;
+        run.plant.publish_gauge();
     }
     if n >= TICKS {
-        // No further entry: timer off, its line masked and unpended.
+        // No further entry: timers off, lines masked and unpended.
         TIMER0_LOOP.stop();
+        TIMER1_EVENTS.stop();
         NVIC::mask(Interrupt::TIMER0);
         NVIC::unpend(Interrupt::TIMER0);
-        s.fw_ticks = run.fw.ticks();
-        s.fault_after = run.fw.fault();
-        s.dac_clamped = run.dac.clamped();
+        s.fw_ticks = run.lp.ticks();
+        s.fault_after = run.lp.fault();
+        s.dac_clamped = Dac::clamped();
         s.amplifier_enable = enabled;
-        s.writes_at_end = run.dac.writes;
+        s.writes_at_end = Dac::writes();
         let summary = *s;
         critical_section::with(|cs| RESULT.borrow(cs).set(Some(summary)));
         DONE.store(true, Ordering::Release);
     }
 }
 
+/// The machine's events up to the present world time, in time order: X
+/// events (with scripted duplicates) and index pulses.
+#[interrupt]
+fn TIMER1() {
+    static mut EVENTS: Option<Events> = None;
+    TIMER1_EVENTS.clear_interrupt();
+    if EVENTS.is_none() {
+        *EVENTS = critical_section::with(|cs| HANDOFF_EVENTS.borrow(cs).take());
+    }
+    let Some(e) = EVENTS.as_mut() else {
+        return;
+    };
+    let k = WORLD_TICK.load(Ordering::Acquire).min(EVENTS_UNTIL);
+    let now = u64::from(k) * u64::from(CLOCK_PER_TICK);
+    loop {
+        let x_at = (e.next_x < x_events())
+            .then(|| u64::from(x_tick(e.next_x)) * u64::from(CLOCK_PER_TICK))
+            .filter(|&t| t <= now);
+        let index_count = INDEX0 + CPR * e.next_index;
+        let index_at = Some(spindle_edge(index_count)).filter(|&t| t <= now);
+        match (x_at, index_at) {
+            (Some(tx), ti) if ti.is_none_or(|ti| tx <= ti) => {
+                let i = e.next_x;
+                let word = latch_word(x_script(i));
+                let _ =
+                    e.ev.x_event(&SHARED, word, tx as u32, &mut NoCoefficientDac);
+                if DUPLICATES.contains(&i) {
+                    // The latch fires again in the same state.
+                    let _ =
+                        e.ev.x_event(&SHARED, word, tx as u32 + 200, &mut NoCoefficientDac);
+                }
+                e.next_x += 1;
+            }
+            (_, Some(ti)) => {
+                e.ev.index_event(&SHARED, ti as u32, index_count);
+                e.next_index += 1;
+            }
+            _ => break,
+        }
+    }
+}
+
 #[entry]
 fn main() -> ! {
-    TIMER1_STAMP.start_free_running();
     defmt::info!(
-        "zslide on QEMU mps2-an386: loop tick {=u32} Hz from CMSDK timer 0 (IRQ 8), {=u32} ticks",
+        "zslide on QEMU mps2-an386: loop tick {=u32} Hz (CMSDK timer 0, IRQ 8), machine events on timer 1 (IRQ 9), {=u32} ticks",
         LOOP_HZ,
         TICKS
     );
-    let cfg = LoopConfig::at_rate(LOOP_HZ);
-    defmt::info!("loop config: {}", cfg);
-    let mut fw = Firmware::new(cfg);
-    fw.set_target_code(TARGET_CODE);
+    let cfg = FirmwareConfig {
+        loop_cfg: LoopConfig::at_rate(LOOP_HZ),
+        spindle: SpindleMode::Encoder(EncoderConfig {
+            counts_per_rev: CPR,
+            ticks_per_s: CLOCK_HZ,
+            min_rpm: 60,
+            max_rpm: 3_000,
+            // The index reaches the firmware up to two loop ticks late here
+            // (timer 1 plays it back); the phase comes from the latched count.
+            index_tolerance_counts: 32,
+            index_angle: SpindleAngle(0),
+        }),
+        x: XMode::Legacy { clock_hz: CLOCK_HZ },
+        coefficient_output: false,
+        gauge_reversed: false,
+    };
+    defmt::info!("loop config: {}", cfg.loop_cfg);
+    let Ok(fw) = Firmware::with_table(zslide::DEFAULT_TABLE, cfg) else {
+        defmt::error!("FAIL: configuration refused");
+        exit(false);
+    };
+    if let Some(g) = fw.command_gen() {
+        let h = g.interpolator().table().header();
+        defmt::info!(
+            "table: {=u8} terms {}, {=u32} nodes, null from {}",
+            h.terms,
+            h.representation,
+            h.node_count,
+            g.x_null()
+        );
+    }
+    let (mut lp, ev) = fw.into_parts();
+    if let Some(f) = lp.fault() {
+        defmt::error!("table refused: {}", f);
+    }
+    let mut dac = Ad5791::new(DacSpi::new());
+    if dac.init().is_err() {
+        lp.trip(Fault::Bus(Device::AmplifierDac));
+    }
     let plant = Plant::new(
         f64::from(START_CODE) / plant::CODES_PER_IN,
         OFFSET_V,
         LOOP_HZ,
     );
     defmt::info!(
-        "plant: slide at {=i32} codes, target {=i32} codes (0.001 in = 52429), amplifier offset 5 mV",
+        "plant: slide at {=i32} codes (0.001 in = 52429), amplifier offset 5 mV; spindle {=u32} rpm, {=u32} counts/turn; X from {=u32} half-mils, one every {=u32} ticks",
         plant.gauge_code(),
-        TARGET_CODE
+        RPM as u32,
+        CPR,
+        X_START_HM,
+        X_EVERY
     );
     let run = Run {
-        fw,
+        lp,
         plant,
-        dac: Dac::default(),
+        gauge: Ad4020::new(GaugeSpi),
+        dac,
         summary: Summary::default(),
         traced: 0,
     };
-    critical_section::with(|cs| HANDOFF.borrow(cs).set(Some(run)));
+    let events = Events {
+        ev,
+        next_x: 0,
+        next_index: 0,
+    };
+    critical_section::with(|cs| {
+        HANDOFF.borrow(cs).set(Some(run));
+        HANDOFF_EVENTS.borrow(cs).set(Some(events));
+    });
 
     // SAFETY: unmasking can break a critical section that relies on masking
-    // this interrupt; none does: the handler shares data with `main` only
-    // through `critical_section::Mutex` and atomics.
+    // these interrupts; none does: the handlers share data with `main` only
+    // through `critical_section::Mutex` and atomics, and with each other
+    // only through `SHARED` (atomics).
     unsafe {
         let mut cp = cortex_m::Peripherals::steal();
-        cp.NVIC.set_priority(Interrupt::TIMER0, 0);
+        cp.NVIC.set_priority(Interrupt::TIMER0, 0x00);
+        cp.NVIC.set_priority(Interrupt::TIMER1, 0x80);
         NVIC::unmask(Interrupt::TIMER0);
+        NVIC::unmask(Interrupt::TIMER1);
     }
     TIMER0_LOOP.start_periodic(PCLK_HZ / LOOP_HZ);
+    // Not a multiple of the loop period: the event handler runs at every
+    // phase of the loop tick and is preempted by it.
+    TIMER1_EVENTS.start_periodic(PCLK_HZ / LOOP_HZ * 2 + 377);
 
-    // Give up after 5 s of virtual time (the run needs 0.1 s).
-    let started = TIMER1_STAMP.elapsed();
+    // Give up after 100 000 idle wake-ups (the run needs ~6000).
+    let mut waits = 0u32;
     while !DONE.load(Ordering::Acquire) {
-        if TIMER1_STAMP.elapsed().wrapping_sub(started) > 5 * PCLK_HZ {
+        waits += 1;
+        if waits > 100_000 {
             defmt::error!(
                 "FAIL: the loop-tick interrupt stalled after {=u32} ticks",
                 ISR_COUNT.load(Ordering::Relaxed)
@@ -202,6 +418,7 @@ fn main() -> ! {
         }
         cortex_m::asm::wfi();
     }
+    NVIC::mask(Interrupt::TIMER1);
 
     let Some(s) = critical_section::with(|cs| RESULT.borrow(cs).get()) else {
         defmt::error!("FAIL: no summary from the loop-tick handler");
@@ -209,28 +426,68 @@ fn main() -> ! {
     };
     for t in s.trace.iter() {
         defmt::info!(
-            "tick {=u32}: command {=i32}  position {=i32}  dac {=i32}",
+            "tick {=u32}: table {=i32}  command {=i32}  position {=i32}  dac {=i32}",
             t.tick,
+            t.table,
             t.command,
             t.position,
             t.output
         );
     }
     let mut ok = true;
-    let settled = s.fault_before.is_none() && s.on_target && s.settle_max_error <= SETTLE_BOUND;
+
+    let swing = s.table_max.saturating_sub(s.table_min);
     defmt::info!(
-        "settling: max |command - position| = {=u32} codes over ticks {=u32}..={=u32} (bound {=u32} codes; 1 code = 0.019 uin), on target {=bool}, fault {}",
-        s.settle_max_error,
-        INJECT_AT - SETTLE_WINDOW + 1,
+        "tracking: max |command - position| = {=u32} codes over ticks {=u32}..={=u32} (bound {=u32}; 1 code = 0.019 uin); table command {=i32}..{=i32} codes (swing bound {=i32}); fault {}",
+        s.track_max_error,
+        TRACK_FROM,
         INJECT_AT,
-        SETTLE_BOUND,
-        s.on_target,
+        TRACK_BOUND,
+        s.table_min,
+        s.table_max,
+        MIN_SWING,
         s.fault_before
     );
-    if !settled {
-        defmt::error!("FAIL: the loop did not settle on its command");
+    if s.fault_before.is_some() || s.track_max_error > TRACK_BOUND || swing < MIN_SWING {
+        defmt::error!("FAIL: the loop did not follow the table's command");
         ok = false;
     }
+
+    let scheduled = x_events();
+    let dups = DUPLICATES.iter().filter(|&&i| i < scheduled).count() as u32;
+    let last_x = half_mils_to_x(x_script(scheduled - 1));
+    let (accepted, ignored) = (SHARED.x_accepted(), SHARED.x_ignored());
+    defmt::info!(
+        "X events: {=u32} accepted, {=u32} ignored (scripted {=u32} + {=u32} duplicates); {=u32} coefficient sets published; loop coefficients at {} (last X {}), null {=bool}",
+        accepted,
+        ignored,
+        scheduled,
+        dups,
+        SHARED.coefficient_generation(),
+        zslide::units::XInches::from_bits(s.coeff_x_bits),
+        last_x,
+        s.coeff_null
+    );
+    if accepted != scheduled
+        || ignored != dups
+        || SHARED.coefficient_generation() != scheduled
+        || s.coeff_x_bits != last_x.to_bits()
+        || s.coeff_null
+    {
+        defmt::error!("FAIL: X events not handled as scripted");
+        ok = false;
+    }
+    let pulses = index_pulses();
+    defmt::info!(
+        "index events: {=u32} (scripted {=u32})",
+        SHARED.index_events(),
+        pulses
+    );
+    if SHARED.index_events() != pulses {
+        defmt::error!("FAIL: index pulses lost");
+        ok = false;
+    }
+
     let writes_after = s.writes_at_end.wrapping_sub(s.writes_at_inject);
     defmt::info!(
         "gauge bus error after tick {=u32}: fault {}, DAC clamped {=bool}, amplifier enable {=bool}, DAC writes since {=u32}",
@@ -286,6 +543,7 @@ unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
 fn panic(info: &core::panic::PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     TIMER0_LOOP.stop();
+    TIMER1_EVENTS.stop();
     defmt::error!("FAIL: panic: {}", defmt::Display2Format(info));
     exit(false)
 }

@@ -9,7 +9,9 @@
 //! M4F, deterministic) and semi-implicit Euler with four sub-steps per tick
 //! (12.5 µs against a 3.3 ms mechanical time constant).
 
-use zslide::hw::{AmplifierDac, BusError, GaugeAdc, GaugeSample};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+use embedded_hal::spi::{ErrorKind, ErrorType, Operation, SpiDevice};
 
 /// Slide mass, lbf·s²/in (0.194 slug).
 const MASS: f64 = 0.194 / 12.0;
@@ -66,6 +68,7 @@ impl Plant {
         let r = if s >= 0.0 { s + 0.5 } else { s - 0.5 };
         self.code = (r as i64).clamp(-(1 << 19), (1 << 19) - 1) as i32;
         self.overrange = self.x.abs() * CODES_PER_IN > f64::from(1u32 << 19);
+        self.publish_gauge();
     }
 
     /// Advances one tick with the DAC output held (zero-order hold); the
@@ -91,49 +94,151 @@ impl Plant {
     }
 }
 
-impl GaugeAdc for Plant {
-    fn read(&mut self) -> Result<GaugeSample, BusError> {
-        if self.gauge_bus_broken {
-            return Err(BusError);
-        }
-        Ok(GaugeSample {
-            code: self.code,
-            overrange: self.overrange,
-        })
+/// What the converters see of the world: statics, so the firmware's real
+/// drivers (`zslide::drivers::{Ad4020, Ad5791}`) can own their bus objects
+/// while the plant (stepped by the same handler) reads and writes them.
+static GAUGE_FRAME: AtomicU32 = AtomicU32::new(0);
+static GAUGE_BROKEN: AtomicBool = AtomicBool::new(false);
+/// AD5791 DAC register (20-bit two's complement) and control register.
+static DAC_REG: AtomicU32 = AtomicU32::new(0);
+/// Power-on: OPGND and DACTRI set (output clamped and tristated).
+static DAC_CTRL: AtomicU32 = AtomicU32::new(0b1100);
+static DAC_WRITES: AtomicU32 = AtomicU32::new(0);
+
+impl Plant {
+    /// Puts the gauge's current conversion on the ADC's output register.
+    pub fn publish_gauge(&self) {
+        // AD4020 frame: bits 23..4 result, bit 3 OV, bits 2..0 = 0b010.
+        let frame = ((self.code as u32 & 0xF_FFFF) << 4) | (u32::from(self.overrange) << 3) | 0b010;
+        GAUGE_FRAME.store(frame, Ordering::Relaxed);
+        GAUGE_BROKEN.store(self.gauge_bus_broken, Ordering::Relaxed);
     }
 }
 
-/// The amplifier DAC (AD5791 behaviour at the level of `AmplifierDac`):
-/// clamped to ground from power-on until the first write, and once clamped
-/// by the firmware it stays clamped.
-#[derive(Default)]
-pub struct Dac {
-    code: i32,
-    clamped: bool,
-    pub writes: u32,
+#[derive(Debug)]
+pub struct BusFault;
+impl embedded_hal::spi::Error for BusFault {
+    fn kind(&self) -> ErrorKind {
+        ErrorKind::Other
+    }
 }
+
+fn frame_of(b: &[u8]) -> u32 {
+    b.iter().take(3).fold(0, |f, &x| (f << 8) | u32::from(x))
+}
+fn put_frame(b: &mut [u8], f: u32) {
+    for (i, x) in b.iter_mut().take(3).enumerate() {
+        *x = (f >> (16 - 8 * i)) as u8;
+    }
+}
+
+/// The gauge ADC's SPI device (AD4020 class): every 3-byte read shifts out
+/// the last conversion. A broken bus reads all ones (fails the pattern).
+pub struct GaugeSpi;
+impl ErrorType for GaugeSpi {
+    type Error = BusFault;
+}
+impl SpiDevice for GaugeSpi {
+    fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), BusFault> {
+        let frame = if GAUGE_BROKEN.load(Ordering::Relaxed) {
+            0xFF_FFFF
+        } else {
+            GAUGE_FRAME.load(Ordering::Relaxed)
+        };
+        for op in ops {
+            match op {
+                Operation::Read(b) | Operation::TransferInPlace(b) => put_frame(b, frame),
+                Operation::Transfer(r, _) => put_frame(r, frame),
+                Operation::Write(_) | Operation::DelayNs(_) => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The amplifier DAC's SPI device (AD5791 class): write frames set the DAC
+/// or control register; a read request returns the register in the next
+/// frame.
+pub struct DacSpi {
+    pending: Option<u32>,
+}
+impl DacSpi {
+    pub const fn new() -> Self {
+        Self { pending: None }
+    }
+}
+impl ErrorType for DacSpi {
+    type Error = BusFault;
+}
+impl DacSpi {
+    /// One 24-bit frame in, the reply to the previous read request out.
+    fn frame(&mut self, f: u32) -> u32 {
+        let reply = self.pending.take().unwrap_or(0);
+        let reg = (f >> 20) & 0b111;
+        if f & (1 << 23) != 0 {
+            self.pending = Some(
+                match reg {
+                    0b001 => DAC_REG.load(Ordering::Relaxed),
+                    0b010 => DAC_CTRL.load(Ordering::Relaxed),
+                    _ => 0,
+                } | (reg << 20),
+            );
+        } else {
+            match reg {
+                0b001 => {
+                    DAC_REG.store(f & 0xF_FFFF, Ordering::Relaxed);
+                    DAC_WRITES.fetch_add(1, Ordering::Relaxed);
+                }
+                0b010 => DAC_CTRL.store(f & 0x3E, Ordering::Relaxed),
+                _ => {}
+            }
+        }
+        reply
+    }
+}
+impl SpiDevice for DacSpi {
+    fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), BusFault> {
+        for op in ops {
+            match op {
+                Operation::Write(b) => {
+                    self.frame(frame_of(b));
+                }
+                Operation::TransferInPlace(b) => {
+                    let r = self.frame(frame_of(b));
+                    put_frame(b, r);
+                }
+                Operation::Transfer(r, w) => {
+                    let x = self.frame(frame_of(w));
+                    put_frame(r, x);
+                }
+                Operation::Read(b) => {
+                    let x = self.frame(0);
+                    put_frame(b, x);
+                }
+                Operation::DelayNs(_) => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The amplifier DAC's output as the plant sees it.
+pub struct Dac;
 
 impl Dac {
-    pub fn volts(&self) -> f64 {
-        if self.clamped {
+    /// Output volts: 0 while clamped (OPGND) or tristated (DACTRI).
+    pub fn volts() -> f64 {
+        if Self::clamped() {
             0.0
         } else {
-            10.0 * f64::from(self.code) / f64::from(1u32 << 19)
+            let code = ((DAC_REG.load(Ordering::Relaxed) << 12) as i32) >> 12;
+            10.0 * f64::from(code) / f64::from(1u32 << 19)
         }
     }
-    pub fn clamped(&self) -> bool {
-        self.clamped
+    pub fn clamped() -> bool {
+        DAC_CTRL.load(Ordering::Relaxed) & 0b1100 != 0
     }
-}
-
-impl AmplifierDac for Dac {
-    fn write(&mut self, code: i32) -> Result<(), BusError> {
-        self.code = code;
-        self.writes = self.writes.wrapping_add(1);
-        Ok(())
-    }
-    fn clamp_to_ground(&mut self) -> Result<(), BusError> {
-        self.clamped = true;
-        Ok(())
+    pub fn writes() -> u32 {
+        DAC_WRITES.load(Ordering::Relaxed)
     }
 }
