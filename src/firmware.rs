@@ -454,7 +454,7 @@ struct IntervalCache {
     interval: Option<u32>,
     lo: [i32; COLS],
     /// `hi − lo` of the raw (Q30) node values.
-    d: [i64; COLS],
+    d: [i32; COLS],
 }
 
 /// State of the X and index handlers (one priority level below the tick).
@@ -465,10 +465,10 @@ pub struct EventState {
     coefficient_output: bool,
     out: LegacyOutput,
     cache: IntervalCache,
-    /// Q30 tables take the cached path; others the interpolator's general one.
-    q30: bool,
-    /// The table needs the clamp of `coefficients_into` (never for real ones).
-    clamp: bool,
+    /// Q30 tables with every |coefficient| ≤ COEFF_LIMIT/2 (all real ones:
+    /// no clamp in `coefficients_into`, node changes fit an i32) take the
+    /// cached path; others the command path's general one.
+    fast: bool,
     terms: u8,
     coeff_gen: u32,
     index_seq: u32,
@@ -486,16 +486,16 @@ impl EventState {
             }
             _ => None,
         };
-        let (q30, clamp, terms) = match gen {
+        let (fast, terms) = match gen {
             Some(g) => {
                 let h = g.interpolator().table().header();
                 (
-                    h.coeff_frac_bits == 30,
-                    g.interpolator().max_abs_q30() > i64::from(COEFF_LIMIT / 2),
+                    h.coeff_frac_bits == 30
+                        && g.interpolator().max_abs_q30() <= i64::from(COEFF_LIMIT / 2),
                     h.terms.min(MAX_TERMS),
                 )
             }
-            None => (false, false, 0),
+            None => (false, 0),
         };
         Self {
             gen,
@@ -507,8 +507,7 @@ impl EventState {
                 lo: [0; COLS],
                 d: [0; COLS],
             },
-            q30,
-            clamp,
+            fast,
             terms,
             coeff_gen: 0,
             index_seq: 0,
@@ -536,7 +535,9 @@ impl EventState {
         let u = match lx.on_interrupt(word, now) {
             Ok(XEvent::Update(u)) => u,
             Ok(XEvent::Ignored) => {
-                sh.x_ignored.fetch_add(1, Ordering::Relaxed);
+                // One writer: a load and a store, no read-modify-write loop.
+                let n = sh.x_ignored.load(Ordering::Relaxed);
+                sh.x_ignored.store(n.wrapping_add(1), Ordering::Relaxed);
                 return Ok(XEvent::Ignored);
             }
             Err(f) => {
@@ -544,7 +545,8 @@ impl EventState {
                 return Err(f);
             }
         };
-        sh.x_accepted.fetch_add(1, Ordering::Relaxed);
+        let n = sh.x_accepted.load(Ordering::Relaxed);
+        sh.x_accepted.store(n.wrapping_add(1), Ordering::Relaxed);
         if let Err(f) = self.publish(sh, u.x, u.null) {
             sh.raise(f);
             return Err(f);
@@ -579,29 +581,35 @@ impl EventState {
                 let n = usize::from(self.terms);
                 let it = g.interpolator();
                 let (node, f) = it.interval(at);
-                if self.q30 {
+                if self.fast {
                     if self.cache.interval != Some(node) {
                         let cols = self.cache.lo.iter_mut().zip(self.cache.d.iter_mut());
                         for (j, (lo, d)) in cols.take(n).enumerate() {
                             let (a, b) = (it.raw(node, j as u8), it.raw(node + 1, j as u8));
-                            // Q30 tables hold i32 values: `a` is exact.
+                            // Q30 values below 2³⁰ (checked at load): both
+                            // the value and the change fit an i32 exactly.
                             *lo = a as i32;
-                            *d = b - a;
+                            *d = (b - a) as i32;
                         }
                         self.cache.interval = Some(node);
                     }
                     let cols = self.cache.lo.iter().zip(self.cache.d.iter());
                     let dst = slot.value.iter().zip(slot.delta.iter());
-                    for ((lo, d), (v, dv)) in cols.zip(dst).take(n) {
-                        // Interpolator::lerp for Q30 tables, term by term.
-                        let mut val = (i64::from(*lo) + ((*d * f + (1 << 30)) >> 31)) as i32;
-                        let mut del = (*d).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
-                        if self.clamp {
-                            val = val.clamp(-COEFF_LIMIT, COEFF_LIMIT);
-                            del = del.clamp(-COEFF_LIMIT, COEFF_LIMIT);
+                    if f < 1 << 31 {
+                        // Interpolator::lerp for Q30 tables: the same sum,
+                        // with a single 32×32 → 64 multiply per column.
+                        let f = f as i32;
+                        for ((lo, d), (v, dv)) in cols.zip(dst).take(n) {
+                            let step = (i64::from(*d) * i64::from(f) + (1 << 30)) >> 31;
+                            v.store(lo.wrapping_add(step as i32), Ordering::Relaxed);
+                            dv.store(*d, Ordering::Relaxed);
                         }
-                        v.store(val, Ordering::Relaxed);
-                        dv.store(del, Ordering::Relaxed);
+                    } else {
+                        // The last node itself (f = 1): its value, exactly.
+                        for ((lo, d), (v, dv)) in cols.zip(dst).take(n) {
+                            v.store(lo.wrapping_add(*d), Ordering::Relaxed);
+                            dv.store(*d, Ordering::Relaxed);
+                        }
                     }
                 } else {
                     let mut c = Coefficients::NULL;
@@ -965,7 +973,8 @@ impl LoopState {
         self.integral = self
             .integral
             .saturating_add(i64::from(self.cfg.ki_bits) * error)
-            .clamp(-limit_q24, limit_q24);
+            .max(-limit_q24)
+            .min(limit_q24);
         let sum = (i64::from(self.cfg.kp_bits) * error)
             .saturating_add(self.integral)
             .saturating_sub(i64::from(self.cfg.kd_bits) * velocity)
@@ -973,8 +982,9 @@ impl LoopState {
             .saturating_add(accel_term);
         let rounded = sum.saturating_add(1 << 23) >> 24;
         let limit = i64::from(self.cfg.output_limit);
-        // The clamp bounds the value to ±2¹⁹, so the cast is exact.
-        let u = rounded.clamp(-limit, limit) as i32;
+        // Bounded to ±2¹⁹, so the cast is exact (max/min, not `clamp`,
+        // whose min > max check would leave a panic path in the handler).
+        let u = rounded.max(-limit).min(limit) as i32;
 
         match dac.write(u) {
             Ok(()) => self.output = u,

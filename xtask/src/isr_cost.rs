@@ -6,8 +6,9 @@
 //! executed instruction's PC. A call of a measured function starts when the
 //! PC reaches its first address; it ends when the PC is back in the function
 //! that was running just before (the caller, or for an exception handler the
-//! interrupted thread code). Everything in between is counted, callees
-//! included. Instruction counts, not cycles: a Cortex-M4 needs about 1.2-1.5
+//! interrupted code). Everything in between is counted, callees included,
+//! except the instructions of a measured exception handler that preempted
+//! it (the loop tick preempting an X event counts for the loop tick only). Instruction counts, not cycles: a Cortex-M4 needs about 1.2-1.5
 //! cycles per instruction on such code, plus 12 cycles of exception entry.
 
 use std::collections::BTreeMap;
@@ -17,12 +18,20 @@ use std::process::Stdio;
 use crate::elf::{self, Symbol};
 
 /// What to measure: report name, and a predicate on symbol names.
-const TARGETS: [(&str, &str); 2] = [
-    // The firmware's loop tick (monomorphised in the QEMU image).
-    ("loop_tick", "8firmware8Firmware9loop_tick"),
-    // The whole timer-0 handler: loop tick plus the slide model's step
-    // (the simulated world, not firmware) and the board glue.
+const TARGETS: [(&str, &str); 8] = [
+    ("z_eval", "CommandGen12evaluate_phi"),
+    ("enc_tick", "EncoderAngle4tick"),
+    ("dacspi", "transaction"),
+    // The firmware's entry points (monomorphised in the QEMU image): the
+    // loop tick with its converter drivers, the legacy X event, the index.
+    ("loop_tick", "9LoopState9loop_tick"),
+    ("x_event", "10EventState7x_event"),
+    ("index_event", "10EventState11index_event"),
+    // The whole timer handlers: timer 0 = loop tick plus the slide model's
+    // step (the simulated world, not firmware) and the board glue; timer 1 =
+    // the synthetic machine's event playback around x_event/index_event.
     ("TIMER0_handler_with_plant", "TIMER0"),
+    ("TIMER1_handler_with_machine", "TIMER1"),
 ];
 
 #[derive(Default)]
@@ -90,6 +99,10 @@ pub fn run(json: bool) -> Result<u8, String> {
     // Open measurements: (report, caller range start, caller range end, count).
     let mut open: Vec<(&str, u32, u32, u64)> = Vec::new();
     let mut prev_pc: Option<u32> = None;
+    // `ISR_COST_PROFILE=<report>`: executions per instruction address of
+    // that report (to stderr), for finding where a handler's budget goes.
+    let profile = std::env::var("ISR_COST_PROFILE").ok();
+    let mut histogram: BTreeMap<u32, u64> = BTreeMap::new();
     for line in BufReader::new(trace).lines().map_while(Result::ok) {
         // "Trace 0: 0x7f.. [00800408/000024ae/00000110/ff020201] name"
         let Some(pc) = line
@@ -112,8 +125,17 @@ pub fn run(json: bool) -> Result<u8, String> {
                 break;
             }
         }
-        for m in open.iter_mut() {
+        // Every open measurement counts the instruction, down to (and
+        // including) the innermost exception handler: a handler that
+        // preempted a measured function is not that function's cost.
+        for m in open.iter_mut().rev() {
             m.3 += 1;
+            if profile.as_deref() == Some(m.0) {
+                *histogram.entry(pc).or_default() += 1;
+            }
+            if m.0.starts_with("TIMER") {
+                break;
+            }
         }
         if let Some(&report) = targets.get(&pc) {
             let caller = prev_pc.and_then(|p| find(&funcs, p));
@@ -130,6 +152,14 @@ pub fn run(json: bool) -> Result<u8, String> {
         return Err(format!("the QEMU image failed under tracing ({status})"));
     }
     let sizes = elf::sizes(&elf_path)?;
+    if let Some(p) = &profile {
+        let calls = stats.get(p.as_str()).map_or(1, |s| s.calls.max(1));
+        eprintln!("isr-cost profile of {p} ({calls} calls): address, executions per call, function");
+        for (pc, n) in &histogram {
+            let f = find(&funcs, *pc).map_or("?", |f| f.name.as_str());
+            eprintln!("  {pc:#010x} {:8.2}  {f}", *n as f64 / calls as f64);
+        }
+    }
 
     if json {
         let mut out = String::from("{");
