@@ -455,6 +455,12 @@ struct IntervalCache {
     lo: [i32; COLS],
     /// `hi − lo` of the raw (Q30) node values.
     d: [i32; COLS],
+    /// X of the interval's nodes, `I8F24` bits (`x_lo ≤ X < x_hi`).
+    x_lo: i32,
+    x_hi: i32,
+    /// Node 0 and the grid step, `I8F24` bits.
+    x0: i32,
+    dx: i32,
 }
 
 /// State of the X and index handlers (one priority level below the tick).
@@ -470,6 +476,8 @@ pub struct EventState {
     /// cached path; others the command path's general one.
     fast: bool,
     terms: u8,
+    /// The interval whose changes each slot's `delta` holds.
+    slot_interval: [Option<u32>; 2],
     coeff_gen: u32,
     index_seq: u32,
 }
@@ -491,7 +499,8 @@ impl EventState {
                 let h = g.interpolator().table().header();
                 (
                     h.coeff_frac_bits == 30
-                        && g.interpolator().max_abs_q30() <= i64::from(COEFF_LIMIT / 2),
+                        && g.interpolator().max_abs_q30() <= i64::from(COEFF_LIMIT / 2)
+                        && g.interpolator().x_in_grid_units(),
                     h.terms.min(MAX_TERMS),
                 )
             }
@@ -506,9 +515,17 @@ impl EventState {
                 interval: None,
                 lo: [0; COLS],
                 d: [0; COLS],
+                x_lo: 0,
+                x_hi: 0,
+                x0: gen.map_or(0, |g| g.interpolator().table().node_x(0).to_bits()),
+                dx: gen.map_or(0, |g| {
+                    let t = g.interpolator().table();
+                    t.node_x(1).to_bits().wrapping_sub(t.node_x(0).to_bits())
+                }),
             },
             fast,
             terms,
+            slot_interval: [None; 2],
             coeff_gen: 0,
             index_seq: 0,
         }
@@ -568,67 +585,139 @@ impl EventState {
     #[inline(always)]
     fn publish(&mut self, sh: &Shared, x: XInches, null: bool) -> Result<(), Fault> {
         let g_next = self.coeff_gen.wrapping_add(1);
-        let slot = &sh.coeff[(g_next & 1) as usize];
+        let which = (g_next & 1) as usize;
+        let slot = &sh.coeff[which];
         slot.seq.store(g_next, Ordering::Relaxed);
         fence(Ordering::Release);
-        let at = match (self.gen.as_ref(), null) {
-            (Some(g), false) => g.locate(x)?,
-            _ => None,
-        };
         slot.x.store(x.to_bits(), Ordering::Relaxed);
-        match (self.gen.as_ref(), at) {
-            (Some(g), Some(at)) => {
-                let n = usize::from(self.terms);
-                let it = g.interpolator();
-                let (node, f) = it.interval(at);
+        let terms = usize::from(self.terms);
+        let (cache, held) = (&mut self.cache, &mut self.slot_interval);
+        let live = match self.gen.as_ref() {
+            Some(g) if !null => {
                 if self.fast {
-                    if self.cache.interval != Some(node) {
-                        let cols = self.cache.lo.iter_mut().zip(self.cache.d.iter_mut());
-                        for (j, (lo, d)) in cols.take(n).enumerate() {
-                            let (a, b) = (it.raw(node, j as u8), it.raw(node + 1, j as u8));
-                            // Q30 values below 2³⁰ (checked at load): both
-                            // the value and the change fit an i32 exactly.
-                            *lo = a as i32;
-                            *d = (b - a) as i32;
-                        }
-                        self.cache.interval = Some(node);
-                    }
-                    let cols = self.cache.lo.iter().zip(self.cache.d.iter());
-                    let dst = slot.value.iter().zip(slot.delta.iter());
-                    if f < 1 << 31 {
-                        // Interpolator::lerp for Q30 tables: the same sum,
-                        // with a single 32×32 → 64 multiply per column.
-                        let f = f as i32;
-                        for ((lo, d), (v, dv)) in cols.zip(dst).take(n) {
-                            let step = (i64::from(*d) * i64::from(f) + (1 << 30)) >> 31;
-                            v.store(lo.wrapping_add(step as i32), Ordering::Relaxed);
-                            dv.store(*d, Ordering::Relaxed);
-                        }
-                    } else {
-                        // The last node itself (f = 1): its value, exactly.
-                        for ((lo, d), (v, dv)) in cols.zip(dst).take(n) {
-                            v.store(lo.wrapping_add(*d), Ordering::Relaxed);
-                            dv.store(*d, Ordering::Relaxed);
-                        }
-                    }
+                    fast_columns(g, cache, held, terms, slot, which, x)?
                 } else {
-                    let mut c = Coefficients::NULL;
-                    g.coefficients_into(x, &mut c)?;
-                    let dst = slot.value.iter().zip(slot.delta.iter());
-                    for ((v, dv), (a, b)) in dst.zip(c.value.iter().zip(c.delta.iter())).take(n) {
-                        v.store(*a, Ordering::Relaxed);
-                        dv.store(*b, Ordering::Relaxed);
-                    }
+                    general_columns(g, held, terms, slot, which, x)?
                 }
-                slot.meta.store(u32::from(self.terms), Ordering::Relaxed);
             }
-            _ => slot.meta.store(NULL_META, Ordering::Relaxed),
-        }
+            _ => false,
+        };
+        let meta = if live {
+            u32::from(self.terms)
+        } else {
+            NULL_META
+        };
+        slot.meta.store(meta, Ordering::Relaxed);
         self.coeff_gen = g_next;
         sh.coeff_gen.store(g_next, Ordering::Release);
         Ok(())
     }
+}
 
+/// The columns at `x` through the command path itself (tables the cached
+/// path does not cover).
+fn general_columns(
+    g: &CommandGen<'static>,
+    held: &mut [Option<u32>; 2],
+    terms: usize,
+    slot: &CoeffSlot,
+    which: usize,
+    x: XInches,
+) -> Result<bool, Fault> {
+    let mut c = Coefficients::NULL;
+    g.coefficients_into(x, &mut c)?;
+    if c.null {
+        return Ok(false);
+    }
+    let dst = slot.value.iter().zip(slot.delta.iter());
+    let src = c.value.iter().zip(c.delta.iter());
+    for ((v, dv), (a, b)) in dst.zip(src).take(terms) {
+        v.store(*a, Ordering::Relaxed);
+        dv.store(*b, Ordering::Relaxed);
+    }
+    if let Some(s) = held.get_mut(which) {
+        *s = None;
+    }
+    Ok(true)
+}
+
+/// The columns at `x` for Q30 tables within ±2²⁶ (every real one), bit
+/// for bit what [`CommandGen::coefficients_into`] gives:
+///
+/// * the interval: the cached one while X stays in it (X moves by
+///   half-mils, ~60 events per 1/32 in), its neighbour when X crosses a
+///   node, a search only after a jump; the fraction from the remainder
+///   exactly as [`crate::interp::Interpolator::locate`] forms it;
+/// * the two node rows and their differences read once per interval;
+/// * per column one 32×32 → 64 multiply-add, no division anywhere;
+/// * the interval changes written to a slot only when that slot does not
+///   hold them yet.
+#[inline(always)]
+fn fast_columns(
+    g: &CommandGen<'static>,
+    c: &mut IntervalCache,
+    held: &mut [Option<u32>; 2],
+    n: usize,
+    slot: &CoeffSlot,
+    which: usize,
+    x: XInches,
+) -> Result<bool, Fault> {
+    if x > g.x_null() {
+        return Ok(false);
+    }
+    let it = g.interpolator();
+    let t = it.table();
+    let bits = x.to_bits();
+    let inside = c.interval.is_some() && bits >= c.x_lo && bits < c.x_hi;
+    if !inside {
+        let dx = c.dx;
+        let node = match c.interval {
+            Some(n) if bits >= c.x_hi && bits - c.x_hi < dx && n + 2 < t.node_count() => n + 1,
+            Some(n) if bits < c.x_lo && c.x_lo - bits <= dx && n > 0 => n - 1,
+            _ => match g.locate(x)? {
+                None => return Ok(false),
+                Some(at) if at.node + 1 < t.node_count() => at.node,
+                // X on the last node: the command path's own way.
+                Some(_) => return general_columns(g, held, n, slot, which, x),
+            },
+        };
+        let rows = t
+            .node_row(node)
+            .chunks_exact(4)
+            .zip(t.node_row(node + 1).chunks_exact(4));
+        let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
+        for ((lo, d), (a, b)) in c.lo.iter_mut().zip(c.d.iter_mut()).zip(rows) {
+            // |values| ≤ 2²⁶ (checked at load): the change fits an i32.
+            *lo = word(a);
+            *d = word(b).wrapping_sub(*lo);
+        }
+        c.interval = Some(node);
+        // The grid is exact in X bits (fast path): x0 + node·ΔX, no overflow
+        // (the parser checked the last node fits).
+        c.x_lo = c.x0.wrapping_add((node as i32).wrapping_mul(c.dx));
+        c.x_hi = c.x_lo.wrapping_add(c.dx);
+    }
+    let rem = u64::from(bits.wrapping_sub(c.x_lo) as u32);
+    // Interpolator::interval: Q31 position = the Q32 fraction >> 1.
+    let f = (it.frac_of_rem(rem) >> 1) as i32;
+    let cols = c.lo.iter().zip(c.d.iter());
+    for ((lo, d), v) in cols.zip(slot.value.iter()).take(n) {
+        // Interpolator::lerp for Q30 tables: the same rounded sum.
+        let step = (i64::from(*d) * i64::from(f) + (1 << 30)) >> 31;
+        v.store(lo.wrapping_add(step as i32), Ordering::Relaxed);
+    }
+    if let Some(s) = held.get_mut(which) {
+        if *s != c.interval {
+            for (d, dv) in c.d.iter().zip(slot.delta.iter()).take(n) {
+                dv.store(*d, Ordering::Relaxed);
+            }
+            *s = c.interval;
+        }
+    }
+    Ok(true)
+}
+
+impl EventState {
     /// The once-per-revolution index: the encoder count the hardware latched
     /// at the edge (ignored with a tachometer) and the edge's timestamp.
     /// Published for the loop tick, which applies it to the estimator.
@@ -924,13 +1013,19 @@ impl LoopState {
                     Some(p) => phi.0.wrapping_sub(p.0) as i32,
                     None => 0,
                 };
-                let (dphi64, d2) = (i64::from(dphi), i64::from(c.d2z_dphi2.to_bits()));
-                let p = i64::from(c.dz_dphi.to_bits()) * dphi64;
-                let v = (p >> 16).saturating_mul(FF_K_Q16) >> 25;
-                // ∂²Z/∂φ²·Δφ² in codes/tick², Q16: d2·Δφ²·100π²/2⁵⁷,
-                // in two steps that keep every product inside 64 bits.
-                let t = ((d2 * dphi64) >> 24).saturating_mul(dphi64) >> 24;
-                let a = t.saturating_mul(FF_K2_Q8) >> 17;
+                // Bounds that make every product below plain 64-bit
+                // arithmetic (no saturating multiplies on the M4): |Δφ| ≤
+                // 2²⁶ (1/64 turn per tick, 18 750 rpm at 20 kHz), |∂Z/∂φ| ≤
+                // 2²⁷ (1/8 in/rad), |∂²Z/∂φ²| ≤ 2²⁸: far beyond any real cut.
+                let dphi64 = i64::from(dphi.clamp(-(1 << 26), 1 << 26));
+                let d1 = i64::from(c.dz_dphi.to_bits().clamp(-(1 << 27), 1 << 27));
+                let d2 = i64::from(c.d2z_dphi2.to_bits().clamp(-(1 << 28), 1 << 28));
+                // |p >> 16| ≤ 2³⁷, times K < 2²⁴.
+                let v = (((d1 * dphi64) >> 16) * FF_K_Q16) >> 25;
+                // ∂²Z/∂φ²·Δφ² in codes/tick², Q16: d2·Δφ²·100π²/2⁵⁷, in two
+                // steps (≤ 2³⁰ and ≤ 2³² before the constant).
+                let t = (((d2 * dphi64) >> 24) * dphi64) >> 24;
+                let a = ((t * FF_K2_Q8) >> 17).clamp(-(1 << 24), 1 << 24);
                 (gauge_code_from_z(c.z), v, a)
             }
             _ => (0, 0, 0),
@@ -957,30 +1052,32 @@ impl LoopState {
         self.ff_q16 = if tracking { slope } else { command_step << 16 };
         let (ff_gain, accel_term) = if tracking {
             (
-                i64::from(self.cfg.kff_bits) + i64::from(self.cfg.kd_bits),
-                i64::from(self.cfg.ka_q8).saturating_mul(accel),
+                self.cfg.kff_bits.saturating_add(self.cfg.kd_bits),
+                i64::from(self.cfg.ka_q8) * accel,
             )
         } else {
-            (i64::from(self.cfg.kff_bits), 0)
+            (self.cfg.kff_bits, 0)
         };
+        // |ff| ≤ 2³¹ (32 768 codes per tick: beyond full scale in one tick).
+        let ff = self.ff_q16.clamp(-(1 << 31) + 1, (1 << 31) - 1);
         self.goal = goal;
 
         let error = i64::from(self.command) - i64::from(y);
         let velocity = i64::from(y) - i64::from(self.position);
         self.position = y;
 
+        // Every term is bounded (|e|, |velocity| ≤ 2²⁰; gains < 2³¹; |I| ≤
+        // 2⁴³; |ff| ≤ 2³¹; |accel| ≤ 2²⁴, ka < 2³¹): the sum stays below
+        // 2⁵⁶, so plain adds cannot overflow.
         let limit_q24 = i64::from(self.cfg.output_limit) << 24;
-        self.integral = self
-            .integral
-            .saturating_add(i64::from(self.cfg.ki_bits) * error)
+        self.integral = (self.integral + i64::from(self.cfg.ki_bits) * error)
             .max(-limit_q24)
             .min(limit_q24);
-        let sum = (i64::from(self.cfg.kp_bits) * error)
-            .saturating_add(self.integral)
-            .saturating_sub(i64::from(self.cfg.kd_bits) * velocity)
-            .saturating_add(ff_gain.saturating_mul(self.ff_q16) >> 16)
-            .saturating_add(accel_term);
-        let rounded = sum.saturating_add(1 << 23) >> 24;
+        let sum = i64::from(self.cfg.kp_bits) * error + self.integral
+            - i64::from(self.cfg.kd_bits) * velocity
+            + ((i64::from(ff_gain) * ff) >> 16)
+            + accel_term;
+        let rounded = (sum + (1 << 23)) >> 24;
         let limit = i64::from(self.cfg.output_limit);
         // Bounded to ±2¹⁹, so the cast is exact (max/min, not `clamp`,
         // whose min > max check would leave a panic path in the handler).

@@ -230,6 +230,22 @@ impl<'a> Interpolator<'a> {
         Located::In(Locus { node, frac })
     }
 
+    /// The fraction of [`Locus`] for a remainder `rem` (grid units) inside
+    /// an interval: exactly what [`Interpolator::locate`] computes from the
+    /// same remainder, so a caller that already knows the interval (the
+    /// legacy X event: X stays in one interval for ~60 events) can skip the
+    /// node search and get identical results.
+    #[inline(always)]
+    pub(crate) fn frac_of_rem(&self, rem: u64) -> u32 {
+        (rem.wrapping_mul(self.inv) >> self.k).min(u64::from(u32::MAX)) as u32
+    }
+
+    /// Whether X in `I8F24` is already in grid units (then a remainder in X
+    /// bits is a remainder in grid units).
+    pub(crate) fn x_in_grid_units(&self) -> bool {
+        self.x_up == 0
+    }
+
     /// The interval `(lower node, Q31 position in it)` that serves `at`: the
     /// last node is served by the last interval at its far end (f = 1).
     #[inline(always)]

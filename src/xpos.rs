@@ -145,14 +145,17 @@ pub fn decode(word: XLatchWord) -> Option<u32> {
     if w >> 18 != 0 {
         return None;
     }
-    let mut mils = 0u32;
-    for shift in [12u32, 8, 4, 0] {
-        let d = (w >> shift) & 0xF;
-        if d > 9 {
-            return None;
-        }
-        mils = mils * 10 + d;
+    let d = w & 0xFFFF;
+    // A nibble above 9 carries into the next one when 6 is added to it:
+    // the carry bits are where the sum differs from the carry-less sum.
+    let carries = (d + 0x6666) ^ d ^ 0x6666;
+    if carries & 0x1_1110 != 0 {
+        return None;
     }
+    // BCD to binary by nibble arithmetic (two multiplies, no loop): each
+    // byte hi·16 + lo → hi·10 + lo, then the two bytes h·256 + l → h·100 + l.
+    let bytes = d - ((d >> 4) & 0x0F0F) * 6;
+    let mils = (bytes & 0xFF) + (bytes >> 8) * 100;
     Some(mils * 2 + u32::from(w & XLatchWord::HALF_MIL != 0))
 }
 
@@ -361,6 +364,23 @@ mod tests {
 
     fn cfg() -> LegacyConfig {
         LegacyConfig::new(XInches::from_f64(7.2), 1_000_000)
+    }
+
+    /// The nibble-arithmetic decode against digit-by-digit decoding, for
+    /// every 16-bit pattern and both half-mil states.
+    #[test]
+    fn decode_matches_digit_by_digit_for_every_word() {
+        for w in 0u32..=0xFFFF {
+            let digits = [w >> 12, (w >> 8) & 0xF, (w >> 4) & 0xF, w & 0xF];
+            let naive = digits
+                .iter()
+                .try_fold(0u32, |m, &d| (d <= 9).then_some(m * 10 + d));
+            for half in [0, XLatchWord::HALF_MIL] {
+                let want = naive.map(|m| m * 2 + u32::from(half != 0));
+                assert_eq!(decode(XLatchWord(w | half)), want, "{w:#x}");
+            }
+        }
+        assert_eq!(decode(XLatchWord(1 << 18)), None);
     }
 
     #[test]

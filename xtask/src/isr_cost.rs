@@ -18,10 +18,7 @@ use std::process::Stdio;
 use crate::elf::{self, Symbol};
 
 /// What to measure: report name, and a predicate on symbol names.
-const TARGETS: [(&str, &str); 8] = [
-    ("z_eval", "CommandGen12evaluate_phi"),
-    ("enc_tick", "EncoderAngle4tick"),
-    ("dacspi", "transaction"),
+const TARGETS: [(&str, &str); 5] = [
     // The firmware's entry points (monomorphised in the QEMU image): the
     // loop tick with its converter drivers, the legacy X event, the index.
     ("loop_tick", "9LoopState9loop_tick"),
@@ -99,8 +96,9 @@ pub fn run(json: bool) -> Result<u8, String> {
     // Open measurements: (report, caller range start, caller range end, count).
     let mut open: Vec<(&str, u32, u32, u64)> = Vec::new();
     let mut prev_pc: Option<u32> = None;
-    // `ISR_COST_PROFILE=<report>`: executions per instruction address of
-    // that report (to stderr), for finding where a handler's budget goes.
+    // `ISR_COST_PROFILE=<report>`: that report's count per call and its
+    // executions per instruction address (to stderr), for finding where a
+    // handler's budget goes.
     let profile = std::env::var("ISR_COST_PROFILE").ok();
     let mut histogram: BTreeMap<u32, u64> = BTreeMap::new();
     for line in BufReader::new(trace).lines().map_while(Result::ok) {
@@ -117,6 +115,9 @@ pub fn run(json: bool) -> Result<u8, String> {
             if pc >= lo && pc < hi {
                 open.pop();
                 let s = stats.entry(report).or_default();
+                if profile.as_deref() == Some(report) {
+                    eprintln!("  call {} {n}", s.calls);
+                }
                 s.calls += 1;
                 s.total += n;
                 s.max = s.max.max(n);
@@ -154,7 +155,9 @@ pub fn run(json: bool) -> Result<u8, String> {
     let sizes = elf::sizes(&elf_path)?;
     if let Some(p) = &profile {
         let calls = stats.get(p.as_str()).map_or(1, |s| s.calls.max(1));
-        eprintln!("isr-cost profile of {p} ({calls} calls): address, executions per call, function");
+        eprintln!(
+            "isr-cost profile of {p} ({calls} calls): address, executions per call, function"
+        );
         for (pc, n) in &histogram {
             let f = find(&funcs, *pc).map_or("?", |f| f.name.as_str());
             eprintln!("  {pc:#010x} {:8.2}  {f}", *n as f64 / calls as f64);
