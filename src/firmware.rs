@@ -398,6 +398,20 @@ impl Shared {
     pub fn coefficient_generation(&self) -> u32 {
         self.coeff_gen.load(Ordering::Relaxed)
     }
+    /// The once-per-revolution index, published for the loop tick: the
+    /// encoder count at the edge (ignored with a tachometer) and the edge's
+    /// timestamp. Needs no handler state, so an index interrupt can call it
+    /// on a `static` [`Shared`] directly. One writer (one priority level).
+    #[inline(always)]
+    pub fn index_event(&self, edge_ticks: u32, count_at_index: u32) {
+        let s = self.index_seq.load(Ordering::Relaxed).wrapping_add(1);
+        let slot = &self.index[(s & 1) as usize];
+        slot[2].store(s, Ordering::Relaxed);
+        fence(Ordering::Release);
+        slot[0].store(count_at_index, Ordering::Relaxed);
+        slot[1].store(edge_ticks, Ordering::Relaxed);
+        self.index_seq.store(s, Ordering::Release);
+    }
     fn raise(&self, f: Fault) {
         self.x_faults.fetch_or(x_fault_bit(f), Ordering::Relaxed);
     }
@@ -479,7 +493,6 @@ pub struct EventState {
     /// The interval whose changes each slot's `delta` holds.
     slot_interval: [Option<u32>; 2],
     coeff_gen: u32,
-    index_seq: u32,
 }
 
 impl EventState {
@@ -527,7 +540,6 @@ impl EventState {
             terms,
             slot_interval: [None; 2],
             coeff_gen: 0,
-            index_seq: 0,
         }
     }
 
@@ -720,17 +732,11 @@ fn fast_columns(
 impl EventState {
     /// The once-per-revolution index: the encoder count the hardware latched
     /// at the edge (ignored with a tachometer) and the edge's timestamp.
-    /// Published for the loop tick, which applies it to the estimator.
+    /// Published for the loop tick, which applies it to the estimator. See
+    /// [`Shared::index_event`] (this handler's part holds no index state).
     #[inline(never)]
     pub fn index_event(&mut self, sh: &Shared, edge_ticks: u32, count_at_index: u32) {
-        let s = self.index_seq.wrapping_add(1);
-        let slot = &sh.index[(s & 1) as usize];
-        slot[2].store(s, Ordering::Relaxed);
-        fence(Ordering::Release);
-        slot[0].store(count_at_index, Ordering::Relaxed);
-        slot[1].store(edge_ticks, Ordering::Relaxed);
-        self.index_seq = s;
-        sh.index_seq.store(s, Ordering::Release);
+        sh.index_event(edge_ticks, count_at_index);
     }
 }
 

@@ -7,15 +7,15 @@
 //!
 //! | NVIC priority | handler | source | work |
 //! |---|---|---|---|
-//! | 0x00 | `TIM3` | loop tick, 20 kHz, TIM3 CC2 | gauge in, `Firmware::loop_tick`, DAC out, watchdog |
-//! | 0x10 | `EXTI2` | legacy X half-mil interrupt, PG2 | latch the BCD word, publish it |
-//! | 0x10 | `EXTI3` | spindle index, PG3 | timestamp it, publish it |
+//! | 0x00 | `TIM3` | loop tick, 20 kHz, TIM3 CC2 | `LoopState::loop_tick`: gauge, spindle angle, command, loop, DAC; watchdog |
+//! | 0x10 | `EXTI2` | legacy X half-mil interrupt, PG2 | `EventState::x_event` on the latched word |
+//! | 0x10 | `EXTI3` | spindle index, PG3 | `Shared::index_event` with the count and time |
 //! | thread | `main` loop | - | background: status and fault logging |
 //!
-//! The loop-tick handler owns the `Firmware` and its converters outright
-//! (moved in once, before its interrupt is unmasked); lower priorities see
-//! its results only through atomics, so nothing ever masks the loop tick
-//! except the one-instruction critical section of that hand-over.
+//! Each handler owns its part of the firmware outright (moved in once,
+//! before its interrupt is unmasked); they share only `SHARED`, atomics
+//! (`zslide::firmware`), so nothing ever masks the loop tick except the
+//! one-time hand-over.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -30,14 +30,20 @@ mod app {
     use cortex_m_rt::{entry, exception, ExceptionFrame};
     use critical_section::Mutex;
     use defmt_rtt as _;
-    use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI4};
-    use zslide::firmware::{Firmware, LoopConfig};
-    use zslide::hw::XLatch;
+    use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI3, SPI4};
+    use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686, ad5791::Ad5791};
+    use zslide::firmware::{
+        EventState, Firmware, FirmwareConfig, LoopConfig, LoopState, Shared, SpindleMode,
+        SpindleReading, TickInput, XMode,
+    };
+    use zslide::hw::{Encoder, XLatch};
     use zslide::safety::{Device, Fault};
+    use zslide::spindle::EncoderConfig;
+    use zslide::units::SpindleAngle;
 
-    use crate::board::converters::{Ad4020, Ad5791};
     use crate::board::gpio::Output;
     use crate::board::spi::{self, NoCs, SpiDev};
+    use crate::board::timers::SpindleEncoder;
     use crate::board::{self, clocks, pins, timers};
 
     defmt::timestamp!("{=u32:us}", timers::micros());
@@ -47,22 +53,53 @@ mod app {
     const PRIO_X_EVENT: u8 = 0x10;
     const PRIO_INDEX: u8 = 0x10;
 
-    /// Everything the loop-tick handler owns.
-    struct Loop {
-        fw: Firmware,
-        gauge: Ad4020<SpiDev<SPI4, NoCs>>,
-        dac: Ad5791<SpiDev<SPI1, Output>>,
+    /// The spindle encoder's counts per turn after ×4 decoding (a board
+    /// setting: 1024-line encoder).
+    const SPINDLE_CPR: u32 = 4096;
+    /// Legacy coefficient-output mode (drop-in for the 8080 board): each X
+    /// event also writes C00..C03 to the AD5686 and strobes LDAC.
+    const COEFFICIENT_OUTPUT: bool = false;
+
+    fn config() -> FirmwareConfig {
+        FirmwareConfig {
+            loop_cfg: LoopConfig::at_rate(timers::LOOP_HZ),
+            spindle: SpindleMode::Encoder(EncoderConfig {
+                counts_per_rev: SPINDLE_CPR,
+                ticks_per_s: timers::CLOCK_HZ,
+                min_rpm: 30,
+                max_rpm: 1_200,
+                index_tolerance_counts: 4,
+                index_angle: SpindleAngle(0),
+            }),
+            x: XMode::Legacy {
+                clock_hz: timers::CLOCK_HZ,
+            },
+            coefficient_output: COEFFICIENT_OUTPUT,
+            gauge_reversed: false,
+        }
     }
 
+    /// Everything the loop-tick handler owns.
+    struct Loop {
+        lp: LoopState,
+        gauge: Ad4020<SpiDev<SPI4, NoCs>>,
+        dac: Ad5791<SpiDev<SPI1, Output>>,
+        spindle: SpindleEncoder,
+    }
+
+    /// Everything the X-event handler owns.
+    struct XHandler {
+        ev: EventState,
+        quad: Ad5686<SpiDev<SPI3, Output>, Output>,
+    }
+
+    static SHARED: Shared = Shared::new();
     static HANDOFF: Mutex<RefCell<Option<Loop>>> = Mutex::new(RefCell::new(None));
+    static HANDOFF_X: Mutex<RefCell<Option<XHandler>>> = Mutex::new(RefCell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The first fault the loop latched, published once for the background.
     static FAULT: Mutex<RefCell<Option<Fault>>> = Mutex::new(RefCell::new(None));
     static FAULT_PUBLISHED: AtomicBool = AtomicBool::new(false);
-    static X_LATCH: AtomicU32 = AtomicU32::new(0);
-    static X_EVENTS: AtomicU32 = AtomicU32::new(0);
-    static INDEX_TICKS: AtomicU32 = AtomicU32::new(0);
-    static INDEX_EVENTS: AtomicU32 = AtomicU32::new(0);
 
     #[entry]
     fn main() -> ! {
@@ -104,23 +141,37 @@ mod app {
 
         let amp_spi = SpiDev::new(dp.SPI1, 1, spi::Mode::Mode1, Output(pins::AMP_DAC_SYNC));
         let gauge_spi = SpiDev::new(dp.SPI4, 0, spi::Mode::Mode0, NoCs);
-        // The quad DAC of the legacy coefficient-output mode: bus ready, LDAC
-        // idle high; its driver arrives with that mode.
-        let _quad_spi = SpiDev::new(dp.SPI3, 1, spi::Mode::Mode1, Output(pins::QUAD_DAC_SYNC));
+        let quad_spi = SpiDev::new(dp.SPI3, 1, spi::Mode::Mode1, Output(pins::QUAD_DAC_SYNC));
 
-        let mut dac = Ad5791::new(amp_spi);
-        let mut fw = Firmware::new(LoopConfig::at_rate(timers::LOOP_HZ));
-        // Until the command path lands, the loop holds the slide at null.
-        fw.set_target_code(0);
-        if dac.release_clamp().is_err() {
-            fw.trip(Fault::Bus(Device::AmplifierDac));
+        // The table is parsed and sign-checked here; a refused one leaves
+        // the firmware latched in Fault::Table with the slide nulled.
+        let Ok(fw) = Firmware::with_table(zslide::DEFAULT_TABLE, config()) else {
+            panic!("firmware configuration refused");
+        };
+        let (mut lp, ev) = fw.into_parts();
+        if let Some(f) = lp.fault() {
+            defmt::error!("coefficient table refused: {}", f);
         }
+        let mut dac = Ad5791::new(amp_spi);
+        // Zero code, output released, control register read back.
+        if dac.init().is_err() {
+            lp.trip(Fault::Bus(Device::AmplifierDac));
+        }
+        let quad = match Ad5686::new(quad_spi, Output(pins::QUAD_DAC_LDAC)) {
+            Ok(q) => q,
+            Err(_) => panic!("LDAC pin"),
+        };
+        timers::start_spindle_encoder(&dp.TIM4);
         let lp = Loop {
-            fw,
+            lp,
             gauge: Ad4020::new(gauge_spi),
             dac,
+            spindle: SpindleEncoder::new(),
         };
-        critical_section::with(|cs| HANDOFF.borrow(cs).replace(Some(lp)));
+        critical_section::with(|cs| {
+            HANDOFF.borrow(cs).replace(Some(lp));
+            HANDOFF_X.borrow(cs).replace(Some(XHandler { ev, quad }));
+        });
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
         timers::start_watchdog(&dp.IWDG, &dp.DBGMCU);
@@ -156,12 +207,12 @@ mod app {
             if now.wrapping_sub(last_report) >= 1_000_000 {
                 last_report = now;
                 defmt::info!(
-                    "ticks {=u32}, X events {=u32} (last latch {=u32:#x}), index events {=u32} (last at {=u32})",
+                    "ticks {=u32}, X events {=u32} accepted / {=u32} ignored, coefficient sets {=u32}, index events {=u32}",
                     TICKS.load(Ordering::Relaxed),
-                    X_EVENTS.load(Ordering::Relaxed),
-                    X_LATCH.load(Ordering::Relaxed),
-                    INDEX_EVENTS.load(Ordering::Relaxed),
-                    INDEX_TICKS.load(Ordering::Relaxed)
+                    SHARED.x_accepted(),
+                    SHARED.x_ignored(),
+                    SHARED.coefficient_generation(),
+                    SHARED.index_events()
                 );
             }
             cortex_m::asm::wfi();
@@ -175,15 +226,19 @@ mod app {
         if LOOP.is_none() {
             *LOOP = critical_section::with(|cs| HANDOFF.borrow(cs).take());
         }
-        let Some(lp) = LOOP.as_mut() else {
+        let Some(l) = LOOP.as_mut() else {
             return;
         };
-        lp.fw
-            .loop_tick(&zslide::firmware::TickInput::NONE, &mut lp.gauge, &mut lp.dac);
-        pins::AMP_ENABLE.set(lp.fw.amplifier_enable());
+        let input = TickInput {
+            now: timers::now_ticks(),
+            spindle: SpindleReading::Encoder(l.spindle.sample()),
+            x_count: 0,
+        };
+        l.lp.loop_tick(&SHARED, &input, &mut l.gauge, &mut l.dac);
+        pins::AMP_ENABLE.set(l.lp.amplifier_enable());
         timers::feed_watchdog();
-        TICKS.store(lp.fw.ticks(), Ordering::Relaxed);
-        if let Some(f) = lp.fw.fault() {
+        TICKS.store(l.lp.ticks(), Ordering::Relaxed);
+        if let Some(f) = l.lp.fault() {
             if !FAULT_PUBLISHED.load(Ordering::Relaxed) {
                 critical_section::with(|cs| FAULT.borrow(cs).replace(Some(f)));
                 FAULT_PUBLISHED.store(true, Ordering::Release);
@@ -191,21 +246,32 @@ mod app {
         }
     }
 
-    /// Legacy half-mil interrupt: latch the word at the edge and publish it
-    /// for the X-position logic (`zslide::xpos`, to come).
+    /// Legacy half-mil interrupt: the word latched at the edge, into the
+    /// firmware's X path (decode, debounce, schedule, coefficients for the
+    /// loop tick; the quad DAC in the coefficient-output mode).
     #[interrupt]
     fn EXTI2() {
+        static mut X: Option<XHandler> = None;
         board::ack_exti(2);
-        X_LATCH.store(board::LatchPins.read().0, Ordering::Relaxed);
-        X_EVENTS.fetch_add(1, Ordering::Release);
+        let word = board::LatchPins.read();
+        let now = timers::now_ticks();
+        if X.is_none() {
+            *X = critical_section::with(|cs| HANDOFF_X.borrow(cs).take());
+        }
+        if let Some(x) = X.as_mut() {
+            // Faults reach the loop tick through SHARED.
+            let _ = x.ev.x_event(&SHARED, word, now, &mut x.quad);
+        }
     }
 
-    /// Spindle index: timestamp it for the spindle-angle logic.
+    /// Spindle index: the time and the spindle count at the edge, for the
+    /// loop tick's angle estimator.
     #[interrupt]
     fn EXTI3() {
+        let now = timers::now_ticks();
+        let count = timers::spindle_count_now();
         board::ack_exti(3);
-        INDEX_TICKS.store(timers::now_ticks(), Ordering::Relaxed);
-        INDEX_EVENTS.fetch_add(1, Ordering::Release);
+        SHARED.index_event(now, count);
     }
 
     // cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its

@@ -104,16 +104,16 @@ pub fn init(rcc: &RCC, pwr: &PWR, flash: &FLASH) -> Source {
     }
 }
 
-/// Clocks for every peripheral the board uses: GPIOA..G, TIM2/3/5, SPI1,
+/// Clocks for every peripheral the board uses: GPIOA..G, TIM2/3/4/5, SPI1,
 /// SPI3, SPI4, SYSCFG (EXTI line routing).
 pub fn enable_peripherals(rcc: &RCC) {
     // SAFETY: enable bits only (RM0433 §8.7): AHB4ENR bits 0..6 = GPIOA..G;
-    // APB1LENR TIM2EN 0, TIM3EN 1, TIM5EN 3, SPI3EN 15; APB2ENR SPI1EN 12,
+    // APB1LENR TIM2EN 0, TIM3EN 1, TIM4EN 2, TIM5EN 3, SPI3EN 15; APB2ENR SPI1EN 12,
     // SPI4EN 13; APB4ENR SYSCFGEN 1. Setting them has no other effect.
     unsafe {
         rcc.ahb4enr().modify(|r, w| w.bits(r.bits() | 0x7F));
         rcc.apb1lenr()
-            .modify(|r, w| w.bits(r.bits() | 1 | (1 << 1) | (1 << 3) | (1 << 15)));
+            .modify(|r, w| w.bits(r.bits() | 0b1111 | (1 << 15)));
         rcc.apb2enr()
             .modify(|r, w| w.bits(r.bits() | (1 << 12) | (1 << 13)));
         rcc.apb4enr().modify(|r, w| w.bits(r.bits() | (1 << 1)));

@@ -3,7 +3,6 @@
 //! truth (the pin constants below).
 
 pub mod clocks;
-pub mod converters;
 pub mod gpio;
 pub mod spi;
 pub mod timers;
@@ -55,6 +54,9 @@ pub mod pins {
     pub const X_HALF_MIL_IRQ: Pin = Pin::new(Port::G, 2);
     /// Spindle once-per-revolution index, EXTI3 on its rising edge.
     pub const SPINDLE_INDEX: Pin = Pin::new(Port::G, 3);
+    /// Spindle encoder A/B, TIM4_CH1/CH2 (AF2): quadrature counter.
+    pub const SPINDLE_ENC_A: Pin = Pin::new(Port::D, 12);
+    pub const SPINDLE_ENC_B: Pin = Pin::new(Port::D, 13);
 }
 
 /// Configures every pin of the map; outputs start at their safe level
@@ -79,6 +81,8 @@ pub fn configure_pins() {
         p.configure(Mode::Alternate(6));
     }
     GAUGE_CNV.configure(Mode::Alternate(2));
+    SPINDLE_ENC_A.configure(Mode::Alternate(2));
+    SPINDLE_ENC_B.configure(Mode::Alternate(2));
     for n in 0..16 {
         Pin::new(BCD_PORT, n).configure(Mode::Input(0));
     }

@@ -13,7 +13,7 @@
 //! the interrupt comes after CNV has fallen, and the sample instant is fixed
 //! by hardware, free of interrupt-latency jitter.
 
-use stm32h7::stm32h743v::{DBGMCU, IWDG, TIM2, TIM3, TIM5};
+use stm32h7::stm32h743v::{DBGMCU, IWDG, TIM2, TIM3, TIM4, TIM5};
 
 use super::clocks::APB1_TIMER_HZ;
 
@@ -58,15 +58,6 @@ pub fn now_ticks() -> u32 {
 pub fn micros() -> u32 {
     // SAFETY: reading TIM5_CNT has no side effect.
     unsafe { (*TIM5::ptr()).cnt().read().bits() }
-}
-
-/// `hw::Clock` on TIM2, for the spindle-angle and X-position logic.
-#[allow(dead_code)] // their board glue arrives with those modules
-pub struct Tim2Clock;
-impl zslide::hw::Clock for Tim2Clock {
-    fn now_ticks(&mut self) -> u32 {
-        now_ticks()
-    }
 }
 
 /// Configures TIM3 for the loop tick and starts it (the NVIC line stays
@@ -119,4 +110,78 @@ pub fn start_watchdog(iwdg: &IWDG, dbgmcu: &DBGMCU) {
 pub fn feed_watchdog() {
     // SAFETY: 0xAAAA into IWDG_KR only reloads the counter.
     unsafe { (*IWDG::ptr()).kr().write(|w| w.bits(0xAAAA)) };
+}
+
+/// Starts TIM4 as the spindle encoder's quadrature counter (CH1/CH2 on
+/// PD12/PD13): both edges of both channels (×4), 16 bits, free-running.
+pub fn start_spindle_encoder(tim4: &TIM4) {
+    // SAFETY: raw values into TIM4, which only this module reads: CCMR1
+    // CC1S = 01, CC2S = 01 (inputs TI1, TI2), IC1F = IC2F = 0011 (8-sample
+    // filter against edge noise); SMCR SMS = 011 (encoder mode 3); full
+    // 16-bit period; CEN.
+    unsafe {
+        tim4.cr1().write(|w| w.bits(0));
+        tim4.ccmr1_input()
+            .write(|w| w.bits(0b01 | (0b0011 << 4) | (0b01 << 8) | (0b0011 << 12)));
+        tim4.smcr().write(|w| w.bits(0b011));
+        tim4.arr().write(|w| w.bits(0xFFFF));
+        tim4.cnt().write(|w| w.bits(0));
+        tim4.cr1().write(|w| w.bits(1));
+    }
+}
+
+/// TIM4's 16-bit count (read-only use, any context).
+pub fn spindle_count16() -> u16 {
+    // SAFETY: reading TIM4_CNT has no side effect.
+    unsafe { (*TIM4::ptr()).cnt().read().bits() as u16 }
+}
+
+/// The spindle encoder as `hw::Encoder`, owned by the loop tick: TIM4's
+/// 16-bit count extended to 32 bits (the tick samples it far more often
+/// than every 32 768 counts), and the time of the last count change. The
+/// counter has no edge capture, so the edge time is the first loop tick
+/// that saw the new count: the 1/T interpolation then works to one loop
+/// period (a capture channel on an encoder line would make it exact).
+pub struct SpindleEncoder {
+    count: u32,
+    edge: u32,
+}
+
+/// The loop tick's extended count, for the index handler (its low 16 bits
+/// are TIM4's count at that tick, by construction).
+pub static SPINDLE_COUNT: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
+impl SpindleEncoder {
+    pub fn new() -> Self {
+        let count = u32::from(spindle_count16());
+        SPINDLE_COUNT.store(count, core::sync::atomic::Ordering::Relaxed);
+        Self {
+            count,
+            edge: now_ticks(),
+        }
+    }
+}
+
+impl zslide::hw::Encoder for SpindleEncoder {
+    fn sample(&mut self) -> zslide::hw::EncoderSample {
+        let raw = spindle_count16();
+        let step = raw.wrapping_sub(self.count as u16) as i16;
+        if step != 0 {
+            self.count = self.count.wrapping_add(step as i32 as u32);
+            self.edge = now_ticks();
+            SPINDLE_COUNT.store(self.count, core::sync::atomic::Ordering::Relaxed);
+        }
+        zslide::hw::EncoderSample {
+            count: self.count,
+            edge_ticks: self.edge,
+        }
+    }
+}
+
+/// The spindle count now, extended to 32 bits consistently with the loop
+/// tick's [`SpindleEncoder`] (for the index handler).
+pub fn spindle_count_now() -> u32 {
+    let base = SPINDLE_COUNT.load(core::sync::atomic::Ordering::Relaxed);
+    let step = spindle_count16().wrapping_sub(base as u16) as i16;
+    base.wrapping_add(step as i32 as u32)
 }
