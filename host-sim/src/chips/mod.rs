@@ -15,7 +15,6 @@
 pub mod ad4020;
 pub mod ad5686;
 pub mod ad5791;
-pub mod bridge;
 pub mod pins;
 
 pub use ad4020::{Ad4020State, SimAd4020};
