@@ -67,6 +67,40 @@ pub struct MachineConfig {
     pub max_rpm: u32,
 }
 
+impl MachineConfig {
+    /// 1983: BCD X at 0.2 in/min from 1 in, tachometer + index at 300 rpm.
+    pub fn legacy(seed: u64) -> Self {
+        Self {
+            x: XInterface::LegacyBcd(XSlideConfig {
+                x0_in: 1.0,
+                seed: seed ^ 0x58,
+                ..XSlideConfig::default()
+            }),
+            spindle: SpindleConfig {
+                seed: seed ^ 0x5350,
+                ..SpindleConfig::default()
+            },
+            sensor: SpindleSensor::TachIndex,
+            model_step_ns: 10_000,
+            window_ns: 1_000_000,
+            min_rpm: 30,
+            max_rpm: 600,
+        }
+    }
+    /// Modern: quadrature X, encoder + index.
+    pub fn modern(seed: u64) -> Self {
+        let l = Self::legacy(seed);
+        let XInterface::LegacyBcd(x) = l.x.clone() else {
+            unreachable!()
+        };
+        Self {
+            x: XInterface::Quadrature(x),
+            sensor: SpindleSensor::EncoderIndex,
+            ..l
+        }
+    }
+}
+
 /// What the X and spindle handlers saw (for tests and reports).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MachineStats {
