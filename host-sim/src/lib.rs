@@ -7,6 +7,7 @@ pub mod coeffgen;
 pub mod csmp;
 pub mod fwrig;
 pub mod geometry;
+pub mod scenario;
 pub mod machine;
 pub mod plant;
 pub mod sched;
