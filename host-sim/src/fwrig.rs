@@ -386,6 +386,17 @@ impl FirmwareWorld {
         }
     }
 
+    /// True X now (feed profile, without vibration and jitter), in; NaN
+    /// without a machine.
+    pub fn x_true_in(&self) -> f64 {
+        let t_s = self.rig.time.get() as f64 * 1e-9;
+        match self.machine.as_ref().map(|m| &m.x) {
+            Some(XState::Legacy { link, .. }) => link.borrow().model().nominal_x(t_s),
+            Some(XState::Count { enc, .. }) => enc.model().nominal_x(t_s),
+            None => f64::NAN,
+        }
+    }
+
     pub fn stats(&self) -> Option<&MachineStats> {
         self.machine.as_ref().map(|m| &m.stats)
     }

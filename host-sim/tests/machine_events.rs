@@ -166,3 +166,46 @@ fn tachometer_angle_is_phased_by_the_index() {
     // nominal tach gain, constant speed: integration from the last index
     assert!(d.abs() < 1e-3, "angle error {d} turn");
 }
+
+#[test]
+fn bench_vcd_records_the_whole_machine_and_parses_back() {
+    use host_sim::cmd::bench::{write_vcd, VCD_SIGNALS};
+    let sc = host_sim::scenario::load("legacy-hw").unwrap();
+    let path = std::env::temp_dir().join(format!("zslide-vcd-{}.vcd", std::process::id()));
+    write_vcd(&path, 20_000, &sc).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let _ = std::fs::remove_file(&path);
+    let mut parser = vcd::Parser::new(&bytes[..]);
+    let header = parser.parse_header().expect("VCD header parses");
+    let mut code = std::collections::HashMap::new();
+    for name in VCD_SIGNALS {
+        let v = header
+            .find_var(&["zslide", name])
+            .unwrap_or_else(|| panic!("{name} missing"));
+        code.insert(v.code, name);
+    }
+    let mut changes: std::collections::HashMap<&str, usize> = Default::default();
+    for c in parser {
+        let c = c.expect("VCD body parses");
+        let id = match c {
+            vcd::Command::ChangeVector(id, _) | vcd::Command::ChangeScalar(id, _) => id,
+            vcd::Command::ChangeReal(id, _) => id,
+            _ => continue,
+        };
+        *changes.entry(code[&id]).or_default() += 1;
+    }
+    // 250 ms at 20 kHz: one toggle per loop tick (plus the initial value)
+    assert!((5000..=5001).contains(&changes["loop_tick"]), "{changes:?}");
+    // the index at 200 ms; X events from the counter dithering at 7.2500
+    assert!(changes["index"] >= 2, "{changes:?}");
+    assert!(changes["x_event"] >= 2, "{changes:?}");
+    for name in [
+        "slide_z_uin",
+        "command_uin",
+        "error_uin",
+        "dac_code",
+        "spindle_phi_deg",
+    ] {
+        assert!(changes[name] > 100, "{name}: {changes:?}");
+    }
+}
