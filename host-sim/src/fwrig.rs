@@ -8,12 +8,16 @@
 //! the handler) > X half-mil interrupt > index pulse. The plant is advanced
 //! exactly to each event before it runs (`World::advance_to`).
 //!
-//! X and index handling runs through `zslide::xpos::LegacyX` / `CountX` and
-//! `zslide::spindle::{EncoderAngle, TachAngle}`: the firmware's own decoders,
-//! estimators and fault checks. Their faults latch in the firmware
-//! (`Firmware::trip`), whose reactions then apply in the loop tick.
+//! With a machine attached the firmware is the integrated one
+//! (`Firmware::with_table(DEFAULT_TABLE, ..)`): the X half-mil interrupt
+//! calls `Firmware::x_event` (with the core's AD5686 driver on the simulated
+//! quad DAC for the legacy coefficient output), the index calls
+//! `Firmware::index_event`, and the loop tick gets its `TickInput` from the
+//! hw-trait implementations (`Encoder`, `Tachometer`, `Clock`). The
+//! firmware keeps its spindle angle private, so the world runs a monitor
+//! copy of the core's estimator on the same readings to report it.
 
-use crate::chips::{SimAd4020, SimAd5791, SimAmpEnablePin, SimClock};
+use crate::chips::{SimAd4020, SimAd5686, SimAd5791, SimAmpEnablePin, SimClock, SimLdacPin};
 use crate::machine::hw::{
     SharedSpindle, SimSpindleEncoder, SimTachometer, SimXLatch, SimXQuadrature, SpindleLink,
     XHalfMilLink,
@@ -26,13 +30,16 @@ use embedded_hal::digital::OutputPin;
 use std::cell::RefCell;
 use std::rc::Rc;
 use zslide::drivers::ad4020::Ad4020;
+use zslide::drivers::ad5686::Ad5686;
 use zslide::drivers::ad5791::Ad5791;
-use zslide::firmware::{Firmware, LoopConfig};
+use zslide::firmware::{
+    Firmware, FirmwareConfig, LoopConfig, SpindleMode, SpindleReading, TickInput, XMode,
+};
 use zslide::hw::{Clock, Encoder, Tachometer, XLatch};
 use zslide::safety::{Device, Fault};
 use zslide::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
 use zslide::units::{SpindleAngle, XInches};
-use zslide::xpos::{CountConfig, CountX, LegacyConfig, LegacyX, XEvent};
+use zslide::xpos::{CountConfig, CountX, XEvent};
 
 /// How the firmware learns X.
 #[derive(Clone, Debug, PartialEq)]
@@ -65,6 +72,9 @@ pub struct MachineConfig {
     /// Speed band the firmware accepts, rpm.
     pub min_rpm: u32,
     pub max_rpm: u32,
+    /// Legacy coefficient-output mode (C00..C03 on the quad DAC at every
+    /// accepted X event).
+    pub coefficient_output: bool,
 }
 
 impl MachineConfig {
@@ -85,6 +95,7 @@ impl MachineConfig {
             window_ns: 1_000_000,
             min_rpm: 30,
             max_rpm: 600,
+            coefficient_output: false,
         }
     }
     /// Modern: quadrature X, encoder + index.
@@ -125,7 +136,6 @@ enum XState {
     Legacy {
         link: Rc<RefCell<XHalfMilLink>>,
         latch: SimXLatch,
-        decoder: LegacyX,
     },
     Count {
         enc: Box<SimXQuadrature>,
@@ -160,7 +170,10 @@ pub struct FirmwareWorld {
     pub dac: Ad5791<SimAd5791>,
     pub enable: SimAmpEnablePin,
     pub clock: SimClock,
+    /// The coefficient DAC through the core driver (legacy output mode).
+    pub quad: Ad5686<SimAd5686, SimLdacPin>,
     pub machine: Option<Machine>,
+    init_fault: Option<Fault>,
 }
 
 impl World for FirmwareWorld {
@@ -198,8 +211,22 @@ impl FirmwareWorld {
         let dev = rig.devices();
         let mut dac = Ad5791::new(dev.amp_dac);
         let mut fw = Firmware::new(loop_cfg);
+        let mut init_fault = None;
         if dac.init().is_err() {
-            fw.trip(Fault::Bus(Device::AmplifierDac));
+            init_fault = Some(Fault::Bus(Device::AmplifierDac));
+        }
+        let quad = match Ad5686::new(dev.quad_dac.clone(), dev.ldac.clone()) {
+            Ok(q) => q,
+            Err(_) => {
+                init_fault = Some(Fault::Bus(Device::CoefficientDac));
+                let (spi, pin) = (dev.quad_dac, dev.ldac);
+                // The pin write is infallible on the simulated pin; the
+                // error path is kept for the type.
+                Ad5686::new(spi, pin).unwrap_or_else(|_| unreachable!())
+            }
+        };
+        if let Some(f) = init_fault {
+            fw.trip(f);
         }
         Self {
             rig,
@@ -208,11 +235,15 @@ impl FirmwareWorld {
             dac,
             enable: dev.amp_enable,
             clock: dev.clock,
+            quad,
             machine: None,
+            init_fault,
         }
     }
 
-    /// Adds the X slide and spindle. Their clocks are the rig's clock.
+    /// Adds the X slide and spindle, and replaces the bench firmware by the
+    /// integrated one (default table, the machine's X and spindle modes,
+    /// same loop configuration). Their clocks are the rig's clock.
     pub fn attach_machine(&mut self, m: &MachineConfig) {
         let ticks_per_s = self.rig.clock_hz;
         let tps = u32::try_from(ticks_per_s).unwrap_or(u32::MAX);
@@ -222,11 +253,19 @@ impl FirmwareWorld {
             ..m.spindle.clone()
         };
         let cpr = spindle_cfg.encoder_cpr;
+        let index_angle =
+            SpindleAngle((spindle_cfg.index_phase_turns.rem_euclid(1.0) * 4_294_967_296.0) as u32);
         let link = Rc::new(RefCell::new(SpindleLink::new(
             spindle_cfg,
             m.model_step_ns,
             m.window_ns,
         )));
+        let count_cfg = CountConfig {
+            counts_per_inch: 1_000_000,
+            zero_count: 0,
+            // 100 in/min at 20 kHz is 83 counts per tick.
+            max_step_counts: 1000,
+        };
         let x = match &m.x {
             XInterface::LegacyBcd(c) => {
                 let l = XHalfMilLink::new(c.clone(), m.model_step_ns, m.window_ns);
@@ -234,7 +273,6 @@ impl FirmwareWorld {
                 XState::Legacy {
                     link: Rc::new(RefCell::new(l)),
                     latch,
-                    decoder: LegacyX::new(LegacyConfig::new(XInches::from_f64(7.2), tps)),
                 }
             }
             XInterface::Quadrature(c) => XState::Count {
@@ -244,47 +282,67 @@ impl FirmwareWorld {
                     time.clone(),
                     ticks_per_s,
                 )),
-                decoder: CountX::new(CountConfig {
-                    counts_per_inch: 1_000_000,
-                    zero_count: 0,
-                    // 100 in/min at 20 kHz is 83 counts per tick.
-                    max_step_counts: 1000,
-                })
-                .expect("counts_per_inch is not zero"),
+                decoder: CountX::new(count_cfg).expect("counts_per_inch is not zero"),
             },
         };
-        let angle = match m.sensor {
-            SpindleSensor::EncoderIndex => AngleState::Encoder {
-                dev: SimSpindleEncoder {
-                    link: link.clone(),
-                    time: time.clone(),
-                },
-                est: EncoderAngle::new(EncoderConfig {
+        let (angle, spindle_mode) = match m.sensor {
+            SpindleSensor::EncoderIndex => {
+                let c = EncoderConfig {
                     counts_per_rev: cpr,
                     ticks_per_s: tps,
                     min_rpm: m.min_rpm,
                     max_rpm: m.max_rpm,
                     index_tolerance_counts: 2,
-                    index_angle: SpindleAngle(0),
-                })
-                .expect("valid encoder configuration"),
-            },
-            SpindleSensor::TachIndex => AngleState::Tach {
-                dev: SimTachometer {
-                    link: link.clone(),
-                    time,
-                },
-                est: TachAngle::new(TachConfig {
+                    index_angle,
+                };
+                (
+                    AngleState::Encoder {
+                        dev: SimSpindleEncoder {
+                            link: link.clone(),
+                            time: time.clone(),
+                        },
+                        est: EncoderAngle::new(c).expect("valid encoder configuration"),
+                    },
+                    SpindleMode::Encoder(c),
+                )
+            }
+            SpindleSensor::TachIndex => {
+                let c = TachConfig {
                     ticks_per_s: tps,
                     mv_at_300_rpm: 5000,
                     min_rpm: m.min_rpm,
                     max_rpm: m.max_rpm,
                     index_tolerance_permille: 20,
-                    index_angle: SpindleAngle(0),
-                })
-                .expect("valid tachometer configuration"),
-            },
+                    index_angle,
+                };
+                (
+                    AngleState::Tach {
+                        dev: SimTachometer {
+                            link: link.clone(),
+                            time,
+                        },
+                        est: TachAngle::new(c).expect("valid tachometer configuration"),
+                    },
+                    SpindleMode::Tach(c),
+                )
+            }
         };
+        let fc = FirmwareConfig {
+            loop_cfg: *self.fw.config(),
+            spindle: spindle_mode,
+            x: match &x {
+                XState::Legacy { .. } => XMode::Legacy { clock_hz: tps },
+                XState::Count { .. } => XMode::Count(count_cfg),
+            },
+            coefficient_output: m.coefficient_output,
+            gauge_reversed: self.rig.gauge.params.reversed,
+        };
+        let mut fw = Firmware::with_table(zslide::DEFAULT_TABLE, fc)
+            .expect("the estimators accepted this configuration above");
+        if let Some(f) = self.init_fault {
+            fw.trip(f);
+        }
+        self.fw = fw;
         self.machine = Some(Machine {
             x,
             angle,
@@ -293,46 +351,45 @@ impl FirmwareWorld {
         });
     }
 
-    /// The loop-tick interrupt: CNV (hardware, on the timer), the spindle
-    /// angle and modern X at this instant, then the firmware's loop tick
-    /// through the drivers, then the enable line.
+    /// The loop-tick interrupt: CNV (hardware, on the timer), the hw-trait
+    /// readings at this instant (clock, spindle encoder or tachometer, X
+    /// count), the firmware's loop tick through the drivers, then the
+    /// enable line.
     #[inline]
     pub fn tick(&mut self) {
         self.rig.cnv();
+        let mut input = TickInput::NONE;
         if let Some(m) = self.machine.as_mut() {
-            let now = self.clock.now_ticks();
+            input.now = self.clock.now_ticks();
+            // The monitor estimator sees exactly the firmware's readings.
             let est = match &mut m.angle {
                 AngleState::Encoder { dev, est } => {
                     let s = dev.sample();
-                    let e = est.tick(s.count, s.edge_ticks, now);
+                    input.spindle = SpindleReading::Encoder(s);
+                    let e = est.tick(s.count, s.edge_ticks, input.now);
                     m.stats.referenced = est.referenced();
                     e
                 }
                 AngleState::Tach { dev, est } => {
                     let mv = dev.millivolts();
-                    let e = est.tick(mv, now);
+                    input.spindle = SpindleReading::Tach(mv);
+                    let e = est.tick(mv, input.now);
                     m.stats.referenced = est.referenced();
                     e
                 }
             };
             m.stats.angle = est.angle;
-            if let Some(f) = est.fault {
-                m.stats.index_faults += 1;
-                m.stats.last_fault = Some(f);
-                self.fw.trip(f);
-            }
             if let XState::Count { enc, decoder } = &mut m.x {
-                match decoder.on_tick(enc.sample().count) {
-                    Ok(x) => m.stats.x = Some(x),
-                    Err(f) => {
-                        m.stats.x_faults += 1;
-                        m.stats.last_fault = Some(f);
-                        self.fw.trip(f);
-                    }
-                }
+                input.x_count = enc.sample().count;
+                m.stats.x = Some(decoder.x(input.x_count));
             }
         }
-        self.fw.loop_tick(&mut self.adc, &mut self.dac);
+        self.fw.loop_tick(&input, &mut self.adc, &mut self.dac);
+        if let Some(m) = self.machine.as_mut() {
+            let sh = self.fw.shared();
+            m.stats.x_accepted = u64::from(sh.x_accepted());
+            m.stats.x_ignored = u64::from(sh.x_ignored());
+        }
         let on = self.fw.amplifier_enable();
         if on != self.rig.enable.state.borrow().enable {
             let _ = if on {
@@ -343,29 +400,29 @@ impl FirmwareWorld {
         }
     }
 
-    /// The half-mil interrupt: the latch was loaded at the edge.
+    /// The half-mil interrupt: the latch was loaded at the edge; the
+    /// firmware's `x_event` reads it through `hw::XLatch`.
     pub fn x_event(&mut self, stale: bool) {
         let now = self.clock.now_ticks();
         let Some(m) = self.machine.as_mut() else {
             return;
         };
-        let XState::Legacy { latch, decoder, .. } = &mut m.x else {
+        let XState::Legacy { latch, .. } = &mut m.x else {
             return;
         };
         m.stats.x_events += 1;
         m.stats.x_stale += u64::from(stale);
-        match decoder.on_interrupt(latch.read(), now) {
-            Ok(XEvent::Ignored) => m.stats.x_ignored += 1,
-            Ok(XEvent::Update(u)) => {
-                m.stats.x_accepted += 1;
-                m.stats.x = Some(u.x);
-            }
+        match self.fw.x_event(latch.read(), now, &mut self.quad) {
+            Ok(XEvent::Ignored) => {}
+            Ok(XEvent::Update(u)) => m.stats.x = Some(u.x),
             Err(f) => {
                 m.stats.x_faults += 1;
                 m.stats.last_fault = Some(f);
-                self.fw.trip(f);
             }
         }
+        let sh = self.fw.shared();
+        m.stats.x_accepted = u64::from(sh.x_accepted());
+        m.stats.x_ignored = u64::from(sh.x_ignored());
     }
 
     /// The index interrupt: the count the encoder timer latched at the edge
@@ -375,6 +432,7 @@ impl FirmwareWorld {
             return;
         };
         m.stats.index_events += 1;
+        self.fw.index_event(edge_ticks, count);
         let r = match &mut m.angle {
             AngleState::Encoder { est, .. } => est.on_index(count, edge_ticks),
             AngleState::Tach { est, .. } => est.on_index(edge_ticks),
@@ -382,7 +440,6 @@ impl FirmwareWorld {
         if let Err(f) = r {
             m.stats.index_faults += 1;
             m.stats.last_fault = Some(f);
-            self.fw.trip(f);
         }
     }
 

@@ -423,6 +423,7 @@ impl ScenarioFile {
             window_ns: 1_000_000,
             min_rpm: s.min_rpm,
             max_rpm: s.max_rpm,
+            coefficient_output: false,
         };
         let c = &self.cutting;
         let h = &c.bolt_holes;

@@ -97,12 +97,16 @@ fn firmware_loop_response_tracks_low_and_shows_the_mode() {
         p.mag_db(),
         p.phase_deg()
     );
-    // the coil-frame mode shows through the digital loop as a local peak
-    let m = |f| measure_firmware(f, 10e-6, 20_000, false).mag_db();
-    let (below, at, above) = (m(2700.0), m(3150.0), m(3700.0));
-    assert!(at > below + 3.0 && at > above + 3.0, "{below} {at} {above}");
-    let r = |f| measure_firmware(f, 10e-6, 20_000, true).mag_db();
-    assert!(r(3150.0) < r(2700.0), "no peak on a rigid slide");
+    // The coil-frame mode shows through the digital loop: against the same
+    // loop on a rigid slide, the response at 3150 Hz is raised and at
+    // 1 kHz unchanged. (With the integrated firmware loop of `fwint` the
+    // closed-loop response up there is ~-70 dB: the 10 µin excitation, the
+    // most the command slew limit allows at 3 kHz, leaves a sub-LSB output,
+    // so the old "local peak" shape test no longer resolves; this
+    // comparison still does, deterministically on a noiseless gauge.)
+    let m = |f, rigid| measure_firmware(f, 10e-6, 20_000, rigid).mag_db();
+    assert!(m(3150.0, false) > m(3150.0, true) + 6.0);
+    assert!((m(1000.0, false) - m(1000.0, true)).abs() < 1.0);
 }
 
 #[test]
