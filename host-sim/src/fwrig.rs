@@ -65,8 +65,12 @@ pub struct MachineConfig {
     pub x: XInterface,
     pub spindle: SpindleConfig,
     pub sensor: SpindleSensor,
-    /// Integration step of the machine models, ns.
-    pub model_step_ns: u64,
+    /// Integration step of the spindle model, ns (speed changes over
+    /// seconds: 250 µs keeps the angle's interpolation error far below a
+    /// count; the angle is interpolated linearly inside a step).
+    pub spindle_step_ns: u64,
+    /// Sampling step of the X position (feed, vibration, jitter), ns.
+    pub x_step_ns: u64,
     /// How far the event-producing models run ahead per scan, ns.
     pub window_ns: u64,
     /// Speed band the firmware accepts, rpm.
@@ -91,8 +95,9 @@ impl MachineConfig {
                 ..SpindleConfig::default()
             },
             sensor: SpindleSensor::TachIndex,
-            model_step_ns: 10_000,
-            window_ns: 1_000_000,
+            spindle_step_ns: 250_000,
+            x_step_ns: 100_000,
+            window_ns: 5_000_000,
             min_rpm: 30,
             max_rpm: 600,
             coefficient_output: false,
@@ -257,7 +262,7 @@ impl FirmwareWorld {
             SpindleAngle((spindle_cfg.index_phase_turns.rem_euclid(1.0) * 4_294_967_296.0) as u32);
         let link = Rc::new(RefCell::new(SpindleLink::new(
             spindle_cfg,
-            m.model_step_ns,
+            m.spindle_step_ns,
             m.window_ns,
         )));
         let count_cfg = CountConfig {
@@ -268,7 +273,7 @@ impl FirmwareWorld {
         };
         let x = match &m.x {
             XInterface::LegacyBcd(c) => {
-                let l = XHalfMilLink::new(c.clone(), m.model_step_ns, m.window_ns);
+                let l = XHalfMilLink::new(c.clone(), m.x_step_ns, m.window_ns);
                 let latch = l.latch.clone();
                 XState::Legacy {
                     link: Rc::new(RefCell::new(l)),
@@ -278,7 +283,7 @@ impl FirmwareWorld {
             XInterface::Quadrature(c) => XState::Count {
                 enc: Box::new(SimXQuadrature::new(
                     c.clone(),
-                    m.model_step_ns,
+                    m.x_step_ns,
                     time.clone(),
                     ticks_per_s,
                 )),

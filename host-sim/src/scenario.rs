@@ -419,8 +419,9 @@ impl ScenarioFile {
             } else {
                 SpindleSensor::EncoderIndex
             },
-            model_step_ns: 10_000,
-            window_ns: 1_000_000,
+            spindle_step_ns: 250_000,
+            x_step_ns: 100_000,
+            window_ns: 5_000_000,
             min_rpm: s.min_rpm,
             max_rpm: s.max_rpm,
             coefficient_output: false,

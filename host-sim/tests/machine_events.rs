@@ -43,6 +43,8 @@ fn glitchy_legacy(seed: u64) -> MachineConfig {
         seed,
     });
     m.spindle.index_noise_per_rev = 0.0;
+    // sample the 1 kHz vibration finely (10 points per period)
+    m.x_step_ns = 100_000 / 10;
     m
 }
 

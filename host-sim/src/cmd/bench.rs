@@ -34,6 +34,10 @@ pub struct Args {
     /// tick / X event / index activity, amplifier enable, fault).
     #[arg(long)]
     pub vcd: Option<std::path::PathBuf>,
+    /// Run only the whole-machine simulation (for profiling it, e.g. under
+    /// `valgrind --tool=callgrind`), print its wall time and expm count.
+    #[arg(long)]
+    pub only_machine: bool,
     /// Plant, noise and machine of the firmware and whole-machine runs.
     #[command(flatten)]
     pub scenario: crate::scenario::ScenarioArg,
@@ -167,6 +171,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.seconds > 0.0 && args.loop_hz > 0,
         "need positive seconds and loop rate"
     );
+    if args.only_machine {
+        let sc = args.scenario.load()?;
+        let (mut mw, mut ms) =
+            crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, args.loop_hz as u32);
+        let t0 = Instant::now();
+        ms.run_until(&mut mw, (args.seconds * 1e9) as u64);
+        let wall = t0.elapsed().as_secs_f64();
+        println!(
+            "{{\"scenario\": \"{}\", \"machine_sim_second_wall_s\": {}, \"machine_real_time_factor\": {}, \"expm_computed\": {}, \"fault\": \"{:?}\"}}",
+            sc.file.name,
+            wall / args.seconds,
+            args.seconds / wall,
+            mw.rig.slide.expm_count(),
+            mw.fw.fault()
+        );
+        return Ok(());
+    }
     // One plant step.
     let mut slide = crate::plant::ZSlide::new(crate::plant::ZSlideParams::model15());
     let n = 2_000_000u64;
