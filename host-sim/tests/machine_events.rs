@@ -88,7 +88,9 @@ fn half_mil_interrupts_match_the_x_motion_and_glitches_are_rejected() {
 #[test]
 fn equal_time_events_run_loop_tick_then_x_then_index() {
     let (mut w, mut s) = machine_demo(RigConfig::legacy(1), &MachineConfig::legacy(1), 20_000);
-    let log: Rc<RefCell<Vec<(&'static str, u64, u64, u32)>>> = Rc::default();
+    // (source, event time, plant time, loop ticks run so far)
+    type Log = Rc<RefCell<Vec<(&'static str, u64, u64, u32)>>>;
+    let log: Log = Rc::default();
     // Three events at the 10th loop tick (500 µs), registered in the
     // reverse of their priority order.
     for (name, p) in [
