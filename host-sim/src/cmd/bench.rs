@@ -25,9 +25,9 @@ pub struct Args {
     /// Simulated seconds for the loop benchmark.
     #[arg(long, default_value_t = 5.0)]
     pub seconds: f64,
-    /// Loop rate, Hz.
-    #[arg(long, default_value_t = 20_000)]
-    pub loop_hz: u64,
+    /// Loop rate, Hz (default: the scenario's `loop.rate_hz`).
+    #[arg(long)]
+    pub loop_hz: Option<u64>,
     /// Also write a VCD trace of 250 ms of the whole machine on the
     /// scenario (positions, command, error, current, force, ADC and DAC
     /// codes, X and spindle angle true and as the firmware has them, loop
@@ -167,14 +167,15 @@ pub struct BenchResult {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let sc = args.scenario.load()?;
+    let loop_hz = args.loop_hz.unwrap_or(u64::from(sc.loop_hz));
     anyhow::ensure!(
-        args.seconds > 0.0 && args.loop_hz > 0,
+        args.seconds > 0.0 && loop_hz > 0,
         "need positive seconds and loop rate"
     );
     if args.only_machine {
-        let sc = args.scenario.load()?;
         let (mut mw, mut ms) =
-            crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, args.loop_hz as u32);
+            crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
         let t0 = Instant::now();
         ms.run_until(&mut mw, (args.seconds * 1e9) as u64);
         let wall = t0.elapsed().as_secs_f64();
@@ -209,13 +210,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let rig_step_ns = t0.elapsed().as_nanos() as f64 / n as f64;
     std::hint::black_box(rig.slide.x);
     // One simulated second at the loop rate.
-    let (mut w, mut s) = demo(RigConfig::legacy(7), args.loop_hz, false);
+    let (mut w, mut s) = demo(RigConfig::legacy(7), loop_hz, false);
     let t_end = (args.seconds * 1e9) as u64;
     let t0 = Instant::now();
     s.run_until(&mut w, t_end);
     let wall = t0.elapsed().as_secs_f64();
-    let sc = args.scenario.load()?;
-    let (mut fw, mut s) = firmware_demo(sc.rig.clone(), args.loop_hz as u32);
+    let (mut fw, mut s) = firmware_demo(sc.rig.clone(), loop_hz as u32);
     let t0 = Instant::now();
     s.run_until(&mut fw, t_end);
     let fw_wall = t0.elapsed().as_secs_f64();
@@ -224,8 +224,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "firmware faulted in the benchmark: {:?}",
         fw.fw.fault()
     );
-    let (mut mw, mut ms) =
-        crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, args.loop_hz as u32);
+    let (mut mw, mut ms) = crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
     let t0 = Instant::now();
     ms.run_until(&mut mw, t_end);
     let machine_wall = t0.elapsed().as_secs_f64();
@@ -248,7 +247,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let r = BenchResult {
         plant_step_ns,
         rig_step_ns,
-        loop_hz: args.loop_hz,
+        loop_hz,
         simulated_s: args.seconds,
         sim_second_wall_s: wall / args.seconds,
         real_time_factor: args.seconds / wall,
@@ -263,7 +262,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         expm_computed: w.rig.slide.expm_count(),
     };
     if let Some(path) = &args.vcd {
-        write_vcd(path, args.loop_hz, &sc)?;
+        write_vcd(path, loop_hz, &sc)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
