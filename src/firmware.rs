@@ -89,7 +89,7 @@
 //! Only a more severe fault replaces a latched one; nothing clears a latch
 //! but a new [`Firmware`].
 
-use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
+use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
 use fixed::types::I8F24;
 
@@ -291,6 +291,10 @@ struct CoeffSlot {
     x: AtomicI32,
     /// Live columns, or [`NULL_META`] for the null command.
     meta: AtomicU32,
+    /// Generation being written into / held by this slot; stored before the
+    /// data, so a reader that finds it unchanged after copying has a
+    /// complete set (the seqlock rule).
+    seq: AtomicU32,
 }
 
 const NULL_META: u32 = 1 << 31;
@@ -302,6 +306,7 @@ impl CoeffSlot {
             delta: [const { AtomicI32::new(0) }; COLS],
             x: AtomicI32::new(0),
             meta: AtomicU32::new(NULL_META),
+            seq: AtomicU32::new(0),
         }
     }
 }
@@ -336,8 +341,8 @@ pub struct Shared {
     coeff_gen: AtomicU32,
     coeff: [CoeffSlot; 2],
     index_seq: AtomicU32,
-    /// `[count at index, edge ticks]` per slot.
-    index: [[AtomicU32; 2]; 2],
+    /// `[count at index, edge ticks, sequence]` per slot.
+    index: [[AtomicU32; 3]; 2],
     x_faults: AtomicU32,
     x_accepted: AtomicU32,
     x_ignored: AtomicU32,
@@ -350,8 +355,8 @@ impl Shared {
             coeff: [CoeffSlot::new(), CoeffSlot::new()],
             index_seq: AtomicU32::new(0),
             index: [
-                [AtomicU32::new(0), AtomicU32::new(0)],
-                [AtomicU32::new(0), AtomicU32::new(0)],
+                [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)],
+                [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)],
             ],
             x_faults: AtomicU32::new(0),
             x_accepted: AtomicU32::new(0),
@@ -543,6 +548,8 @@ impl EventState {
     fn publish(&mut self, sh: &Shared, x: XInches, null: bool) -> Result<(), Fault> {
         let g_next = self.coeff_gen.wrapping_add(1);
         let slot = &sh.coeff[(g_next & 1) as usize];
+        slot.seq.store(g_next, Ordering::Relaxed);
+        fence(Ordering::Release);
         let at = match (self.gen.as_ref(), null) {
             (Some(g), false) => g.locate(x)?,
             _ => None,
@@ -602,6 +609,8 @@ impl EventState {
     pub fn index_event(&mut self, sh: &Shared, edge_ticks: u32, count_at_index: u32) {
         let s = self.index_seq.wrapping_add(1);
         let slot = &sh.index[(s & 1) as usize];
+        slot[2].store(s, Ordering::Relaxed);
+        fence(Ordering::Release);
         slot[0].store(count_at_index, Ordering::Relaxed);
         slot[1].store(edge_ticks, Ordering::Relaxed);
         self.index_seq = s;
@@ -736,6 +745,14 @@ impl LoopState {
             let slot = &sh.index[(s & 1) as usize];
             let count = slot[0].load(Ordering::Relaxed);
             let edge = slot[1].load(Ordering::Relaxed);
+            fence(Ordering::Acquire);
+            if slot[2].load(Ordering::Relaxed) != s {
+                // Overwritten while read (a writer that can preempt the
+                // tick): the pulses came faster than the loop rate.
+                self.index_seen = s;
+                self.trip(Fault::IndexExtra);
+                return;
+            }
             self.index_seen = s;
             if missed {
                 // Two index pulses within one loop period: noise.
@@ -772,10 +789,10 @@ impl LoopState {
                     }
                     self.coeffs.set_live(n as u8, x);
                 }
-                core::sync::atomic::fence(Ordering::Acquire);
+                fence(Ordering::Acquire);
                 // Overwritten while copying (only possible if the writer can
                 // preempt the tick): drop it, take the next one.
-                if sh.coeff_gen.load(Ordering::Relaxed).wrapping_sub(g) < 2 {
+                if slot.seq.load(Ordering::Relaxed) == g {
                     self.coeff_seen = g;
                 } else {
                     self.coeffs.set_null(x);
@@ -1162,6 +1179,7 @@ const fn step_toward(from: i32, to: i32, max_step: i32) -> i32 {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     extern crate std;
 
@@ -1432,5 +1450,492 @@ mod tests {
         assert_eq!(fast.kd_bits, i32::MAX);
         assert_eq!(fast.slew_per_tick, 13);
         assert!(fast.ki_bits > 0);
+    }
+
+    // -------------------------------------------------------------------
+    // The integrated command path.
+
+    use crate::command::LegacyFrame;
+    use crate::table::TableHeader;
+    use crate::xpos::{half_mils_to_x, latch_word, XUpdate};
+    use crate::{DEFAULT_TABLE, LEGACY4_TABLE};
+    use std::boxed::Box;
+
+    /// Clock of the tests: 1 MHz; loop 20 kHz = 50 clock ticks.
+    const CLOCK_HZ: u32 = 1_000_000;
+    const TICK: u32 = 50;
+    /// 4000 counts per rev at 300 rpm: exactly one count per loop tick.
+    const CPR: u32 = 4000;
+
+    fn leak(v: Vec<u8>) -> &'static [u8] {
+        Box::leak(v.into_boxed_slice())
+    }
+
+    fn enc_cfg() -> EncoderConfig {
+        EncoderConfig {
+            counts_per_rev: CPR,
+            ticks_per_s: CLOCK_HZ,
+            min_rpm: 30,
+            max_rpm: 3000,
+            index_tolerance_counts: 4,
+            index_angle: SpindleAngle(0),
+        }
+    }
+
+    fn fw_cfg(x: XMode, coefficient_output: bool) -> FirmwareConfig {
+        FirmwareConfig {
+            loop_cfg: LoopConfig::at_rate(20_000),
+            spindle: SpindleMode::Encoder(enc_cfg()),
+            x,
+            coefficient_output,
+            gauge_reversed: false,
+        }
+    }
+
+    fn legacy(table: &'static [u8], output: bool) -> Firmware {
+        Firmware::with_table(table, fw_cfg(XMode::Legacy { clock_hz: CLOCK_HZ }, output)).unwrap()
+    }
+
+    /// Encoder reading `n` counts after the start, its edge at this tick.
+    fn enc(n: u32) -> TickInput {
+        TickInput {
+            now: n * TICK,
+            spindle: SpindleReading::Encoder(EncoderSample {
+                count: n,
+                edge_ticks: n * TICK,
+            }),
+            x_count: 0,
+        }
+    }
+
+    /// φ of count `n` after an index at count 0: n·2³²/CPR, rounded down.
+    fn phi_of(n: u32) -> SpindleAngle {
+        let q = (u64::from(n % CPR) << 32) / u64::from(CPR);
+        SpindleAngle(q as u32)
+    }
+
+    /// A recording quad DAC.
+    #[derive(Default)]
+    struct Quad {
+        frames: Vec<LegacyFrame>,
+        fail: bool,
+    }
+    impl CoefficientDac for Quad {
+        fn output(&mut self, codes: &[u16; 4], update: u8) -> Result<(), BusError> {
+            if self.fail {
+                return Err(BusError);
+            }
+            self.frames.push(LegacyFrame {
+                codes: *codes,
+                update,
+            });
+            Ok(())
+        }
+    }
+
+    /// The default table with its header and payload rewritten.
+    fn reencode(f: impl Fn(&mut TableHeader, &mut Vec<i32>)) -> &'static [u8] {
+        let t = CoeffTable::parse(DEFAULT_TABLE).unwrap();
+        let mut h = *t.header();
+        let mut payload: Vec<i32> = (0..t.node_count())
+            .flat_map(|n| (0..t.terms()).map(move |c| (n, c)))
+            .map(|(n, c)| t.coeff_raw(n, c))
+            .collect();
+        f(&mut h, &mut payload);
+        let mut out = std::vec![0u8; h.image_len()];
+        h.encode(&payload, &mut out).unwrap();
+        leak(out)
+    }
+
+    #[test]
+    fn refused_table_faults_with_the_parsers_reason_and_nulls() {
+        let mut images: Vec<&'static [u8]> = std::vec![&[], &DEFAULT_TABLE[..63]];
+        for at in [0usize, 9, 17, 70, 3000, DEFAULT_TABLE.len() - 1] {
+            let mut v = DEFAULT_TABLE.to_vec();
+            v[at] ^= 0x5A;
+            images.push(leak(v));
+        }
+        for img in images {
+            let expected = CoeffTable::parse(img).unwrap_err();
+            let mut fw = legacy(img, true);
+            assert_eq!(fw.fault(), Some(Fault::Table(expected)));
+            assert!(fw.command_gen().is_none());
+            // The entry points still run; the command ramps to null with the
+            // loop closed (RampToNull), from wherever the slide is.
+            let (mut g, mut d) = (Gauge::at(3000), Dac::default());
+            fw.index_event(0, 0);
+            let mut quad = Quad::default();
+            for hm in 100..110 {
+                let _ = fw.x_event(latch_word(hm), hm * 1000, &mut quad);
+            }
+            for n in 0..10 {
+                fw.loop_tick(&enc(n), &mut g, &mut d);
+            }
+            assert_eq!(fw.command_code(), 0);
+            assert!(fw.amplifier_enable());
+            assert!(quad.frames.is_empty());
+        }
+    }
+
+    #[test]
+    fn sign_check_refuses_a_positive_command() {
+        assert!(load_table(DEFAULT_TABLE).is_ok());
+        assert!(load_table(LEGACY4_TABLE).is_ok());
+        // The default table with every coefficient negated: a valid image
+        // whose command is ≥ 0 (the wrong sign convention).
+        let neg = reencode(|_, p| p.iter_mut().for_each(|v| *v = -*v));
+        assert!(CoeffTable::parse(neg).is_ok());
+        assert_eq!(load_table(neg).err(), Some(TableError::SignCheck));
+        let fw = legacy(neg, false);
+        assert_eq!(fw.fault(), Some(Fault::Table(TableError::SignCheck)));
+        // A constant +2 µin offset in C00 (Z = 0 at X = 0 becomes +2 µin).
+        let off = reencode(|h, p| {
+            let t = usize::from(h.terms);
+            p.iter_mut().step_by(t).for_each(|v| *v += 2148);
+        });
+        assert_eq!(load_table(off).err(), Some(TableError::SignCheck));
+    }
+
+    /// Every accepted X event hands the loop exactly the coefficients the
+    /// command path computes at that X (interval cache, no division:
+    /// bit-identical to `CommandGen::coefficients`), walking the whole table
+    /// up into the null zone and back.
+    #[test]
+    fn x_event_publishes_the_command_paths_coefficients() {
+        let mut fw = legacy(DEFAULT_TABLE, false);
+        let gen = *fw.command_gen().unwrap();
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        let mut quad = NoCoefficientDac;
+        let walk = (0..14_600u32).chain((14_000..14_599).rev());
+        let mut now = 0u32;
+        let mut accepted = 0;
+        for hm in walk {
+            now += 1000;
+            let r = fw.x_event(latch_word(hm), now, &mut quad).unwrap();
+            let XEvent::Update(u) = r else {
+                panic!("event at {hm} ignored");
+            };
+            accepted += 1;
+            assert_eq!(u.x, half_mils_to_x(hm));
+            fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+            let got = fw.loop_state().coefficients();
+            // The legacy null zone is the 8080's (X ≥ 7.2 in, xpos).
+            assert_eq!(u.null, hm >= 14_400);
+            assert_eq!(got.null, u.null, "hm {hm}");
+            assert_eq!(got.x(), u.x);
+            if !u.null {
+                let want = gen.coefficients(u.x).unwrap();
+                let n = usize::from(want.terms());
+                assert_eq!(got.terms(), want.terms());
+                assert_eq!(got.value[..n], want.value[..n], "hm {hm}");
+                assert_eq!(got.delta[..n], want.delta[..n], "hm {hm}");
+            }
+        }
+        assert_eq!(fw.shared().x_accepted(), accepted);
+        assert_eq!(fw.shared().coefficient_generation(), accepted);
+        assert_eq!(fw.fault(), None);
+    }
+
+    /// The loop tick's command is the command path's Z at the X of the last
+    /// X event and the angle of the encoder count (closed form n·2³²/CPR
+    /// after the index), and its feedforward is ∂Z/∂φ·Δφ (checked against a
+    /// central difference of the command path's own Z).
+    #[test]
+    fn loop_tick_commands_z_at_the_encoder_angle_with_feedforward() {
+        let mut fw = legacy(DEFAULT_TABLE, false);
+        let gen = *fw.command_gen().unwrap();
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        let mut quad = NoCoefficientDac;
+        let hm = 6_283; // 3.1415 in
+        fw.x_event(latch_word(hm), 10, &mut quad).unwrap();
+        // Before the index the angle is unknown: null command.
+        fw.loop_tick(&enc(0), &mut g, &mut d);
+        assert_eq!(fw.table_code(), 0);
+        fw.index_event(0, 0);
+        let x = half_mils_to_x(hm);
+        let codes = |phi: SpindleAngle| f64::from(gen.z(x, phi).unwrap().to_bits()) * 25.0 / 512.0;
+        let mut worst_ff = 0f64;
+        let mut largest_ff = 0f64;
+        let mut deepest = 0;
+        for n in 1..=CPR + 10 {
+            if n == CPR {
+                fw.index_event(n * TICK, n);
+            }
+            fw.loop_tick(&enc(n), &mut g, &mut d);
+            let phi = phi_of(n);
+            let want = gauge_code_from_z(gen.z(x, phi).unwrap());
+            assert!((fw.table_code() - want).abs() <= 1, "n {n}");
+            deepest = deepest.min(fw.table_code());
+            // The perfect slide: at the command.
+            g.set(fw.command_code());
+            if n >= 3 {
+                let step = phi_of(1).0;
+                let central = (codes(SpindleAngle(phi.0.wrapping_add(step)))
+                    - codes(SpindleAngle(phi.0.wrapping_sub(step))))
+                    / 2.0;
+                let ff = fw.loop_state().feedforward_q16() as f64 / 65536.0;
+                worst_ff = worst_ff.max((ff - central).abs());
+                largest_ff = largest_ff.max(ff.abs());
+            }
+        }
+        // Slopes up to ~150 codes/tick; the central difference's own error
+        // at Δφ = 2π/4000 (third derivative · Δφ²/6) is ≈ 0.1 code.
+        assert!(largest_ff > 50.0, "slope {largest_ff}");
+        assert!(worst_ff < 0.5, "feedforward off by {worst_ff} codes/tick");
+        assert_eq!(fw.fault(), None);
+        // A real command at 3.14 in: tens of µin deep (1 µin = 52 codes).
+        assert!(deepest < -5000, "deepest {deepest}");
+    }
+
+    #[test]
+    fn modern_x_reinterpolates_when_the_count_moves() {
+        let cc = CountConfig {
+            counts_per_inch: 100_000,
+            zero_count: 0,
+            max_step_counts: 1000,
+        };
+        let mut fw = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
+        let gen = *fw.command_gen().unwrap();
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        fw.index_event(0, 0);
+        for n in 0..2000u32 {
+            let count = 200_000 + n * 37; // from 2.0 in, 370 µin per tick
+            let mut input = enc(n);
+            input.x_count = count;
+            fw.loop_tick(&input, &mut g, &mut d);
+            g.set(fw.command_code());
+            let c = fw.loop_state().coefficients();
+            let exact = f64::from(count) / 100_000.0 * f64::from(1u32 << 24);
+            assert!((f64::from(c.x().to_bits()) - exact).abs() <= 1.0);
+            let want = gen.coefficients(c.x()).unwrap();
+            assert_eq!(c.value[..5], want.value[..5]);
+            if n > 0 {
+                let want = gauge_code_from_z(gen.z(c.x(), phi_of(n)).unwrap());
+                assert!((fw.table_code() - want).abs() <= 1, "n {n}");
+            }
+        }
+        assert_eq!(fw.fault(), None);
+        // A jump beyond max_step_counts: glitch, ramp to null.
+        let mut input = enc(2000);
+        input.x_count = 10;
+        fw.loop_tick(&input, &mut g, &mut d);
+        assert_eq!(fw.fault(), Some(Fault::XGlitchStorm));
+    }
+
+    #[test]
+    fn debounce_ignores_repeats_without_publishing() {
+        let mut fw = legacy(DEFAULT_TABLE, false);
+        let mut quad = NoCoefficientDac;
+        fw.x_event(latch_word(2000), 0, &mut quad).unwrap();
+        fw.x_event(latch_word(2001), 5_000, &mut quad).unwrap();
+        for k in 0..3 {
+            // The same half-mil state again (a reversal across a boundary).
+            let r = fw.x_event(latch_word(2001), 10_000 + k * 5_000, &mut quad);
+            assert_eq!(r, Ok(XEvent::Ignored));
+        }
+        assert_eq!(fw.shared().x_accepted(), 2);
+        assert_eq!(fw.shared().x_ignored(), 3);
+        assert_eq!(fw.shared().coefficient_generation(), 2);
+        assert_eq!(fw.fault(), None);
+    }
+
+    /// Runs `ticks` loop ticks on a perfect slide from tick `from`.
+    fn run(fw: &mut Firmware, g: &mut Gauge, d: &mut Dac, from: u32, ticks: u32) {
+        for n in from..from + ticks {
+            fw.loop_tick(&enc(n), g, d);
+            g.set(fw.command_code());
+        }
+    }
+
+    /// Engaged at X = 3.1415 in after an index, tracking.
+    fn cutting() -> (Firmware, Gauge, Dac) {
+        let mut fw = legacy(DEFAULT_TABLE, false);
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        fw.x_event(latch_word(6_283), 0, &mut NoCoefficientDac)
+            .unwrap();
+        fw.index_event(0, 0);
+        run(&mut fw, &mut g, &mut d, 0, 100);
+        assert_eq!(fw.fault(), None);
+        assert!(fw.command_code() < -1000);
+        (fw, g, d)
+    }
+
+    fn assert_ramps_to_null(fw: &mut Firmware, g: &mut Gauge, d: &mut Dac, from: u32, f: Fault) {
+        assert_eq!(f.reaction(), Reaction::RampToNull);
+        let slew = fw.config().slew_per_tick;
+        let mut prev = fw.command_code();
+        for n in from..from + 400 {
+            fw.loop_tick(&enc(n), g, d);
+            g.set(fw.command_code());
+            let c = fw.command_code();
+            assert!(c.abs() <= prev.abs() && prev.abs() - c.abs() <= slew);
+            prev = c;
+        }
+        assert_eq!(fw.fault(), Some(f));
+        assert_eq!(fw.command_code(), 0);
+        assert!(fw.amplifier_enable(), "the loop stays closed");
+    }
+
+    #[test]
+    fn x_glitch_storm_ramps_to_null() {
+        let (mut fw, mut g, mut d) = cutting();
+        let r = fw.x_event(latch_word(6_283 + 41), 100_000, &mut NoCoefficientDac);
+        assert_eq!(r, Err(Fault::XGlitchStorm));
+        assert_ramps_to_null(&mut fw, &mut g, &mut d, 100, Fault::XGlitchStorm);
+    }
+
+    #[test]
+    fn bad_bcd_ramps_to_null() {
+        let (mut fw, mut g, mut d) = cutting();
+        let r = fw.x_event(XLatchWord(0x31A2), 100_000, &mut NoCoefficientDac);
+        assert_eq!(r, Err(Fault::XBadBcd));
+        assert_ramps_to_null(&mut fw, &mut g, &mut d, 100, Fault::XBadBcd);
+    }
+
+    #[test]
+    fn x_below_the_table_ramps_to_null() {
+        // The default grid moved to start at 1 in (null zone at 8.2 in).
+        let img = reencode(|h, _| {
+            h.x0_raw = 1 << 24;
+            h.x_null_raw += 1 << 24;
+        });
+        let mut fw = legacy(img, false);
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        fw.x_event(latch_word(2_100), 0, &mut NoCoefficientDac)
+            .unwrap();
+        fw.index_event(0, 0);
+        run(&mut fw, &mut g, &mut d, 0, 100);
+        assert_eq!(fw.fault(), None);
+        let mut now = 0;
+        let mut last = None;
+        for hm in (1_990..2_100).rev() {
+            now += 1000;
+            if let Err(f) = fw.x_event(latch_word(hm), now, &mut NoCoefficientDac) {
+                last = Some((hm, f));
+                break;
+            }
+        }
+        // 1.0 in = 2000 half-mils is the first node; 1999 is below it.
+        assert_eq!(last, Some((1_999, Fault::XOutsideTable)));
+        assert_ramps_to_null(&mut fw, &mut g, &mut d, 100, Fault::XOutsideTable);
+    }
+
+    #[test]
+    fn two_index_pulses_in_one_loop_period_are_extra() {
+        let (mut fw, mut g, mut d) = cutting();
+        fw.index_event(4_000 * TICK, 4_000);
+        fw.index_event(4_000 * TICK + 3, 4_000);
+        assert_ramps_to_null(&mut fw, &mut g, &mut d, 100, Fault::IndexExtra);
+    }
+
+    #[test]
+    fn early_index_is_extra_and_missing_index_is_missing() {
+        let (mut fw, mut g, mut d) = cutting();
+        // Half a turn after the last one.
+        fw.index_event(2_000 * TICK, 2_000);
+        assert_ramps_to_null(&mut fw, &mut g, &mut d, 100, Fault::IndexExtra);
+
+        let (mut fw, mut g, mut d) = cutting();
+        // No index for more than a turn and the tolerance.
+        run(&mut fw, &mut g, &mut d, 100, CPR);
+        assert_eq!(fw.fault(), Some(Fault::IndexMissing));
+        assert_ramps_to_null(&mut fw, &mut g, &mut d, 100 + CPR, Fault::IndexMissing);
+    }
+
+    #[test]
+    fn stalled_spindle_is_a_speed_fault() {
+        let (mut fw, mut g, mut d) = cutting();
+        // The count stops at 100 while time goes on.
+        for n in 100..600 {
+            let mut input = enc(100);
+            input.now = n * TICK;
+            fw.loop_tick(&input, &mut g, &mut d);
+            g.set(fw.command_code());
+        }
+        assert_eq!(fw.fault(), Some(Fault::SpindleSpeed));
+        assert_eq!(fw.command_code(), 0);
+        assert!(fw.amplifier_enable());
+    }
+
+    /// Coefficient-output mode: every accepted event writes exactly the
+    /// frame of the command path's reference (`CommandGen::legacy_frame`)
+    /// with one strobe; a bus error disables the amplifier.
+    #[test]
+    fn coefficient_output_writes_the_legacy_frames() {
+        let mut fw = legacy(LEGACY4_TABLE, true);
+        let gen = *fw.command_gen().unwrap();
+        let mut quad = Quad::default();
+        let mut now = 0;
+        let mut updates: Vec<XUpdate> = Vec::new();
+        for hm in (13_900..14_500).chain((14_350..14_499).rev()) {
+            now += 1000;
+            if let XEvent::Update(u) = fw.x_event(latch_word(hm), now, &mut quad).unwrap() {
+                updates.push(u);
+            }
+        }
+        assert_eq!(updates.len(), 749);
+        assert_eq!(quad.frames.len(), updates.len());
+        for (f, u) in quad.frames.iter().zip(&updates) {
+            assert_eq!(*f, gen.legacy_frame(u).unwrap(), "{u:?}");
+        }
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        quad.fail = true;
+        let r = fw.x_event(latch_word(14_349), now + 1000, &mut quad);
+        assert_eq!(r, Err(Fault::Bus(Device::CoefficientDac)));
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert_eq!(fw.fault(), Some(Fault::Bus(Device::CoefficientDac)));
+        assert!(!fw.amplifier_enable());
+        assert!(fw.dac_clamped());
+    }
+
+    /// The hand-off under real concurrency (host threads, stronger than the
+    /// board's preemption): every coefficient set the loop tick takes is one
+    /// complete published set, never a mix of two X positions.
+    #[test]
+    fn hand_off_never_tears_under_concurrency() {
+        use std::sync::atomic::AtomicBool;
+        let fw = legacy(DEFAULT_TABLE, false);
+        let gen = *fw.command_gen().unwrap();
+        let (mut lp, mut ev) = fw.into_parts();
+        let shared = Shared::new();
+        let stop = AtomicBool::new(false);
+        /// Stops the writer however the reader leaves (a failed assert too).
+        struct Stop<'a>(&'a AtomicBool);
+        impl Drop for Stop<'_> {
+            fn drop(&mut self) {
+                self.0.store(true, Ordering::Relaxed);
+            }
+        }
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                let mut now = 0u32;
+                'run: loop {
+                    for hm in (1..14_000).chain((1..13_999).rev()) {
+                        if stop.load(Ordering::Relaxed) {
+                            break 'run;
+                        }
+                        now = now.wrapping_add(1000);
+                        let _ = ev.x_event(&shared, latch_word(hm), now, &mut NoCoefficientDac);
+                    }
+                }
+            });
+            let _stop = Stop(&stop);
+            let (mut g, mut d) = (Gauge::at(0), Dac::default());
+            let mut checked = 0u32;
+            let mut seen = 0u32;
+            while checked < 20_000 {
+                lp.loop_tick(&shared, &TickInput::NONE, &mut g, &mut d);
+                let c = lp.coefficients();
+                if !c.null && shared.coefficient_generation() != seen {
+                    seen = shared.coefficient_generation();
+                    let want = gen.coefficients(c.x()).unwrap();
+                    assert_eq!(c.value[..5], want.value[..5], "torn at {:?}", c.x());
+                    checked += 1;
+                }
+                d.writes.clear();
+            }
+        });
+        assert_eq!(lp.fault(), None);
     }
 }
