@@ -4,18 +4,24 @@
 //!   cached discretisation) through the amplifier logic;
 //! * `sim_second_wall_s`: wall time of one simulated second with a 20 kHz
 //!   loop tick run by the scheduler: CNV, a 3-byte ADC read and a 3-byte
-//!   DAC write through the simulated SPI chips, a stand-in proportional
-//!   position controller (the firmware's own loop is not wired in yet), the
-//!   plant advanced exactly between ticks, legacy gauge noise.
+//!   DAC write through the core drivers on the simulated SPI chips, a
+//!   stand-in proportional position controller, the
+//!   plant advanced exactly between ticks, legacy gauge noise;
+//! * `firmware_*`: the same with the firmware's `loop_tick`;
+//! * `machine_*`: the whole machine of the scenario (`--scenario`): the
+//!   integrated firmware (table, X and spindle entry points), the X
+//!   interface and the spindle with their interrupts (`fwrig`).
 //!
 //! Run it in release: `cargo run --release -p host-sim -- bench --json`.
 
-use crate::chips::{sext20, SimAd4020, SimAd5791, SimAmpEnablePin};
+use crate::chips::{SimAd4020, SimAd5791, SimAmpEnablePin};
 use crate::plant::{Rig, RigConfig};
 use crate::sched::{prio, Periodic, Scheduler, World};
 use embedded_hal::digital::OutputPin;
-use embedded_hal::spi::SpiDevice;
 use std::time::Instant;
+use zslide::drivers::ad4020::Ad4020;
+use zslide::drivers::ad5791::Ad5791;
+use zslide::hw::{AmplifierDac, GaugeAdc};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -44,12 +50,12 @@ pub struct Args {
 }
 
 /// A stand-in digital controller on the simulated chips: proportional
-/// position feedback in integer arithmetic, written frame by frame as a
-/// driver would. Not the firmware's controller; it exists to exercise and
-/// time the simulation path.
+/// position feedback in integer arithmetic through the core's converter
+/// drivers (`zslide::drivers`). Not the firmware's controller; it exists to
+/// exercise and time the simulation path without the firmware.
 pub struct DemoLoop {
-    pub adc: SimAd4020,
-    pub dac: SimAd5791,
+    pub adc: Ad4020<SimAd4020>,
+    pub dac: Ad5791<SimAd5791>,
     pub enable: SimAmpEnablePin,
     /// DAC code per ADC code, Q16 (negative feedback applied in `tick`).
     pub kp_q16: i64,
@@ -60,33 +66,26 @@ pub struct DemoLoop {
 }
 
 impl DemoLoop {
-    /// Takes the DAC out of its power-on clamp and enables the amplifier.
+    /// Initialises the DAC (driver init: out of its power-on clamp, read
+    /// back) and enables the amplifier.
     pub fn start(&mut self) {
-        // Control register: two's complement, output buffer in, not clamped.
-        let _ = self.dac.write(&[0x20, 0x00, 0x02]);
+        if self.dac.init().is_err() {
+            self.bus_errors += 1;
+        }
         let _ = self.enable.set_high();
     }
 
     pub fn tick(&mut self, now: u64, rig: &mut Rig) {
         rig.cnv();
-        let mut f = [0u8; 3];
-        if self.adc.read(&mut f).is_err() {
-            self.bus_errors += 1;
-            return;
-        }
-        let w = (u32::from(f[0]) << 16) | (u32::from(f[1]) << 8) | u32::from(f[2]);
-        if w & 0b111 != 0b010 {
-            self.bus_errors += 1;
-            return;
-        }
-        let code = sext20(w >> 4);
+        let code = match self.adc.read() {
+            Ok(s) => s.code,
+            Err(_) => {
+                self.bus_errors += 1;
+                return;
+            }
+        };
         let u = ((-i64::from(code) * self.kp_q16) >> 16).clamp(-(1 << 19), (1 << 19) - 1) as i32;
-        let d = (0x1 << 20) | (u as u32 & 0xF_FFFF);
-        if self
-            .dac
-            .write(&[(d >> 16) as u8, (d >> 8) as u8, d as u8])
-            .is_err()
-        {
+        if AmplifierDac::write(&mut self.dac, u).is_err() {
             self.bus_errors += 1;
         }
         if self.record {
@@ -117,8 +116,8 @@ pub fn demo(cfg: RigConfig, loop_hz: u64, record: bool) -> (DemoWorld, Scheduler
     let rig = Rig::new(cfg);
     let dev = rig.devices();
     let mut ctl = DemoLoop {
-        adc: dev.gauge_adc,
-        dac: dev.amp_dac,
+        adc: Ad4020::new(dev.gauge_adc),
+        dac: Ad5791::new(dev.amp_dac),
         enable: dev.amp_enable,
         kp_q16: (0.05 * 65536.0) as i64,
         trace: Vec::new(),
