@@ -68,6 +68,23 @@ impl Coefficients {
     pub fn x(&self) -> XInches {
         self.x
     }
+    /// Declares `value`/`delta` (filled by the caller, e.g. from a hand-off
+    /// buffer) to hold `terms` live columns at `x`.
+    pub fn set_live(&mut self, terms: u8, x: XInches) {
+        self.terms = terms.min(COLS as u8);
+        self.null = false;
+        self.x = x;
+    }
+    /// Makes these the null command at `x` (null zone).
+    pub fn set_null(&mut self, x: XInches) {
+        self.terms = 0;
+        self.null = true;
+        self.x = x;
+    }
+    /// Live columns (0 when null).
+    pub fn terms(&self) -> u8 {
+        self.terms
+    }
 }
 
 /// What one legacy X event sends to the quad coefficient DAC: the codes of

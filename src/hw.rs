@@ -92,3 +92,11 @@ pub trait AmplifierDac {
     /// Clamps the output to ground (the converter's own safe state).
     fn clamp_to_ground(&mut self) -> Result<(), BusError>;
 }
+
+/// The quad coefficient DAC of the legacy coefficient-output mode (C00..C03
+/// on channels A..D, Table 3-1 codes), with its simultaneous update.
+pub trait CoefficientDac {
+    /// Writes the channels in `update` (bit j = C0j), then one strobe that
+    /// puts all four on the outputs at once.
+    fn output(&mut self, codes: &[u16; 4], update: u8) -> Result<(), BusError>;
+}

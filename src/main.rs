@@ -178,7 +178,8 @@ mod app {
         let Some(lp) = LOOP.as_mut() else {
             return;
         };
-        lp.fw.loop_tick(&mut lp.gauge, &mut lp.dac);
+        lp.fw
+            .loop_tick(&zslide::firmware::TickInput::NONE, &mut lp.gauge, &mut lp.dac);
         pins::AMP_ENABLE.set(lp.fw.amplifier_enable());
         timers::feed_watchdog();
         TICKS.store(lp.fw.ticks(), Ordering::Relaxed);

@@ -107,6 +107,10 @@ pub enum TableError {
     NullZoneOutsideGrid,
     /// A geometry field is not positive (c, S_y) or negative (r_t).
     BadGeometry,
+    /// The table parses but its command is positive somewhere (a correct
+    /// command has max over φ of Z = 0, Z ≤ 0): wrong sign convention or a
+    /// table for another surface. Found by the firmware's load check.
+    SignCheck,
 }
 
 /// Everything in the header, decoded and checked.

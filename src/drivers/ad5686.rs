@@ -63,6 +63,12 @@ impl<SPI: SpiDevice, LDAC: OutputPin> Ad5686<SPI, LDAC> {
     }
 }
 
+impl<SPI: SpiDevice, LDAC: OutputPin> crate::hw::CoefficientDac for Ad5686<SPI, LDAC> {
+    fn output(&mut self, codes: &[u16; 4], update: u8) -> Result<(), BusError> {
+        Ad5686::output(self, codes, update)
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {

@@ -105,7 +105,7 @@ fn TIMER0() {
         return;
     };
 
-    run.fw.loop_tick(&mut run.plant, &mut run.dac);
+    run.fw.loop_tick(&zslide::firmware::TickInput::NONE, &mut run.plant, &mut run.dac);
     let enabled = run.fw.amplifier_enable();
     run.plant.step(run.dac.volts(), enabled);
 
