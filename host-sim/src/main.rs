@@ -37,8 +37,18 @@ enum Command {
     Bench(cmd::bench::Args),
 }
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command {
+/// Errors go to stderr as one readable chain ("what: because"), exit code 1,
+/// with no backtrace even when `RUST_BACKTRACE` is set: a bad input line or
+/// a refused geometry is a message for the user, not a crash.
+fn main() {
+    if let Err(e) = run(Cli::parse().command) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Coeffs(a) => cmd::coeffs::run(a),
         Command::Accuracy(a) => cmd::accuracy::run(a),
         Command::Zcmd(a) => cmd::zcmd::run(a),

@@ -172,6 +172,8 @@ impl<W> EventSource<W> for OneShots<W> {
 /// The scheduler: owns the sources, not the world.
 pub struct Scheduler<W> {
     sources: Vec<Box<dyn EventSource<W>>>,
+    /// Priorities, read once at `add` (a source's priority is fixed).
+    prios: Vec<u8>,
     now: Nanos,
     /// Events fired per source (same order as added).
     pub fired: Vec<u64>,
@@ -189,6 +191,7 @@ impl<W: World> Scheduler<W> {
     pub fn new() -> Self {
         Self {
             sources: Vec::new(),
+            prios: Vec::new(),
             now: 0,
             fired: Vec::new(),
             on_event: None,
@@ -196,6 +199,7 @@ impl<W: World> Scheduler<W> {
     }
     /// Adds a source; returns its index.
     pub fn add(&mut self, s: impl EventSource<W> + 'static) -> usize {
+        self.prios.push(s.priority());
         self.sources.push(Box::new(s));
         self.fired.push(0);
         self.sources.len() - 1
@@ -210,15 +214,15 @@ impl<W: World> Scheduler<W> {
     /// The next (time, source) in the deterministic order.
     fn pick(&self) -> Option<(Nanos, usize)> {
         let mut best: Option<(Nanos, u8, usize)> = None;
-        for (k, s) in self.sources.iter().enumerate() {
+        for (k, (s, &p)) in self.sources.iter().zip(&self.prios).enumerate() {
             if let Some(t) = s.next_time() {
                 let t = t.max(self.now);
                 let better = match best {
                     None => true,
-                    Some((bt, bp, _)) => t < bt || (t == bt && s.priority() > bp),
+                    Some((bt, bp, _)) => t < bt || (t == bt && p > bp),
                 };
                 if better {
-                    best = Some((t, s.priority(), k));
+                    best = Some((t, p, k));
                 }
             }
         }

@@ -97,10 +97,49 @@ fn firmware_loop_response_tracks_low_and_shows_the_mode() {
         p.mag_db(),
         p.phase_deg()
     );
-    // the coil-frame mode shows through the digital loop as a local peak
-    let m = |f| measure_firmware(f, 10e-6, 20_000, false).mag_db();
-    let (below, at, above) = (m(2700.0), m(3150.0), m(3700.0));
-    assert!(at > below + 3.0 && at > above + 3.0, "{below} {at} {above}");
-    let r = |f| measure_firmware(f, 10e-6, 20_000, true).mag_db();
-    assert!(r(3150.0) < r(2700.0), "no peak on a rigid slide");
+    // The coil-frame mode shows through the digital loop: against the same
+    // loop on a rigid slide, the response at 3150 Hz is raised and at
+    // 1 kHz unchanged. (With the integrated firmware loop of `fwint` the
+    // closed-loop response up there is ~-70 dB: the 10 µin excitation, the
+    // most the command slew limit allows at 3 kHz, leaves a sub-LSB output,
+    // so the old "local peak" shape test no longer resolves; this
+    // comparison still does, deterministically on a noiseless gauge.)
+    let m = |f, rigid| measure_firmware(f, 10e-6, 20_000, rigid).mag_db();
+    assert!(m(3150.0, false) > m(3150.0, true) + 6.0);
+    assert!((m(1000.0, false) - m(1000.0, true)).abs() < 1.0);
+}
+
+#[test]
+fn core_dac_driver_init_runs_on_the_simulated_chip() {
+    // The core driver's init: zero code, control = RBUF (two's complement,
+    // clamp and tristate released), read back in a second frame. The
+    // simulated chip must end in exactly that state, with every frame valid.
+    let (w, _) = firmware_demo(quiet(), 20_000);
+    let st = w.rig.dac.state.borrow();
+    assert_eq!(st.ctrl, host_sim::chips::ad5791::CTRL_RBUF);
+    assert_eq!(st.bad_frames, 0);
+    assert_eq!(st.frames, 4, "DAC, control, read request, no-op");
+    assert_eq!(w.fw.fault(), None);
+}
+
+#[test]
+fn dac_init_on_a_stuck_bus_is_a_bus_fault() {
+    use host_sim::fwrig::FirmwareWorld;
+    use host_sim::plant::Rig;
+    use zslide::drivers::ad5791::Ad5791;
+    use zslide::firmware::LoopConfig;
+    // The read-back of a bus stuck high (all ones: clamp and tristate
+    // bits set) or low (all zero: RBUF missing) cannot match.
+    for fault in [BusFault::StuckHigh, BusFault::StuckLow, BusFault::Error] {
+        let rig = Rig::new(quiet());
+        rig.dac.state.borrow_mut().faults.inject(fault, 4);
+        let mut dac = Ad5791::new(rig.devices().amp_dac);
+        assert!(dac.init().is_err(), "{fault:?}");
+        // and the world built on such a bus starts latched, amplifier off
+        let mut cfg = quiet();
+        cfg.seed = 2;
+        let w = FirmwareWorld::new_with_dac_faults(cfg, LoopConfig::at_rate(20_000), fault);
+        assert_eq!(w.fw.fault(), Some(Fault::Bus(Device::AmplifierDac)));
+        assert!(!w.fw.amplifier_enable());
+    }
 }

@@ -62,14 +62,16 @@ impl<SPI: SpiDevice> Ad5791<SPI> {
         self.spi.write(&frame_bytes(frame)).map_err(|_| BusError)
     }
 
-    /// Reads a register's 20 data bits.
+    /// Reads a register's 20 data bits: the read request in one frame, then
+    /// a no-op frame that clocks the content out. Two chip-select frames:
+    /// the chip acts on the last 24 bits of a frame when SYNC rises, so a
+    /// single 48-bit frame would lose the request (found by the simulated
+    /// chip, `host-sim` `chips::ad5791`).
     pub fn read_register(&mut self, reg: u32) -> Result<u32, BusError> {
+        self.write(read_frame(reg))?;
         let mut reply = frame_bytes(write_frame(REG_NOP, 0));
         self.spi
-            .transaction(&mut [
-                Operation::Write(&frame_bytes(read_frame(reg))),
-                Operation::TransferInPlace(&mut reply),
-            ])
+            .transaction(&mut [Operation::TransferInPlace(&mut reply)])
             .map_err(|_| BusError)?;
         Ok(bytes_frame(reply) & 0xF_FFFF)
     }

@@ -124,7 +124,8 @@ impl Ad5791State {
                     self.dac = self.clearcode;
                 }
             }
-            _ => self.bad_frames += 1, // NOP / reserved addresses
+            0b000 => {} // no operation: the frame that clocks a read-back out
+            _ => self.bad_frames += 1, // reserved addresses
         }
         let after = self.output_volts();
         if after != before || reg == REG_DAC {

@@ -15,7 +15,6 @@
 pub mod ad4020;
 pub mod ad5686;
 pub mod ad5791;
-pub mod bridge;
 pub mod pins;
 
 pub use ad4020::{Ad4020State, SimAd4020};
@@ -82,7 +81,11 @@ impl FaultInjector {
     pub fn random(&mut self, seed: u64, p: f64, fault: BusFault) {
         self.random = Some((ChaCha8Rng::seed_from_u64(seed), p, fault));
     }
+    #[inline]
     pub(crate) fn next(&mut self) -> Option<BusFault> {
+        if self.random.is_none() && self.queue.is_empty() {
+            return None;
+        }
         let f = self.queue.pop_front().or_else(|| match &mut self.random {
             Some((rng, p, f)) => (rng.random::<f64>() < *p).then_some(*f),
             None => None,
@@ -122,6 +125,22 @@ pub(crate) fn shift(ops: &mut [Operation<'_, u8>], miso_word: u32) -> Frame {
         miso_word as u8,
     ];
     let mut f = Frame::default();
+    // Fast path: the drivers' usual frame is one 3-byte write or read.
+    if let [op] = ops {
+        match op {
+            Operation::Write(buf) if buf.len() == 3 => {
+                f.bytes[..3].copy_from_slice(buf);
+                f.len = 3;
+                return f;
+            }
+            Operation::Read(buf) if buf.len() == 3 => {
+                buf.copy_from_slice(&miso);
+                f.len = 3;
+                return f;
+            }
+            _ => {}
+        }
+    }
     let push = |b: u8, f: &mut Frame| -> u8 {
         let out = miso.get(f.len).copied().unwrap_or(0);
         if let Some(slot) = f.bytes.get_mut(f.len) {

@@ -4,18 +4,24 @@
 //!   cached discretisation) through the amplifier logic;
 //! * `sim_second_wall_s`: wall time of one simulated second with a 20 kHz
 //!   loop tick run by the scheduler: CNV, a 3-byte ADC read and a 3-byte
-//!   DAC write through the simulated SPI chips, a stand-in proportional
-//!   position controller (the firmware's own loop is not wired in yet), the
-//!   plant advanced exactly between ticks, legacy gauge noise.
+//!   DAC write through the core drivers on the simulated SPI chips, a
+//!   stand-in proportional position controller, the
+//!   plant advanced exactly between ticks, legacy gauge noise;
+//! * `firmware_*`: the same with the firmware's `loop_tick`;
+//! * `machine_*`: the whole machine of the scenario (`--scenario`): the
+//!   integrated firmware (table, X and spindle entry points), the X
+//!   interface and the spindle with their interrupts (`fwrig`).
 //!
 //! Run it in release: `cargo run --release -p host-sim -- bench --json`.
 
-use crate::chips::{sext20, SimAd4020, SimAd5791, SimAmpEnablePin};
+use crate::chips::{SimAd4020, SimAd5791, SimAmpEnablePin};
 use crate::plant::{Rig, RigConfig};
 use crate::sched::{prio, Periodic, Scheduler, World};
 use embedded_hal::digital::OutputPin;
-use embedded_hal::spi::SpiDevice;
 use std::time::Instant;
+use zslide::drivers::ad4020::Ad4020;
+use zslide::drivers::ad5791::Ad5791;
+use zslide::hw::{AmplifierDac, GaugeAdc};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -25,23 +31,31 @@ pub struct Args {
     /// Simulated seconds for the loop benchmark.
     #[arg(long, default_value_t = 5.0)]
     pub seconds: f64,
-    /// Loop rate, Hz.
-    #[arg(long, default_value_t = 20_000)]
-    pub loop_hz: u64,
-    /// Also write a VCD trace of 50 ms of the firmware loop on the legacy
-    /// rig (positions, command, error, current, force, ADC and DAC codes,
-    /// loop-tick activity, amplifier enable).
+    /// Loop rate, Hz (default: the scenario's `loop.rate_hz`).
+    #[arg(long)]
+    pub loop_hz: Option<u64>,
+    /// Also write a VCD trace of 250 ms of the whole machine on the
+    /// scenario (positions, command, error, current, force, ADC and DAC
+    /// codes, X and spindle angle true and as the firmware has them, loop
+    /// tick / X event / index activity, amplifier enable, fault).
     #[arg(long)]
     pub vcd: Option<std::path::PathBuf>,
+    /// Run only the whole-machine simulation (for profiling it, e.g. under
+    /// `valgrind --tool=callgrind`), print its wall time and expm count.
+    #[arg(long)]
+    pub only_machine: bool,
+    /// Plant, noise and machine of the firmware and whole-machine runs.
+    #[command(flatten)]
+    pub scenario: crate::scenario::ScenarioArg,
 }
 
 /// A stand-in digital controller on the simulated chips: proportional
-/// position feedback in integer arithmetic, written frame by frame as a
-/// driver would. Not the firmware's controller; it exists to exercise and
-/// time the simulation path.
+/// position feedback in integer arithmetic through the core's converter
+/// drivers (`zslide::drivers`). Not the firmware's controller; it exists to
+/// exercise and time the simulation path without the firmware.
 pub struct DemoLoop {
-    pub adc: SimAd4020,
-    pub dac: SimAd5791,
+    pub adc: Ad4020<SimAd4020>,
+    pub dac: Ad5791<SimAd5791>,
     pub enable: SimAmpEnablePin,
     /// DAC code per ADC code, Q16 (negative feedback applied in `tick`).
     pub kp_q16: i64,
@@ -52,33 +66,26 @@ pub struct DemoLoop {
 }
 
 impl DemoLoop {
-    /// Takes the DAC out of its power-on clamp and enables the amplifier.
+    /// Initialises the DAC (driver init: out of its power-on clamp, read
+    /// back) and enables the amplifier.
     pub fn start(&mut self) {
-        // Control register: two's complement, output buffer in, not clamped.
-        let _ = self.dac.write(&[0x20, 0x00, 0x02]);
+        if self.dac.init().is_err() {
+            self.bus_errors += 1;
+        }
         let _ = self.enable.set_high();
     }
 
     pub fn tick(&mut self, now: u64, rig: &mut Rig) {
         rig.cnv();
-        let mut f = [0u8; 3];
-        if self.adc.read(&mut f).is_err() {
-            self.bus_errors += 1;
-            return;
-        }
-        let w = (u32::from(f[0]) << 16) | (u32::from(f[1]) << 8) | u32::from(f[2]);
-        if w & 0b111 != 0b010 {
-            self.bus_errors += 1;
-            return;
-        }
-        let code = sext20(w >> 4);
+        let code = match self.adc.read() {
+            Ok(s) => s.code,
+            Err(_) => {
+                self.bus_errors += 1;
+                return;
+            }
+        };
         let u = ((-i64::from(code) * self.kp_q16) >> 16).clamp(-(1 << 19), (1 << 19) - 1) as i32;
-        let d = (0x1 << 20) | (u as u32 & 0xF_FFFF);
-        if self
-            .dac
-            .write(&[(d >> 16) as u8, (d >> 8) as u8, d as u8])
-            .is_err()
-        {
+        if AmplifierDac::write(&mut self.dac, u).is_err() {
             self.bus_errors += 1;
         }
         if self.record {
@@ -109,8 +116,8 @@ pub fn demo(cfg: RigConfig, loop_hz: u64, record: bool) -> (DemoWorld, Scheduler
     let rig = Rig::new(cfg);
     let dev = rig.devices();
     let mut ctl = DemoLoop {
-        adc: dev.gauge_adc,
-        dac: dev.amp_dac,
+        adc: Ad4020::new(dev.gauge_adc),
+        dac: Ad5791::new(dev.amp_dac),
         enable: dev.amp_enable,
         kp_q16: (0.05 * 65536.0) as i64,
         trace: Vec::new(),
@@ -141,6 +148,17 @@ pub struct BenchResult {
     /// The same with the firmware's `loop_tick` instead of the stand-in.
     pub firmware_sim_second_wall_s: f64,
     pub firmware_real_time_factor: f64,
+    /// Scenario of the firmware and whole-machine runs.
+    pub scenario: String,
+    /// The whole machine: firmware loop tick through the core drivers, X
+    /// interface (half-mil interrupts or quadrature count) and spindle
+    /// (index interrupts, tachometer or encoder) of the scenario.
+    pub machine_sim_second_wall_s: f64,
+    pub machine_real_time_factor: f64,
+    /// Events of the whole-machine run per simulated second, by source.
+    pub machine_events_per_s: std::collections::BTreeMap<String, f64>,
+    /// Fault latched in the whole-machine run, if any.
+    pub machine_fault: Option<String>,
     /// One exact step of the 1983 analog loop closed around the plant
     /// (`AnalogClosedLoop`, 13 states), ns.
     pub analog_closed_loop_step_ns: f64,
@@ -148,10 +166,28 @@ pub struct BenchResult {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let sc = args.scenario.load()?;
+    let loop_hz = args.loop_hz.unwrap_or(u64::from(sc.loop_hz));
     anyhow::ensure!(
-        args.seconds > 0.0 && args.loop_hz > 0,
+        args.seconds > 0.0 && loop_hz > 0,
         "need positive seconds and loop rate"
     );
+    if args.only_machine {
+        let (mut mw, mut ms) =
+            crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
+        let t0 = Instant::now();
+        ms.run_until(&mut mw, (args.seconds * 1e9) as u64);
+        let wall = t0.elapsed().as_secs_f64();
+        println!(
+            "{{\"scenario\": \"{}\", \"machine_sim_second_wall_s\": {}, \"machine_real_time_factor\": {}, \"expm_computed\": {}, \"fault\": \"{:?}\"}}",
+            sc.file.name,
+            wall / args.seconds,
+            args.seconds / wall,
+            mw.rig.slide.expm_count(),
+            mw.fw.fault()
+        );
+        return Ok(());
+    }
     // One plant step.
     let mut slide = crate::plant::ZSlide::new(crate::plant::ZSlideParams::model15());
     let n = 2_000_000u64;
@@ -173,12 +209,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let rig_step_ns = t0.elapsed().as_nanos() as f64 / n as f64;
     std::hint::black_box(rig.slide.x);
     // One simulated second at the loop rate.
-    let (mut w, mut s) = demo(RigConfig::legacy(7), args.loop_hz, false);
+    let (mut w, mut s) = demo(RigConfig::legacy(7), loop_hz, false);
     let t_end = (args.seconds * 1e9) as u64;
     let t0 = Instant::now();
     s.run_until(&mut w, t_end);
     let wall = t0.elapsed().as_secs_f64();
-    let (mut fw, mut s) = firmware_demo(RigConfig::legacy(7), args.loop_hz as u32);
+    let (mut fw, mut s) = firmware_demo(sc.rig.clone(), loop_hz as u32);
     let t0 = Instant::now();
     s.run_until(&mut fw, t_end);
     let fw_wall = t0.elapsed().as_secs_f64();
@@ -187,6 +223,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "firmware faulted in the benchmark: {:?}",
         fw.fw.fault()
     );
+    let (mut mw, mut ms) = crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
+    let t0 = Instant::now();
+    ms.run_until(&mut mw, t_end);
+    let machine_wall = t0.elapsed().as_secs_f64();
+    let machine_events_per_s = (0..ms.fired.len())
+        .map(|k| {
+            (
+                ms.source_name(k).to_string(),
+                ms.fired[k] as f64 / args.seconds,
+            )
+        })
+        .collect();
     let mut cl = crate::analog1983::AnalogClosedLoop::legacy();
     let t0 = Instant::now();
     for k in 0..n / 4 {
@@ -198,68 +246,131 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let r = BenchResult {
         plant_step_ns,
         rig_step_ns,
-        loop_hz: args.loop_hz,
+        loop_hz,
         simulated_s: args.seconds,
         sim_second_wall_s: wall / args.seconds,
         real_time_factor: args.seconds / wall,
         firmware_sim_second_wall_s: fw_wall / args.seconds,
         firmware_real_time_factor: args.seconds / fw_wall,
+        scenario: sc.file.name.clone(),
+        machine_sim_second_wall_s: machine_wall / args.seconds,
+        machine_real_time_factor: args.seconds / machine_wall,
+        machine_events_per_s,
+        machine_fault: mw.fw.fault().map(|f| format!("{f:?}")),
         analog_closed_loop_step_ns,
         expm_computed: w.rig.slide.expm_count(),
     };
     if let Some(path) = &args.vcd {
-        write_vcd(path, args.loop_hz)?;
+        write_vcd(path, loop_hz, &sc)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
-        println!("plant step: {:.1} ns; rig step: {:.1} ns; one simulated second at {} Hz: {:.4} s wall ({:.0}x real time), with the firmware loop: {:.4} s ({:.0}x)", r.plant_step_ns, r.rig_step_ns, r.loop_hz, r.sim_second_wall_s, r.real_time_factor, r.firmware_sim_second_wall_s, r.firmware_real_time_factor);
+        println!("plant step: {:.1} ns; rig step: {:.1} ns; one simulated second at {} Hz: {:.4} s wall ({:.0}x real time), with the firmware loop: {:.4} s ({:.0}x), whole machine ({}): {:.4} s ({:.0}x)", r.plant_step_ns, r.rig_step_ns, r.loop_hz, r.sim_second_wall_s, r.real_time_factor, r.firmware_sim_second_wall_s, r.firmware_real_time_factor, r.scenario, r.machine_sim_second_wall_s, r.machine_real_time_factor);
     }
     Ok(())
 }
 
-/// 50 ms of the firmware's loop on the legacy rig as a VCD: engagement from
-/// 2 mil off null, a 1.3 lbf cutting-force step at 20 ms (a finishing cut
-/// engaging), a 1 mil target step at 30 ms.
-pub fn write_vcd(path: &std::path::Path, loop_hz: u64) -> anyhow::Result<()> {
+/// Names of the signals [`write_vcd`] records, in order.
+pub const VCD_SIGNALS: [&str; 17] = [
+    "slide_z_uin",
+    "gauge_z_uin",
+    "command_uin",
+    "error_uin",
+    "current_a",
+    "force_lbf",
+    "adc_code",
+    "dac_code",
+    "amp_enabled",
+    "x_true_in",
+    "x_fw_in",
+    "spindle_phi_deg",
+    "spindle_phi_fw_deg",
+    "loop_tick",
+    "x_event",
+    "index",
+    "fault",
+];
+
+/// 250 ms of the whole machine as a VCD: the firmware's loop tick through
+/// the core drivers, the scenario's X interface and spindle, engagement
+/// from 2 mil off null, a 1.3 lbf cutting-force step at 120 ms (a finishing
+/// cut engaging), a 1 mil target step at 150 ms. Interrupt activity is one
+/// toggling bit per source (`loop_tick`, `x_event`, `index`: every edge is
+/// one handler run), so equal-time events stay visible.
+pub fn write_vcd(
+    path: &std::path::Path,
+    loop_hz: u64,
+    sc: &crate::scenario::Scenario,
+) -> anyhow::Result<()> {
     use crate::vcd::{SignalKind, VcdRecorder};
     use std::cell::RefCell;
     use std::rc::Rc;
-    let (mut w, mut s) = firmware_demo(RigConfig::legacy(7), loop_hz as u32);
+    let (mut w, mut s) = crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
     w.rig.slide.x[crate::plant::zslide::st::Z] = 0.002;
+    let names: Vec<String> = (0..s.fired.len())
+        .map(|k| s.source_name(k).to_string())
+        .collect();
+    let idx = |n: &str| names.iter().position(|x| x == n);
+    let (i_tick, i_x, i_index) = (idx("loop_tick"), idx("x_event"), idx("index"));
     let mut o = crate::sched::OneShots::new("script", prio::PLANT_INPUT);
-    o.at(20_000_000, |_, w: &mut FirmwareWorld| {
+    o.at(120_000_000, |_, w: &mut FirmwareWorld| {
         w.rig.set_force_lbf(-1.3)
     });
-    o.at(30_000_000, |_, w: &mut FirmwareWorld| {
+    o.at(150_000_000, |_, w: &mut FirmwareWorld| {
         w.fw.set_target_code(1 << 16)
     });
     s.add(o);
     let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let signals = [
-        ("slide_z_uin", SignalKind::Real),
-        ("gauge_z_uin", SignalKind::Real),
-        ("command_uin", SignalKind::Real),
-        ("error_uin", SignalKind::Real),
-        ("current_a", SignalKind::Real),
-        ("force_lbf", SignalKind::Real),
-        ("adc_code", SignalKind::Int(20)),
-        ("dac_code", SignalKind::Int(20)),
-        ("loop_tick", SignalKind::Bit),
-        ("amp_enabled", SignalKind::Bit),
+    let kinds = [
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Int(20),
+        SignalKind::Int(20),
+        SignalKind::Bit,
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Real,
+        SignalKind::Bit,
+        SignalKind::Bit,
+        SignalKind::Bit,
+        SignalKind::Bit,
     ];
+    let signals: Vec<(&str, SignalKind)> = VCD_SIGNALS.iter().copied().zip(kinds).collect();
     let rec = Rc::new(RefCell::new(VcdRecorder::new(file, "zslide", &signals)?));
     let r2 = rec.clone();
     let err: Rc<RefCell<Option<std::io::Error>>> = Rc::new(RefCell::new(None));
     let e2 = err.clone();
-    let mut toggle = false;
+    let mut toggles = [false; 3];
     // gauge codes to µin: 2^19 codes = 0.010 in
     let uin = 0.010e6 / f64::from(1u32 << 19);
+    let turn_deg = 360.0 / 4_294_967_296.0;
     s.on_event = Some(Box::new(move |t, k, w: &FirmwareWorld| {
-        if k == 0 {
-            toggle = !toggle;
+        for (j, src) in [i_tick, i_x, i_index].into_iter().enumerate() {
+            if src == Some(k) {
+                toggles[j] = !toggles[j];
+            }
         }
         let adc = w.rig.adc.state.borrow().code;
+        let (x_true, x_fw, phi, phi_fw) = match &w.machine {
+            Some(m) => {
+                let st = &m.stats;
+                let phi = m.spindle.borrow_mut().turns_at(t).rem_euclid(1.0) * 360.0;
+                (
+                    w.x_true_in(),
+                    st.x.map_or(f64::NAN, |x| x.to_f64()),
+                    phi,
+                    f64::from(st.angle.0) * turn_deg,
+                )
+            }
+            None => (f64::NAN, f64::NAN, f64::NAN, f64::NAN),
+        };
+        let bit = |b: bool| if b { 1.0 } else { 0.0 };
         let v = [
             w.rig.slide.position_in() * 1e6,
             w.rig.slide.gauge_position_in() * 1e6,
@@ -269,14 +380,21 @@ pub fn write_vcd(path: &std::path::Path, loop_hz: u64) -> anyhow::Result<()> {
             w.rig.f_ext,
             f64::from(adc),
             f64::from(w.fw.output_code()),
-            if toggle { 1.0 } else { 0.0 },
-            if w.rig.amp.enabled() { 1.0 } else { 0.0 },
+            bit(w.rig.amp.enabled()),
+            x_true,
+            x_fw,
+            phi,
+            phi_fw,
+            bit(toggles[0]),
+            bit(toggles[1]),
+            bit(toggles[2]),
+            bit(w.fw.fault().is_some()),
         ];
         if let Err(e) = r2.borrow_mut().sample(t, &v) {
             e2.borrow_mut().get_or_insert(e);
         }
     }));
-    s.run_until(&mut w, 50_000_000);
+    s.run_until(&mut w, 250_000_000);
     s.on_event = None;
     if let Some(e) = err.borrow_mut().take() {
         return Err(e.into());
@@ -288,64 +406,4 @@ pub fn write_vcd(path: &std::path::Path, loop_hz: u64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The firmware's own loop (`zslide::firmware`) on the rig: CNV, its
-/// `loop_tick` through the simulated chips, the enable line from
-/// `amplifier_enable()`.
-pub struct FirmwareWorld {
-    pub rig: Rig,
-    pub fw: zslide::firmware::Firmware,
-    pub adc: crate::chips::bridge::SpiGaugeAdc<SimAd4020>,
-    pub dac: crate::chips::bridge::SpiAmplifierDac<SimAd5791>,
-    pub enable: SimAmpEnablePin,
-}
-
-impl World for FirmwareWorld {
-    fn advance_to(&mut self, t: u64) {
-        self.rig.advance_to(t);
-    }
-    fn set_time(&mut self, t: u64) {
-        self.rig.time.set(t);
-    }
-}
-
-impl FirmwareWorld {
-    pub fn tick(&mut self) {
-        self.rig.cnv();
-        self.fw
-            .loop_tick(&zslide::firmware::TickInput::NONE, &mut self.adc, &mut self.dac);
-        let on = self.fw.amplifier_enable();
-        if on != self.rig.enable.state.borrow().enable {
-            let _ = if on {
-                self.enable.set_high()
-            } else {
-                self.enable.set_low()
-            };
-        }
-    }
-}
-
-/// Rig + firmware at `loop_hz` with the loop-tick source registered.
-pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    use zslide::firmware::{Firmware, LoopConfig};
-    let rig = Rig::new(cfg);
-    let dev = rig.devices();
-    let mut dac = crate::chips::bridge::SpiAmplifierDac(dev.amp_dac);
-    let _ = dac.release_clamp();
-    let w = FirmwareWorld {
-        rig,
-        fw: Firmware::new(LoopConfig::at_rate(loop_hz)),
-        adc: crate::chips::bridge::SpiGaugeAdc(dev.gauge_adc),
-        dac,
-        enable: dev.amp_enable,
-    };
-    let mut s = Scheduler::new();
-    let period = 1_000_000_000 / u64::from(loop_hz.max(1));
-    s.add(Periodic::new(
-        "loop_tick",
-        prio::LOOP_TICK,
-        period,
-        period,
-        |_, w: &mut FirmwareWorld| w.tick(),
-    ));
-    (w, s)
-}
+pub use crate::fwrig::{firmware_demo, FirmwareWorld};

@@ -117,6 +117,26 @@ impl Spindle {
         self.rpm
     }
 
+    pub fn config(&self) -> &SpindleConfig {
+        &self.cfg
+    }
+
+    /// Total angle since t = 0, turns relative to the index mark (not
+    /// wrapped): the state the hardware bindings interpolate between steps.
+    pub fn turns(&self) -> f64 {
+        self.turns
+    }
+
+    /// Time the model state refers to, ns.
+    pub fn time_ns(&self) -> u64 {
+        self.t_ns
+    }
+
+    /// Timestamp of the last encoder edge the model has passed.
+    pub fn last_edge_ticks(&self) -> u32 {
+        self.last_edge_ticks
+    }
+
     /// True spindle angle φ, turns in [0, 1).
     pub fn angle_turns(&self) -> f64 {
         (self.turns + self.cfg.index_phase_turns).rem_euclid(1.0)

@@ -86,7 +86,17 @@ pub struct Gauge {
     /// OU coefficients for the last sample spacing: (h ns, a, sqrt(1 − a²)).
     ou_coef: (u64, f64, f64),
     spare: Option<f64>,
+    /// Hum phasor (sin, cos of the hum phase) at `hum_t_ns`, advanced by
+    /// rotation when samples are evenly spaced (the loop timer): no `sin`
+    /// per sample. Recomputed exactly every `HUM_EXACT_EVERY` samples and on
+    /// any change of spacing, so rounding drift stays below 1e-12.
+    hum_sc: (f64, f64),
+    hum_t_ns: Option<u64>,
+    hum_rot: (u64, f64, f64),
+    hum_n: u32,
 }
+
+const HUM_EXACT_EVERY: u32 = 4096;
 
 impl Gauge {
     pub fn new(params: GaugeParams, seed: u64) -> Self {
@@ -103,6 +113,10 @@ impl Gauge {
             hum2_phase,
             ou_coef: (0, 1.0, 0.0),
             spare: None,
+            hum_sc: (0.0, 1.0),
+            hum_t_ns: None,
+            hum_rot: (0, 0.0, 1.0),
+            hum_n: 0,
         }
     }
 
@@ -130,14 +144,38 @@ impl Gauge {
             }
         }
         self.last_ns = Some(t_ns);
-        let t = t_ns as f64 * 1e-9;
-        let tau = std::f64::consts::TAU;
         let mut n = self.ou;
-        if p.hum_amp_in != 0.0 {
-            n += p.hum_amp_in * (tau * p.hum_hz * t + self.hum_phase).sin();
-        }
-        if p.hum2_amp_in != 0.0 {
-            n += p.hum2_amp_in * (2.0 * tau * p.hum_hz * t + self.hum2_phase).sin();
+        if p.hum_amp_in != 0.0 || p.hum2_amp_in != 0.0 {
+            let w = std::f64::consts::TAU * p.hum_hz;
+            let h = self.hum_t_ns.map(|l| t_ns.saturating_sub(l));
+            match h {
+                Some(h) if h == self.hum_rot.0 && self.hum_n < HUM_EXACT_EVERY => {
+                    let (s0, c0) = self.hum_sc;
+                    let (_, rs, rc) = self.hum_rot;
+                    self.hum_sc = (s0 * rc + c0 * rs, c0 * rc - s0 * rs);
+                    self.hum_n += 1;
+                }
+                _ => {
+                    let t = t_ns as f64 * 1e-9;
+                    self.hum_sc = (w * t + self.hum_phase).sin_cos();
+                    if let Some(h) = h {
+                        if h != self.hum_rot.0 {
+                            let (rs, rc) = (w * h as f64 * 1e-9).sin_cos();
+                            self.hum_rot = (h, rs, rc);
+                        }
+                    }
+                    self.hum_n = 0;
+                }
+            }
+            self.hum_t_ns = Some(t_ns);
+            let (s1, c1) = self.hum_sc;
+            n += p.hum_amp_in * s1;
+            if p.hum2_amp_in != 0.0 {
+                // sin(2θ + φ2 − 2φ1) from the phasor of θ + φ1.
+                let (s2, c2) = (2.0 * s1 * c1, c1 * c1 - s1 * s1);
+                let d = self.hum2_phase - 2.0 * self.hum_phase;
+                n += p.hum2_amp_in * (s2 * d.cos() + c2 * d.sin());
+            }
         }
         n
     }

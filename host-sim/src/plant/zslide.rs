@@ -232,11 +232,28 @@ pub struct ZSlide {
     pub x: [f64; st::N],
     voltage: LinearSystem,
     held: LinearSystem,
-    cache: Vec<(u64, bool, Mats)>,
+    /// Cache keys (step ns, current held), apart from the matrices so the
+    /// search walks 16-byte entries.
+    keys: Vec<(u64, bool)>,
+    mats: Vec<Mats>,
+    /// Entry used last (the usual hit: the loop period).
+    mru: usize,
+    /// Next entry to replace when full (round robin).
+    evict: usize,
+    /// Entries whose step is not a power of two.
+    odd: usize,
     misses: u64,
 }
 
-const CACHE_SIZE: usize = 32;
+/// Entries kept: the event spacings of a run plus the power-of-two steps
+/// that compose any other spacing.
+const CACHE_SIZE: usize = 128;
+/// Distinct non-power-of-two steps given their own discretisation; beyond
+/// this an odd step (an X event or index pulse splitting a loop period at
+/// an arbitrary nanosecond) is composed of cached power-of-two steps
+/// instead of costing a matrix exponential (exact: the steps of a held
+/// input compose).
+const ODD_MAX: usize = 32;
 
 impl ZSlide {
     pub fn new(params: ZSlideParams) -> Self {
@@ -247,7 +264,11 @@ impl ZSlide {
             x: [0.0; st::N],
             voltage,
             held,
-            cache: Vec::with_capacity(CACHE_SIZE),
+            keys: Vec::with_capacity(CACHE_SIZE),
+            mats: Vec::with_capacity(CACHE_SIZE),
+            mru: 0,
+            evict: 0,
+            odd: 0,
             misses: 0,
         }
     }
@@ -258,36 +279,40 @@ impl ZSlide {
         if dt_ns == 0 {
             return;
         }
-        let hit =
-            matches!(self.cache.first(), Some((k, h, _)) if *k == dt_ns && *h == current_held);
-        if !hit {
-            match self
-                .cache
-                .iter()
-                .position(|(k, h, _)| *k == dt_ns && *h == current_held)
-            {
-                Some(p) => {
-                    let e = self.cache.remove(p);
-                    self.cache.insert(0, e);
-                }
-                None => {
-                    self.misses += 1;
-                    let sys = if current_held {
-                        &self.held
-                    } else {
-                        &self.voltage
-                    };
-                    let m = Mats::from(&sys.zoh(dt_ns as f64 * 1e-9));
-                    if self.cache.len() >= CACHE_SIZE {
-                        self.cache.pop();
-                    }
-                    self.cache.insert(0, (dt_ns, current_held, m));
-                }
+        let key = (dt_ns, current_held);
+        let idx = if self.keys.get(self.mru) == Some(&key) {
+            self.mru
+        } else if let Some(p) = self.keys.iter().position(|k| *k == key) {
+            p
+        } else if !dt_ns.is_power_of_two() && self.odd >= ODD_MAX {
+            self.step_binary(dt_ns, e_m, f_ext, current_held);
+            return;
+        } else {
+            self.misses += 1;
+            let sys = if current_held {
+                &self.held
+            } else {
+                &self.voltage
+            };
+            let m = Mats::from(&sys.zoh(dt_ns as f64 * 1e-9));
+            let odd = usize::from(!dt_ns.is_power_of_two());
+            if self.keys.len() < CACHE_SIZE {
+                self.keys.push(key);
+                self.mats.push(m);
+                self.odd += odd;
+                self.keys.len() - 1
+            } else {
+                let p = self.evict;
+                self.evict = (self.evict + 1) % CACHE_SIZE;
+                self.odd -= usize::from(!self.keys[p].0.is_power_of_two());
+                self.odd += odd;
+                self.keys[p] = key;
+                self.mats[p] = m;
+                p
             }
-        }
-        if let Some((_, _, m)) = self.cache.first() {
-            apply_fixed(&mut self.x, m, [e_m, f_ext]);
-        }
+        };
+        self.mru = idx;
+        apply_fixed(&mut self.x, &self.mats[idx], [e_m, f_ext]);
     }
 
     /// Advances `dt_ns` as a sum of power-of-two steps (at most 64, each

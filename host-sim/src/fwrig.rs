@@ -1,0 +1,597 @@
+//! The firmware on the simulated machine, end to end: the core's own
+//! drivers (`zslide::drivers::{Ad5791, Ad4020}`) on the simulated chips, the
+//! core's `Firmware::loop_tick`, and (optionally) the X slide and spindle
+//! through the core's `hw` traits with their interrupts delivered by the
+//! scheduler at their exact instants.
+//!
+//! Event sources and priorities (`sched::prio`): loop tick (timer, CNV then
+//! the handler) > X half-mil interrupt > index pulse. The plant is advanced
+//! exactly to each event before it runs (`World::advance_to`).
+//!
+//! With a machine attached the firmware is the integrated one
+//! (`Firmware::with_table(DEFAULT_TABLE, ..)`): the X half-mil interrupt
+//! calls `Firmware::x_event` (with the core's AD5686 driver on the simulated
+//! quad DAC for the legacy coefficient output), the index calls
+//! `Firmware::index_event`, and the loop tick gets its `TickInput` from the
+//! hw-trait implementations (`Encoder`, `Tachometer`, `Clock`). The
+//! firmware keeps its spindle angle private, so the world runs a monitor
+//! copy of the core's estimator on the same readings to report it.
+
+use crate::chips::{SimAd4020, SimAd5686, SimAd5791, SimAmpEnablePin, SimClock, SimLdacPin};
+use crate::machine::hw::{
+    SharedSpindle, SimSpindleEncoder, SimTachometer, SimXLatch, SimXQuadrature, SpindleLink,
+    XHalfMilLink,
+};
+use crate::machine::spindle::SpindleConfig;
+use crate::machine::xslide::XSlideConfig;
+use crate::plant::{Rig, RigConfig};
+use crate::sched::{prio, EventSource, Nanos, Scheduler, World};
+use embedded_hal::digital::OutputPin;
+use std::cell::RefCell;
+use std::rc::Rc;
+use zslide::drivers::ad4020::Ad4020;
+use zslide::drivers::ad5686::Ad5686;
+use zslide::drivers::ad5791::Ad5791;
+use zslide::firmware::{
+    Firmware, FirmwareConfig, LoopConfig, SpindleMode, SpindleReading, TickInput, XMode,
+};
+use zslide::hw::{Clock, Encoder, Tachometer, XLatch};
+use zslide::safety::{Device, Fault};
+use zslide::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
+use zslide::units::{SpindleAngle, XInches};
+use zslide::xpos::{CountConfig, CountX, XEvent};
+
+/// How the firmware learns X.
+#[derive(Clone, Debug, PartialEq)]
+pub enum XInterface {
+    /// 1983: BCD counter chain, half-mil interrupt, latched digits.
+    LegacyBcd(XSlideConfig),
+    /// Interferometer count (1 µin) read every loop tick.
+    Quadrature(XSlideConfig),
+}
+
+/// How the firmware learns the spindle angle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpindleSensor {
+    /// 1983: tachometer (5 V at 300 rpm) + once-per-rev index.
+    TachIndex,
+    /// Rotary encoder with index.
+    EncoderIndex,
+}
+
+/// The machine around the Z slide.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MachineConfig {
+    pub x: XInterface,
+    pub spindle: SpindleConfig,
+    pub sensor: SpindleSensor,
+    /// Integration step of the spindle model, ns (speed changes over
+    /// seconds: 250 µs keeps the angle's interpolation error far below a
+    /// count; the angle is interpolated linearly inside a step).
+    pub spindle_step_ns: u64,
+    /// Sampling step of the X position (feed, vibration, jitter), ns.
+    pub x_step_ns: u64,
+    /// How far the event-producing models run ahead per scan, ns.
+    pub window_ns: u64,
+    /// Speed band the firmware accepts, rpm.
+    pub min_rpm: u32,
+    pub max_rpm: u32,
+    /// Legacy coefficient-output mode (C00..C03 on the quad DAC at every
+    /// accepted X event).
+    pub coefficient_output: bool,
+}
+
+impl MachineConfig {
+    /// 1983: BCD X at 0.2 in/min from 1 in, tachometer + index at 300 rpm.
+    pub fn legacy(seed: u64) -> Self {
+        Self {
+            x: XInterface::LegacyBcd(XSlideConfig {
+                x0_in: 1.0,
+                seed: seed ^ 0x58,
+                ..XSlideConfig::default()
+            }),
+            spindle: SpindleConfig {
+                seed: seed ^ 0x5350,
+                ..SpindleConfig::default()
+            },
+            sensor: SpindleSensor::TachIndex,
+            spindle_step_ns: 250_000,
+            x_step_ns: 100_000,
+            window_ns: 5_000_000,
+            min_rpm: 30,
+            max_rpm: 600,
+            coefficient_output: false,
+        }
+    }
+    /// Modern: quadrature X, encoder + index.
+    pub fn modern(seed: u64) -> Self {
+        let l = Self::legacy(seed);
+        let XInterface::LegacyBcd(x) = l.x.clone() else {
+            unreachable!()
+        };
+        Self {
+            x: XInterface::Quadrature(x),
+            sensor: SpindleSensor::EncoderIndex,
+            ..l
+        }
+    }
+}
+
+/// What the X and spindle handlers saw (for tests and reports).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MachineStats {
+    pub x_events: u64,
+    pub x_accepted: u64,
+    pub x_ignored: u64,
+    pub x_faults: u64,
+    /// Interrupts whose latch caught a ripple (model truth).
+    pub x_stale: u64,
+    pub index_events: u64,
+    pub index_faults: u64,
+    /// Last X the firmware knows.
+    pub x: Option<XInches>,
+    /// Spindle angle at the last loop tick.
+    pub angle: SpindleAngle,
+    pub referenced: bool,
+    /// Last fault raised by an X or spindle handler.
+    pub last_fault: Option<Fault>,
+}
+
+enum XState {
+    Legacy {
+        link: Rc<RefCell<XHalfMilLink>>,
+        latch: SimXLatch,
+    },
+    Count {
+        enc: Box<SimXQuadrature>,
+        decoder: CountX,
+    },
+}
+
+enum AngleState {
+    Encoder {
+        dev: SimSpindleEncoder,
+        est: EncoderAngle,
+    },
+    Tach {
+        dev: SimTachometer,
+        est: TachAngle,
+    },
+}
+
+/// X slide and spindle as the firmware sees them.
+pub struct Machine {
+    x: XState,
+    angle: AngleState,
+    pub spindle: SharedSpindle,
+    pub stats: MachineStats,
+}
+
+/// Rig + the firmware with the core's drivers on the simulated chips.
+pub struct FirmwareWorld {
+    pub rig: Rig,
+    pub fw: Firmware,
+    pub adc: Ad4020<SimAd4020>,
+    pub dac: Ad5791<SimAd5791>,
+    pub enable: SimAmpEnablePin,
+    pub clock: SimClock,
+    /// The coefficient DAC through the core driver (legacy output mode).
+    pub quad: Ad5686<SimAd5686, SimLdacPin>,
+    pub machine: Option<Machine>,
+    init_fault: Option<Fault>,
+}
+
+impl World for FirmwareWorld {
+    #[inline]
+    fn advance_to(&mut self, t: Nanos) {
+        self.rig.advance_to(t);
+    }
+    #[inline]
+    fn set_time(&mut self, t: Nanos) {
+        self.rig.time.set(t);
+    }
+}
+
+impl FirmwareWorld {
+    /// Rig and firmware; the DAC initialised through the core driver (zero
+    /// code, control register, read-back). A failed init latches
+    /// `Fault::Bus(AmplifierDac)`, as the board does.
+    pub fn new(cfg: RigConfig, loop_cfg: LoopConfig) -> Self {
+        Self::build(Rig::new(cfg), loop_cfg)
+    }
+
+    /// [`Self::new`] with `fault` injected into the DAC's first four frames
+    /// (the whole init sequence).
+    pub fn new_with_dac_faults(
+        cfg: RigConfig,
+        loop_cfg: LoopConfig,
+        fault: crate::chips::BusFault,
+    ) -> Self {
+        let rig = Rig::new(cfg);
+        rig.dac.state.borrow_mut().faults.inject(fault, 4);
+        Self::build(rig, loop_cfg)
+    }
+
+    fn build(rig: Rig, loop_cfg: LoopConfig) -> Self {
+        let dev = rig.devices();
+        let mut dac = Ad5791::new(dev.amp_dac);
+        let mut fw = Firmware::new(loop_cfg);
+        let mut init_fault = None;
+        if dac.init().is_err() {
+            init_fault = Some(Fault::Bus(Device::AmplifierDac));
+        }
+        let quad = match Ad5686::new(dev.quad_dac.clone(), dev.ldac.clone()) {
+            Ok(q) => q,
+            Err(_) => {
+                init_fault = Some(Fault::Bus(Device::CoefficientDac));
+                let (spi, pin) = (dev.quad_dac, dev.ldac);
+                // The pin write is infallible on the simulated pin; the
+                // error path is kept for the type.
+                Ad5686::new(spi, pin).unwrap_or_else(|_| unreachable!())
+            }
+        };
+        if let Some(f) = init_fault {
+            fw.trip(f);
+        }
+        Self {
+            rig,
+            fw,
+            adc: Ad4020::new(dev.gauge_adc),
+            dac,
+            enable: dev.amp_enable,
+            clock: dev.clock,
+            quad,
+            machine: None,
+            init_fault,
+        }
+    }
+
+    /// Adds the X slide and spindle, and replaces the bench firmware by the
+    /// integrated one (default table, the machine's X and spindle modes,
+    /// same loop configuration). Their clocks are the rig's clock.
+    pub fn attach_machine(&mut self, m: &MachineConfig) {
+        let ticks_per_s = self.rig.clock_hz;
+        let tps = u32::try_from(ticks_per_s).unwrap_or(u32::MAX);
+        let time = self.rig.time.clone();
+        let spindle_cfg = SpindleConfig {
+            ticks_per_s: ticks_per_s as f64,
+            ..m.spindle.clone()
+        };
+        let cpr = spindle_cfg.encoder_cpr;
+        let index_angle =
+            SpindleAngle((spindle_cfg.index_phase_turns.rem_euclid(1.0) * 4_294_967_296.0) as u32);
+        let link = Rc::new(RefCell::new(SpindleLink::new(
+            spindle_cfg,
+            m.spindle_step_ns,
+            m.window_ns,
+        )));
+        let count_cfg = CountConfig {
+            counts_per_inch: 1_000_000,
+            zero_count: 0,
+            // 100 in/min at 20 kHz is 83 counts per tick.
+            max_step_counts: 1000,
+        };
+        let x = match &m.x {
+            XInterface::LegacyBcd(c) => {
+                let l = XHalfMilLink::new(c.clone(), m.x_step_ns, m.window_ns);
+                let latch = l.latch.clone();
+                XState::Legacy {
+                    link: Rc::new(RefCell::new(l)),
+                    latch,
+                }
+            }
+            XInterface::Quadrature(c) => XState::Count {
+                enc: Box::new(SimXQuadrature::new(
+                    c.clone(),
+                    m.x_step_ns,
+                    time.clone(),
+                    ticks_per_s,
+                )),
+                decoder: CountX::new(count_cfg).expect("counts_per_inch is not zero"),
+            },
+        };
+        let (angle, spindle_mode) = match m.sensor {
+            SpindleSensor::EncoderIndex => {
+                let c = EncoderConfig {
+                    counts_per_rev: cpr,
+                    ticks_per_s: tps,
+                    min_rpm: m.min_rpm,
+                    max_rpm: m.max_rpm,
+                    index_tolerance_counts: 2,
+                    index_angle,
+                };
+                (
+                    AngleState::Encoder {
+                        dev: SimSpindleEncoder {
+                            link: link.clone(),
+                            time: time.clone(),
+                        },
+                        est: EncoderAngle::new(c).expect("valid encoder configuration"),
+                    },
+                    SpindleMode::Encoder(c),
+                )
+            }
+            SpindleSensor::TachIndex => {
+                let c = TachConfig {
+                    ticks_per_s: tps,
+                    mv_at_300_rpm: 5000,
+                    min_rpm: m.min_rpm,
+                    max_rpm: m.max_rpm,
+                    index_tolerance_permille: 20,
+                    index_angle,
+                };
+                (
+                    AngleState::Tach {
+                        dev: SimTachometer {
+                            link: link.clone(),
+                            time,
+                        },
+                        est: TachAngle::new(c).expect("valid tachometer configuration"),
+                    },
+                    SpindleMode::Tach(c),
+                )
+            }
+        };
+        let fc = FirmwareConfig {
+            loop_cfg: *self.fw.config(),
+            spindle: spindle_mode,
+            x: match &x {
+                XState::Legacy { .. } => XMode::Legacy { clock_hz: tps },
+                XState::Count { .. } => XMode::Count(count_cfg),
+            },
+            coefficient_output: m.coefficient_output,
+            gauge_reversed: self.rig.gauge.params.reversed,
+        };
+        let mut fw = Firmware::with_table(zslide::DEFAULT_TABLE, fc)
+            .expect("the estimators accepted this configuration above");
+        if let Some(f) = self.init_fault {
+            fw.trip(f);
+        }
+        self.fw = fw;
+        self.machine = Some(Machine {
+            x,
+            angle,
+            spindle: link,
+            stats: MachineStats::default(),
+        });
+    }
+
+    /// The loop-tick interrupt: CNV (hardware, on the timer), the hw-trait
+    /// readings at this instant (clock, spindle encoder or tachometer, X
+    /// count), the firmware's loop tick through the drivers, then the
+    /// enable line.
+    #[inline]
+    pub fn tick(&mut self) {
+        self.rig.cnv();
+        let mut input = TickInput::NONE;
+        if let Some(m) = self.machine.as_mut() {
+            input.now = self.clock.now_ticks();
+            // The monitor estimator sees exactly the firmware's readings.
+            let est = match &mut m.angle {
+                AngleState::Encoder { dev, est } => {
+                    let s = dev.sample();
+                    input.spindle = SpindleReading::Encoder(s);
+                    let e = est.tick(s.count, s.edge_ticks, input.now);
+                    m.stats.referenced = est.referenced();
+                    e
+                }
+                AngleState::Tach { dev, est } => {
+                    let mv = dev.millivolts();
+                    input.spindle = SpindleReading::Tach(mv);
+                    let e = est.tick(mv, input.now);
+                    m.stats.referenced = est.referenced();
+                    e
+                }
+            };
+            m.stats.angle = est.angle;
+            if let XState::Count { enc, decoder } = &mut m.x {
+                input.x_count = enc.sample().count;
+                m.stats.x = Some(decoder.x(input.x_count));
+            }
+        }
+        self.fw.loop_tick(&input, &mut self.adc, &mut self.dac);
+        if let Some(m) = self.machine.as_mut() {
+            let sh = self.fw.shared();
+            m.stats.x_accepted = u64::from(sh.x_accepted());
+            m.stats.x_ignored = u64::from(sh.x_ignored());
+        }
+        let on = self.fw.amplifier_enable();
+        if on != self.rig.enable.state.borrow().enable {
+            let _ = if on {
+                self.enable.set_high()
+            } else {
+                self.enable.set_low()
+            };
+        }
+    }
+
+    /// The half-mil interrupt: the latch was loaded at the edge; the
+    /// firmware's `x_event` reads it through `hw::XLatch`.
+    pub fn x_event(&mut self, stale: bool) {
+        let now = self.clock.now_ticks();
+        let Some(m) = self.machine.as_mut() else {
+            return;
+        };
+        let XState::Legacy { latch, .. } = &mut m.x else {
+            return;
+        };
+        m.stats.x_events += 1;
+        m.stats.x_stale += u64::from(stale);
+        match self.fw.x_event(latch.read(), now, &mut self.quad) {
+            Ok(XEvent::Ignored) => {}
+            Ok(XEvent::Update(u)) => m.stats.x = Some(u.x),
+            Err(f) => {
+                m.stats.x_faults += 1;
+                m.stats.last_fault = Some(f);
+            }
+        }
+        let sh = self.fw.shared();
+        m.stats.x_accepted = u64::from(sh.x_accepted());
+        m.stats.x_ignored = u64::from(sh.x_ignored());
+    }
+
+    /// The index interrupt: the count the encoder timer latched at the edge
+    /// and the edge's captured timestamp.
+    pub fn index_event(&mut self, count: u32, edge_ticks: u32) {
+        let Some(m) = self.machine.as_mut() else {
+            return;
+        };
+        m.stats.index_events += 1;
+        self.fw.index_event(edge_ticks, count);
+        let r = match &mut m.angle {
+            AngleState::Encoder { est, .. } => est.on_index(count, edge_ticks),
+            AngleState::Tach { est, .. } => est.on_index(edge_ticks),
+        };
+        if let Err(f) = r {
+            m.stats.index_faults += 1;
+            m.stats.last_fault = Some(f);
+        }
+    }
+
+    /// True X now (feed profile, without vibration and jitter), in; NaN
+    /// without a machine.
+    pub fn x_true_in(&self) -> f64 {
+        let t_s = self.rig.time.get() as f64 * 1e-9;
+        match self.machine.as_ref().map(|m| &m.x) {
+            Some(XState::Legacy { link, .. }) => link.borrow().model().nominal_x(t_s),
+            Some(XState::Count { enc, .. }) => enc.model().nominal_x(t_s),
+            None => f64::NAN,
+        }
+    }
+
+    pub fn stats(&self) -> Option<&MachineStats> {
+        self.machine.as_ref().map(|m| &m.stats)
+    }
+}
+
+/// Loop tick as a scheduler source (a concrete type: no boxed closure in
+/// the hot path).
+pub struct LoopTick {
+    period_ns: Nanos,
+    next: Nanos,
+}
+
+impl EventSource<FirmwareWorld> for LoopTick {
+    #[inline]
+    fn next_time(&self) -> Option<Nanos> {
+        Some(self.next)
+    }
+    fn priority(&self) -> u8 {
+        prio::LOOP_TICK
+    }
+    fn name(&self) -> &str {
+        "loop_tick"
+    }
+    #[inline]
+    fn fire(&mut self, _now: Nanos, w: &mut FirmwareWorld) {
+        w.tick();
+        self.next += self.period_ns;
+    }
+}
+
+/// Half-mil interrupts of the legacy X interface, at their exact instants.
+pub struct XHalfMilSource {
+    link: Rc<RefCell<XHalfMilLink>>,
+}
+
+impl EventSource<FirmwareWorld> for XHalfMilSource {
+    fn next_time(&self) -> Option<Nanos> {
+        let l = self.link.borrow();
+        // Nothing queued: wake at the end of the scanned window to scan on.
+        Some(l.next_interrupt().map_or(l.scanned_to(), |i| i.t_ns))
+    }
+    fn priority(&self) -> u8 {
+        prio::X_EVENT
+    }
+    fn name(&self) -> &str {
+        "x_event"
+    }
+    fn fire(&mut self, now: Nanos, w: &mut FirmwareWorld) {
+        let due = {
+            let mut l = self.link.borrow_mut();
+            match l.next_interrupt() {
+                Some(i) if i.t_ns <= now => l.take(),
+                Some(_) => None,
+                None => {
+                    l.scan();
+                    None
+                }
+            }
+        };
+        if let Some(i) = due {
+            w.x_event(i.stale);
+        }
+    }
+}
+
+/// Index pulses of the spindle (true and spurious), at their exact instants.
+pub struct IndexSource {
+    link: SharedSpindle,
+}
+
+impl EventSource<FirmwareWorld> for IndexSource {
+    fn next_time(&self) -> Option<Nanos> {
+        let l = self.link.borrow();
+        Some(l.next_pulse().map_or(l.scanned_to(), |p| p.t_ns))
+    }
+    fn priority(&self) -> u8 {
+        prio::INDEX
+    }
+    fn name(&self) -> &str {
+        "index"
+    }
+    fn fire(&mut self, now: Nanos, w: &mut FirmwareWorld) {
+        let due = {
+            let mut l = self.link.borrow_mut();
+            match l.next_pulse() {
+                Some(p) if p.t_ns <= now => l.pop_pulse(),
+                Some(_) => None,
+                None => {
+                    l.scan();
+                    None
+                }
+            }
+        };
+        if let Some(p) = due {
+            w.index_event(p.count, p.edge_ticks);
+        }
+    }
+}
+
+/// Scheduler source indices of a firmware run.
+pub mod src {
+    pub const LOOP_TICK: usize = 0;
+}
+
+/// Rig + firmware at `loop_hz` with the loop-tick source registered (index
+/// [`src::LOOP_TICK`]).
+pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
+    let w = FirmwareWorld::new(cfg, LoopConfig::at_rate(loop_hz));
+    let mut s = Scheduler::new();
+    let period = 1_000_000_000 / u64::from(loop_hz.max(1));
+    s.add(LoopTick {
+        period_ns: period,
+        next: period,
+    });
+    (w, s)
+}
+
+/// [`firmware_demo`] with the X slide and spindle attached and their
+/// interrupt sources registered (after the loop tick).
+pub fn machine_demo(
+    cfg: RigConfig,
+    machine: &MachineConfig,
+    loop_hz: u32,
+) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
+    let (mut w, mut s) = firmware_demo(cfg, loop_hz);
+    w.attach_machine(machine);
+    if let Some(m) = &w.machine {
+        if let XState::Legacy { link, .. } = &m.x {
+            s.add(XHalfMilSource { link: link.clone() });
+        }
+        s.add(IndexSource {
+            link: m.spindle.clone(),
+        });
+    }
+    (w, s)
+}
