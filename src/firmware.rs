@@ -24,19 +24,22 @@
 //!
 //! * Coefficients (X event → loop tick): a double buffer of atomic words and
 //!   a generation counter. The X handler writes the whole coefficient set
-//!   into the slot the loop tick is *not* reading (generation + 1, modulo 2),
-//!   then publishes it with one `Release` store of the generation. The loop
-//!   tick compares the generation (one load per tick) and copies the slot only
-//!   when it changed. On a single core where the tick preempts the X handler,
-//!   the slot being written is never the published one and the tick runs to
-//!   completion before the handler resumes, so the tick always copies a
-//!   complete set; if the generation moved by two or more while it copied (not
-//!   possible with these priorities, but possible on a host with threads) the
-//!   copy is discarded and taken on the next tick. A lock (critical section)
-//!   would instead delay the loop tick by a whole X event; RTIC ceilings would
-//!   tie the core to one framework; this costs ~3 instructions per tick.
-//! * Index (index event → loop tick): the same two-slot scheme for the
-//!   `(count at index, edge time)` pair; the loop tick applies it to the
+//!   into the slot of generation + 1 (modulo 2) — first that slot's own
+//!   sequence word, a release fence, then the data — and publishes it with
+//!   one `Release` store of the generation. The loop tick compares the
+//!   generation (one load per tick) and copies the slot only when it
+//!   changed; after an acquire fence it keeps the copy only if the slot's
+//!   sequence word still equals the generation (the seqlock rule), else it
+//!   takes the next one. On a single core where the tick preempts the X
+//!   handler, the slot being written is never the published one and the
+//!   tick runs to completion before the handler resumes, so the check never
+//!   fails there; it makes the scheme correct under real concurrency too (a
+//!   host test with two threads finds torn sets without it). A lock
+//!   (critical section) would instead delay the loop tick by a whole X
+//!   event; RTIC ceilings would tie the core to one framework; this costs a
+//!   few instructions per tick.
+//! * Index (index event → loop tick, [`Shared::index_event`]): the same
+//!   two-slot scheme for the `(count at index, edge time)` pair; the loop tick applies it to the
 //!   estimator at its next tick (≤ one loop period later: the phase is taken
 //!   from the hardware-latched count and edge time, so the delay costs no
 //!   accuracy). More than one index within one loop period is
@@ -436,8 +439,8 @@ const SIGN_TOLERANCE_Q30: i32 = 1074;
 const SIGN_ANGLES: u32 = 16;
 
 /// Parses `bytes` and checks the command's sign at every node inside the
-/// table's command range and [`SIGN_ANGLES`] angles: Z ≤ 0 (within
-/// [`SIGN_TOLERANCE_Q30`]). Runs once, at construction.
+/// table's command range and 16 angles: Z ≤ 0 (within 1 µin,
+/// the truncation and quantisation slack). Runs once, at construction.
 pub fn load_table(bytes: &'static [u8]) -> Result<CommandGen<'static>, TableError> {
     let table = CoeffTable::parse(bytes)?;
     let gen = CommandGen::new(table);
