@@ -98,7 +98,8 @@ pub fn run(json: bool) -> Result<u8, String> {
     let mut prev_pc: Option<u32> = None;
     // `ISR_COST_PROFILE=<report>`: that report's count per call and its
     // executions per instruction address (to stderr), for finding where a
-    // handler's budget goes.
+    // handler's budget goes; `ISR_COST_CALL=<n>` limits the histogram to
+    // call n (numbered from 0).
     let profile = std::env::var("ISR_COST_PROFILE").ok();
     let mut histogram: BTreeMap<u32, u64> = BTreeMap::new();
     for line in BufReader::new(trace).lines().map_while(Result::ok) {
@@ -132,7 +133,10 @@ pub fn run(json: bool) -> Result<u8, String> {
         for m in open.iter_mut().rev() {
             m.3 += 1;
             if profile.as_deref() == Some(m.0) {
-                *histogram.entry(pc).or_default() += 1;
+                let call = stats.get(m.0).map_or(0, |s| s.calls);
+                if std::env::var("ISR_COST_CALL").map_or(true, |c| c == call.to_string()) {
+                    *histogram.entry(pc).or_default() += 1;
+                }
             }
             if m.0.starts_with("TIMER") {
                 break;
