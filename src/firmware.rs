@@ -967,6 +967,13 @@ impl LoopState {
             self.hold_safe(dac);
             return;
         }
+        // A reading on a rail without OV: the gauge's own output is pinned,
+        // so the loop cannot see where the slide is beyond it.
+        if sample.code <= CODE_MIN || sample.code >= CODE_MAX {
+            self.trip(Fault::GaugeSaturated);
+            self.hold_safe(dac);
+            return;
+        }
         let code = if self.gauge_reversed {
             sample.code.saturating_neg()
         } else {
@@ -1561,6 +1568,33 @@ mod tests {
         fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
         assert!(fw.dac_clamped());
         assert_eq!(d.clamps, 3);
+    }
+
+    #[test]
+    fn gauge_pinned_at_either_rail_is_saturated_and_disables_amplifier() {
+        // The AD4020's extreme codes, ±10 V (±0.010 in), without OV.
+        for code in [(1 << 19) - 1, -(1 << 19)] {
+            let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+            let mut g = Gauge(Ok(GaugeSample {
+                code,
+                overrange: false,
+            }));
+            let mut d = Dac::default();
+            fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+            assert_eq!(fw.fault(), Some(Fault::GaugeSaturated));
+            assert!(d.writes.is_empty());
+            assert_eq!(d.clamps, 1);
+            assert!(!fw.amplifier_enable());
+        }
+        // One code inside the rail is a reading like any other.
+        let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+        let mut g = Gauge(Ok(GaugeSample {
+            code: (1 << 19) - 2,
+            overrange: false,
+        }));
+        let mut d = Dac::default();
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert_eq!(fw.fault(), None);
     }
 
     #[test]
