@@ -696,14 +696,17 @@ fn fast_columns(
                 Some(_) => return general_columns(g, held, n, slot, which, x),
             },
         };
-        // `as_chunks`, not `chunks_exact(4)`: the zip of two `ChunksExact`
-        // sizes them with a division by the run-time chunk size, which left
-        // a `panic_const_div_by_zero` call in the X handler (found by
-        // `cargo xtask no-panic`); arrays of a constant size need none.
-        let rows = t.node_row(node).as_chunks::<4>().0.iter();
-        let rows = rows.zip(t.node_row(node + 1).as_chunks::<4>().0.iter());
-        let word = |b: &[u8; 4]| i32::from_le_bytes(*b);
-        for ((lo, d), (a, b)) in c.lo.iter_mut().zip(c.d.iter_mut()).zip(rows) {
+        // The rows are stepped with `next`, not zipped: a zip of
+        // `ChunksExact` sizes itself with a division by the run-time chunk
+        // size, which left a `panic_const_div_by_zero` call in the X handler
+        // (found by `cargo xtask no-panic`).
+        let mut lo_rows = t.node_row(node).chunks_exact(4);
+        let mut hi_rows = t.node_row(node + 1).chunks_exact(4);
+        let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
+        for (lo, d) in c.lo.iter_mut().zip(c.d.iter_mut()) {
+            let (Some(a), Some(b)) = (lo_rows.next(), hi_rows.next()) else {
+                break;
+            };
             // |values| ≤ 2²⁶ (checked at load): the change fits an i32.
             *lo = word(a);
             *d = word(b).wrapping_sub(*lo);

@@ -316,12 +316,16 @@ impl<'a> Interpolator<'a> {
     /// columns as the table has and the slices hold.
     pub fn columns(&self, at: Locus, values: &mut [i32], deltas: &mut [i32]) {
         let (n, f) = self.interval(at);
-        // Constant-size chunks: `chunks_exact(4)` zipped would size the
-        // zip with a division by a run-time chunk size (a panic path).
-        let rows = self.table.node_row(n).as_chunks::<4>().0.iter();
-        let rows = rows.zip(self.table.node_row(n + 1).as_chunks::<4>().0.iter());
+        // Stepped pairwise with `next` (`Iterator::zip` of two
+        // `ChunksExact` sizes itself with a division by the run-time chunk
+        // size: a panic path).
+        let (mut lo_rows, mut hi_rows) = (
+            self.table.node_row(n).chunks_exact(4),
+            self.table.node_row(n + 1).chunks_exact(4),
+        );
+        let rows = core::iter::from_fn(move || Some((lo_rows.next()?, hi_rows.next()?)));
         let sh = self.fc + 1;
-        let word = |b: &[u8; 4]| i32::from_le_bytes(*b);
+        let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
         if self.fc == 30 {
             // The table is already in Q30 (the default): constant shifts
             // only, identical results to the general path below.
