@@ -696,12 +696,17 @@ fn fast_columns(
                 Some(_) => return general_columns(g, held, n, slot, which, x),
             },
         };
-        let rows = t
-            .node_row(node)
-            .chunks_exact(4)
-            .zip(t.node_row(node + 1).chunks_exact(4));
+        // The rows are stepped with `next`, not zipped: a zip of
+        // `ChunksExact` sizes itself with a division by the run-time chunk
+        // size, which left a `panic_const_div_by_zero` call in the X handler
+        // (found by `cargo xtask no-panic`).
+        let mut lo_rows = t.node_row(node).chunks_exact(4);
+        let mut hi_rows = t.node_row(node + 1).chunks_exact(4);
         let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
-        for ((lo, d), (a, b)) in c.lo.iter_mut().zip(c.d.iter_mut()).zip(rows) {
+        for (lo, d) in c.lo.iter_mut().zip(c.d.iter_mut()) {
+            let (Some(a), Some(b)) = (lo_rows.next(), hi_rows.next()) else {
+                break;
+            };
             // |values| ≤ 2²⁶ (checked at load): the change fits an i32.
             *lo = word(a);
             *d = word(b).wrapping_sub(*lo);
@@ -962,6 +967,13 @@ impl LoopState {
         };
         if sample.overrange {
             self.trip(Fault::GaugeRange);
+            self.hold_safe(dac);
+            return;
+        }
+        // A reading on a rail without OV: the gauge's own output is pinned,
+        // so the loop cannot see where the slide is beyond it.
+        if sample.code <= CODE_MIN || sample.code >= CODE_MAX {
+            self.trip(Fault::GaugeSaturated);
             self.hold_safe(dac);
             return;
         }
@@ -1559,6 +1571,33 @@ mod tests {
         fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
         assert!(fw.dac_clamped());
         assert_eq!(d.clamps, 3);
+    }
+
+    #[test]
+    fn gauge_pinned_at_either_rail_is_saturated_and_disables_amplifier() {
+        // The AD4020's extreme codes, ±10 V (±0.010 in), without OV.
+        for code in [(1 << 19) - 1, -(1 << 19)] {
+            let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+            let mut g = Gauge(Ok(GaugeSample {
+                code,
+                overrange: false,
+            }));
+            let mut d = Dac::default();
+            fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+            assert_eq!(fw.fault(), Some(Fault::GaugeSaturated));
+            assert!(d.writes.is_empty());
+            assert_eq!(d.clamps, 1);
+            assert!(!fw.amplifier_enable());
+        }
+        // One code inside the rail is a reading like any other.
+        let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+        let mut g = Gauge(Ok(GaugeSample {
+            code: (1 << 19) - 2,
+            overrange: false,
+        }));
+        let mut d = Dac::default();
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert_eq!(fw.fault(), None);
     }
 
     #[test]

@@ -316,11 +316,14 @@ impl<'a> Interpolator<'a> {
     /// columns as the table has and the slices hold.
     pub fn columns(&self, at: Locus, values: &mut [i32], deltas: &mut [i32]) {
         let (n, f) = self.interval(at);
-        let rows = self
-            .table
-            .node_row(n)
-            .chunks_exact(4)
-            .zip(self.table.node_row(n + 1).chunks_exact(4));
+        // Stepped pairwise with `next` (`Iterator::zip` of two
+        // `ChunksExact` sizes itself with a division by the run-time chunk
+        // size: a panic path).
+        let (mut lo_rows, mut hi_rows) = (
+            self.table.node_row(n).chunks_exact(4),
+            self.table.node_row(n + 1).chunks_exact(4),
+        );
+        let rows = core::iter::from_fn(move || Some((lo_rows.next()?, hi_rows.next()?)));
         let sh = self.fc + 1;
         let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
         if self.fc == 30 {

@@ -23,7 +23,7 @@ mod board;
 
 #[cfg(target_os = "none")]
 mod app {
-    use core::cell::RefCell;
+    use core::cell::Cell;
     use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
     use cortex_m::peripheral::NVIC;
@@ -93,12 +93,16 @@ mod app {
         quad: Ad5686<SpiDev<SPI3, Output>, Output>,
     }
 
+    // `Cell`, not `RefCell`: a `RefCell` borrow inside a handler links the
+    // "already borrowed" panic into it (`cargo xtask no-panic` found one in
+    // TIM3 and EXTI2); `Cell::take`/`set`/`get` under the critical section
+    // move the value whole and cannot fail.
     static SHARED: Shared = Shared::new();
-    static HANDOFF: Mutex<RefCell<Option<Loop>>> = Mutex::new(RefCell::new(None));
-    static HANDOFF_X: Mutex<RefCell<Option<XHandler>>> = Mutex::new(RefCell::new(None));
+    static HANDOFF: Mutex<Cell<Option<Loop>>> = Mutex::new(Cell::new(None));
+    static HANDOFF_X: Mutex<Cell<Option<XHandler>>> = Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The first fault the loop latched, published once for the background.
-    static FAULT: Mutex<RefCell<Option<Fault>>> = Mutex::new(RefCell::new(None));
+    static FAULT: Mutex<Cell<Option<Fault>>> = Mutex::new(Cell::new(None));
     static FAULT_PUBLISHED: AtomicBool = AtomicBool::new(false);
 
     #[entry]
@@ -106,10 +110,10 @@ mod app {
         // Before anything else: the amplifier-enable pin low (its external
         // pull-down already holds it there through reset).
         let Some(dp) = Peripherals::take() else {
-            panic!("device peripherals taken twice");
+            boot_failure("device peripherals taken twice");
         };
         let Some(mut cp) = cortex_m::Peripherals::take() else {
-            panic!("core peripherals taken twice");
+            boot_failure("core peripherals taken twice");
         };
         let watchdog_reset = clocks::take_watchdog_reset(&dp.RCC);
         let source = clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH);
@@ -146,7 +150,7 @@ mod app {
         // The table is parsed and sign-checked here; a refused one leaves
         // the firmware latched in Fault::Table with the slide nulled.
         let Ok(fw) = Firmware::with_table(zslide::DEFAULT_TABLE, config()) else {
-            panic!("firmware configuration refused");
+            boot_failure("firmware configuration refused");
         };
         let (mut lp, ev) = fw.into_parts();
         if let Some(f) = lp.fault() {
@@ -159,7 +163,7 @@ mod app {
         }
         let quad = match Ad5686::new(quad_spi, Output(pins::QUAD_DAC_LDAC)) {
             Ok(q) => q,
-            Err(_) => panic!("LDAC pin"),
+            Err(_) => boot_failure("coefficient DAC LDAC pin"),
         };
         timers::start_spindle_encoder(&dp.TIM4);
         let lp = Loop {
@@ -169,8 +173,8 @@ mod app {
             spindle: SpindleEncoder::new(),
         };
         critical_section::with(|cs| {
-            HANDOFF.borrow(cs).replace(Some(lp));
-            HANDOFF_X.borrow(cs).replace(Some(XHandler { ev, quad }));
+            HANDOFF.borrow(cs).set(Some(lp));
+            HANDOFF_X.borrow(cs).set(Some(XHandler { ev, quad }));
         });
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
@@ -191,13 +195,28 @@ mod app {
         background()
     }
 
+    /// A boot that cannot go on (a refused configuration, say): not a
+    /// panic, so that the image has no panic path of its own; the outputs
+    /// are made safe exactly as the panic handler does, the reason is
+    /// logged, and the core stays halted. The interrupts were never
+    /// unmasked and the watchdog never started, so nothing restarts it into
+    /// the same refusal: power-cycle or reflash after fixing the cause.
+    fn boot_failure(reason: &str) -> ! {
+        cortex_m::interrupt::disable();
+        board::force_amplifier_off();
+        defmt::error!("boot refused: {=str} ({})", reason, Fault::Panic);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
     /// Thread mode, the lowest priority: reports, then sleeps.
     fn background() -> ! {
         let mut last_report = timers::micros();
         let mut reported_fault = false;
         loop {
             if !reported_fault && FAULT_PUBLISHED.load(Ordering::Acquire) {
-                let fault = critical_section::with(|cs| *FAULT.borrow(cs).borrow());
+                let fault = critical_section::with(|cs| FAULT.borrow(cs).get());
                 if let Some(f) = fault {
                     defmt::error!("fault {} -> {}", f, f.reaction());
                 }
@@ -240,7 +259,7 @@ mod app {
         TICKS.store(l.lp.ticks(), Ordering::Relaxed);
         if let Some(f) = l.lp.fault() {
             if !FAULT_PUBLISHED.load(Ordering::Relaxed) {
-                critical_section::with(|cs| FAULT.borrow(cs).replace(Some(f)));
+                critical_section::with(|cs| FAULT.borrow(cs).set(Some(f)));
                 FAULT_PUBLISHED.store(true, Ordering::Release);
             }
         }

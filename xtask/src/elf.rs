@@ -34,6 +34,7 @@ struct Section {
     name: u32,
     kind: u32,
     flags: u32,
+    addr: u32,
     offset: u32,
     size: u32,
     link: u32,
@@ -60,6 +61,7 @@ fn sections(b: &[u8]) -> Option<Vec<Section>> {
                 name: u32_at(b, h)?,
                 kind: u32_at(b, h + 4)?,
                 flags: u32_at(b, h + 8)?,
+                addr: u32_at(b, h + 12)?,
                 offset: u32_at(b, h + 16)?,
                 size: u32_at(b, h + 20)?,
                 link: u32_at(b, h + 24)?,
@@ -134,4 +136,60 @@ pub fn functions(path: &Path) -> Result<Vec<Symbol>, String> {
         });
     }
     Ok(out)
+}
+
+/// What the panic-path check needs of an image: every symbol with its kind,
+/// and the bytes of the allocated, initialised sections at their addresses.
+pub struct Image {
+    /// (name, value, size, STT_* kind); the value keeps the Thumb bit.
+    pub symbols: Vec<(String, u32, u32, u8)>,
+    /// (section name, load address, bytes) of each allocated PROGBITS section.
+    pub sections: Vec<(String, u32, Vec<u8>)>,
+}
+
+fn c_str(b: &[u8], at: usize) -> String {
+    let Some(tail) = b.get(at..) else {
+        return String::new();
+    };
+    let end = tail.iter().position(|&c| c == 0).unwrap_or(tail.len());
+    String::from_utf8_lossy(&tail[..end]).into_owned()
+}
+
+pub fn image(path: &Path) -> Result<Image, String> {
+    let b = read(path)?;
+    let bad = || format!("{}: malformed ELF", path.display());
+    let secs = sections(&b).ok_or_else(bad)?;
+    let shstrndx = u16_at(&b, 0x32).ok_or_else(bad)? as usize;
+    let shstr = secs.get(shstrndx).ok_or_else(bad)?;
+    let mut sections = Vec::new();
+    for s in secs
+        .iter()
+        .filter(|s| s.flags & SHF_ALLOC != 0 && s.kind != SHT_NOBITS && s.size > 0)
+    {
+        let bytes = b
+            .get(s.offset as usize..(s.offset as usize + s.size as usize))
+            .ok_or_else(bad)?;
+        let name = c_str(&b, shstr.offset as usize + s.name as usize);
+        sections.push((name, s.addr, bytes.to_vec()));
+    }
+    let symtab = secs
+        .iter()
+        .find(|s| s.kind == SHT_SYMTAB)
+        .ok_or_else(|| format!("{}: no symbol table", path.display()))?;
+    let strtab = secs.get(symtab.link as usize).ok_or_else(bad)?;
+    let mut symbols = Vec::new();
+    for i in 0..symtab.size as usize / 16 {
+        let at = symtab.offset as usize + i * 16;
+        let (Some(name), Some(value), Some(size), Some(&info)) = (
+            u32_at(&b, at),
+            u32_at(&b, at + 4),
+            u32_at(&b, at + 8),
+            b.get(at + 12),
+        ) else {
+            return Err(bad());
+        };
+        let name = c_str(&b, strtab.offset as usize + name as usize);
+        symbols.push((name, value, size, info & 0xF));
+    }
+    Ok(Image { symbols, sections })
 }

@@ -9,9 +9,12 @@
 //!   (`--bless` rewrites that file), and exits with the image's status.
 //! * `size`    – flash and RAM use of both images (builds them first).
 //! * `isr-cost [--json]` – instructions per interrupt handler under QEMU.
+//! * `no-panic` – builds both images and proves that no panic path is
+//!   reachable from their interrupt handlers (`nopanic.rs`); part of `test`.
 
 mod elf;
 mod isr_cost;
+mod nopanic;
 
 use std::env;
 use std::fs;
@@ -34,13 +37,15 @@ fn main() -> ExitCode {
         "qemu" => cmd_qemu(flags.iter().any(|a| a == "--bless")),
         "size" => cmd_size(),
         "isr-cost" => isr_cost::run(flags.iter().any(|a| a == "--json")),
+        "no-panic" => cmd_no_panic(),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test | qemu [--bless] | size | isr-cost [--json]>\n\
+                "usage: cargo xtask <test | qemu [--bless] | size | isr-cost [--json] | no-panic>\n\
                  \n  test      host tests, board firmware, QEMU image run (installs what it can)\
                  \n  qemu      build and run the QEMU image; exit status passed through\
                  \n  size      flash and RAM use of both images\
-                 \n  isr-cost  instructions per interrupt handler under QEMU"
+                 \n  isr-cost  instructions per interrupt handler under QEMU\
+                 \n  no-panic  prove no panic path is reachable from the images' interrupt handlers"
             );
             return ExitCode::from(if cmd == "help" { 0 } else { 2 });
         }
@@ -439,6 +444,31 @@ fn cmd_size() -> Result<u8> {
     Ok(0)
 }
 
+fn cmd_no_panic() -> Result<u8> {
+    require(&[Tool::Target, Tool::FlipLink])?;
+    build_board()?;
+    build_qemu()?;
+    check_no_panic()?;
+    Ok(0)
+}
+
+/// Both images: no panic path from any interrupt handler (`nopanic.rs`).
+fn check_no_panic() -> Result<()> {
+    step("no panic path from interrupt handlers (both images)");
+    let mut errors = Vec::new();
+    for elf in [board_elf(), qemu_elf()] {
+        match nopanic::check(&elf) {
+            Ok(summary) => eprintln!("{summary}"),
+            Err(e) => errors.push(e),
+        }
+    }
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(errors.join("\n"))
+    }
+}
+
 fn print_sizes() -> Result<()> {
     step("image sizes");
     for (name, path, flash_total, ram_total) in [
@@ -541,6 +571,7 @@ fn cmd_test() -> Result<u8> {
         build_board()?;
         build_qemu()?;
         print_sizes()?;
+        check_no_panic()?;
     }
     let mut qemu_code = None;
     if qemu_possible {
@@ -563,6 +594,9 @@ fn cmd_test() -> Result<u8> {
             "NOT BUILT"
         }
     );
+    if firmware_possible {
+        eprintln!("panic paths from interrupt handlers: none (both images)");
+    }
     eprintln!(
         "QEMU image: {}",
         match qemu_code {

@@ -533,6 +533,8 @@ fn exit(ok: bool) -> ! {
     }
 }
 
+// cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its body
+// does nothing unsafe itself.
 #[exception]
 unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
     defmt::error!("FAIL: hard fault at pc {=u32:#010x}", ef.pc());
