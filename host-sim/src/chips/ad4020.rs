@@ -35,12 +35,9 @@ impl Ad4020State {
     pub fn convert(&mut self, volts: f64) {
         let max = (1i32 << 19) - 1;
         let min = -(1i32 << 19);
-        let raw = (volts * f64::from(1u32 << 19) / FULL_SCALE_V).round();
-        let code = if raw.is_nan() {
-            0
-        } else {
-            raw.clamp(f64::from(min), f64::from(max)) as i32
-        };
+        // Same as `round()` then clamp (NaN → 0), without the software round.
+        let raw = crate::fastmath::round_i64(volts * f64::from(1u32 << 19) / FULL_SCALE_V);
+        let code = raw.clamp(i64::from(min), i64::from(max)) as i32;
         let ov = volts.abs() >= FULL_SCALE_V || volts.is_nan();
         self.code = code;
         self.input_v = volts;

@@ -118,6 +118,7 @@ impl Frame {
 
 /// Runs the operations of one transaction against a 24-bit MISO word;
 /// returns the MOSI bytes. Bytes past the third read as 0 on MISO.
+#[inline]
 pub(crate) fn shift(ops: &mut [Operation<'_, u8>], miso_word: u32) -> Frame {
     let miso = [
         (miso_word >> 16) as u8,
@@ -141,6 +142,14 @@ pub(crate) fn shift(ops: &mut [Operation<'_, u8>], miso_word: u32) -> Frame {
             _ => {}
         }
     }
+    shift_general(ops, miso)
+}
+
+/// Any other shape of transaction, byte by byte (kept out of line so the
+/// 3-byte fast path above inlines into the chips).
+#[inline(never)]
+fn shift_general(ops: &mut [Operation<'_, u8>], miso: [u8; 3]) -> Frame {
+    let mut f = Frame::default();
     let push = |b: u8, f: &mut Frame| -> u8 {
         let out = miso.get(f.len).copied().unwrap_or(0);
         if let Some(slot) = f.bytes.get_mut(f.len) {
@@ -183,30 +192,45 @@ pub(crate) fn shift(ops: &mut [Operation<'_, u8>], miso_word: u32) -> Frame {
 
 /// Applies an injected fault around [`shift`]: returns the MOSI frame the
 /// chip sees (`None`: the chip sees no frame) or the error.
+#[inline]
 pub(crate) fn faulty_shift(
     ops: &mut [Operation<'_, u8>],
     miso_word: u32,
     fault: Option<BusFault>,
 ) -> Result<Option<Frame>, SimSpiError> {
+    // The fault-free frame is the per-tick common case (two per loop tick):
+    // keep it inline in the chip's `transaction`, the injected faults out of line.
     match fault {
         None => Ok(Some(shift(ops, miso_word))),
-        Some(BusFault::Error) => {
+        Some(f) => injected_shift(ops, miso_word, f),
+    }
+}
+
+#[cold]
+#[inline(never)]
+fn injected_shift(
+    ops: &mut [Operation<'_, u8>],
+    miso_word: u32,
+    fault: BusFault,
+) -> Result<Option<Frame>, SimSpiError> {
+    match fault {
+        BusFault::Error => {
             fill_reads(ops, 0xFF);
             Err(SimSpiError)
         }
-        Some(BusFault::StuckLow) => {
+        BusFault::StuckLow => {
             let mut f = shift(ops, 0);
             f.bytes = [0; 8];
             Ok(Some(f))
         }
-        Some(BusFault::StuckHigh) => {
+        BusFault::StuckHigh => {
             let mut f = shift(ops, 0xFF_FFFF);
             fill_reads(ops, 0xFF);
             f.bytes = [0xFF; 8];
             Ok(Some(f))
         }
-        Some(BusFault::FlipMiso(n)) => Ok(Some(shift(ops, miso_word ^ (1 << (n % 24))))),
-        Some(BusFault::FlipMosi(n)) => {
+        BusFault::FlipMiso(n) => Ok(Some(shift(ops, miso_word ^ (1 << (n % 24))))),
+        BusFault::FlipMosi(n) => {
             let mut f = shift(ops, miso_word);
             if let Some(w) = f.word24() {
                 let w = w ^ (1 << (n % 24));
@@ -216,7 +240,7 @@ pub(crate) fn faulty_shift(
             }
             Ok(Some(f))
         }
-        Some(BusFault::Drop) => {
+        BusFault::Drop => {
             shift(ops, 0);
             Ok(None)
         }

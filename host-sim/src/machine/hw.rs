@@ -194,7 +194,7 @@ impl SpindleLink {
         } else {
             0.0
         };
-        (rpm * k * (1.0 + gain) + noise).round() as i32
+        crate::fastmath::round_i32(rpm * k * (1.0 + gain) + noise)
     }
 }
 

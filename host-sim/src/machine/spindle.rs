@@ -167,8 +167,9 @@ impl Spindle {
         } else {
             0.0
         };
-        (self.rpm * self.cfg.tach_mv_per_rpm * (1.0 + self.cfg.tach_gain_error) + noise).round()
-            as i32
+        crate::fastmath::round_i32(
+            self.rpm * self.cfg.tach_mv_per_rpm * (1.0 + self.cfg.tach_gain_error) + noise,
+        )
     }
 
     fn target_rpm(&self, turns: f64) -> f64 {

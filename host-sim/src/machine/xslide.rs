@@ -172,7 +172,8 @@ impl XSlide {
             } else {
                 0.0
             };
-            let target = (self.nominal_x(ts) * COUNTS_PER_INCH + vib + jit).round() as i64;
+            let target =
+                crate::fastmath::round_i64(self.nominal_x(ts) * COUNTS_PER_INCH + vib + jit);
             let n = (target - self.count).unsigned_abs().max(1);
             let mut k = 0u64;
             while self.count != target {

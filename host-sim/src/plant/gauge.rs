@@ -131,7 +131,7 @@ impl Gauge {
                     let a = (-(h_ns as f64 * 1e-9) / tau).exp();
                     self.ou_coef = (h_ns, a, (1.0 - a * a).sqrt());
                 }
-                // Box–Muller gives deviates in pairs; use both.
+                // The polar method gives deviates in pairs; use both.
                 let w = match self.spare.take() {
                     Some(w) => w,
                     None => {
@@ -194,16 +194,25 @@ impl Gauge {
     }
 }
 
-/// Standard normal deviate (Box–Muller, first of the pair).
+/// Standard normal deviate (first of a polar pair).
 pub fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
     gaussian_pair(rng).0
 }
 
-/// Two independent standard normal deviates (Box–Muller).
+/// Two independent standard normal deviates (Marsaglia's polar method).
+///
+/// Replaces Box–Muller (same distribution, different sequence for a seed):
+/// the polar form needs no `sin_cos`, which was ≈ 130 of the ≈ 250
+/// instructions per pair on the per-tick gauge path; it rejects 21.5 % of
+/// the uniform pairs, still far cheaper. Deterministic for a seed.
 pub fn gaussian_pair(rng: &mut ChaCha8Rng) -> (f64, f64) {
-    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
-    let u2: f64 = rng.random::<f64>();
-    let r = (-2.0 * u1.ln()).sqrt();
-    let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
-    (r * c, r * s)
+    loop {
+        let u = 2.0 * rng.random::<f64>() - 1.0;
+        let v = 2.0 * rng.random::<f64>() - 1.0;
+        let s = u * u + v * v;
+        if s > 0.0 && s < 1.0 {
+            let m = (-2.0 * s.ln() / s).sqrt();
+            return (u * m, v * m);
+        }
+    }
 }
