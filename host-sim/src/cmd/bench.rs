@@ -227,14 +227,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     ms.run_until(&mut mw, t_end);
     let machine_wall = t0.elapsed().as_secs_f64();
-    let machine_events_per_s = (0..ms.fired.len())
-        .map(|k| {
-            (
-                ms.source_name(k).to_string(),
-                ms.fired[k] as f64 / args.seconds,
-            )
-        })
-        .collect();
+    // Interrupts the firmware actually took. The scheduler's per-source
+    // counts would also include the X and spindle models' look-ahead
+    // wake-ups, which are simulator work, not interrupts.
+    let stats = mw
+        .machine
+        .as_ref()
+        .map(|m| m.stats.clone())
+        .unwrap_or_default();
+    let loop_ticks = (0..ms.fired.len())
+        .find(|&k| ms.source_name(k) == "loop_tick")
+        .map_or(0, |k| ms.fired[k]);
+    let machine_events_per_s = [
+        ("loop_tick", loop_ticks),
+        ("x_event", stats.x_events),
+        ("index", stats.index_events),
+    ]
+    .into_iter()
+    .map(|(name, n)| (name.to_string(), n as f64 / args.seconds))
+    .collect();
     let mut cl = crate::analog1983::AnalogClosedLoop::legacy();
     let t0 = Instant::now();
     for k in 0..n / 4 {
