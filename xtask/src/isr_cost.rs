@@ -65,7 +65,17 @@ const VARIANTS: [(Option<&str>, &str); 2] = [(Some("modern-x"), "_modern"), (Non
 pub fn run(json: bool) -> Result<u8, String> {
     crate::require_for_qemu()?;
     let mut stats: BTreeMap<String, Stats> = BTreeMap::new();
+    // `ISR_COST_VARIANT=modern` (or `legacy`): trace that image only.
+    let only = std::env::var("ISR_COST_VARIANT").ok();
     for (features, suffix) in VARIANTS {
+        let name = if suffix.is_empty() {
+            "legacy"
+        } else {
+            "modern"
+        };
+        if only.as_deref().is_some_and(|o| o != name) {
+            continue;
+        }
         match features {
             Some(f) => crate::build_qemu_image_with(f)?,
             None => crate::build_qemu_image()?,
