@@ -682,9 +682,7 @@ impl IntervalCache {
     /// The coefficients at `x` into `c`, bit for bit what
     /// [`CommandGen::coefficients_into`] gives (the modern X mode's
     /// re-interpolation in the loop tick: one multiply-add per column while
-    /// X stays in the interval, one flash row more at a crossing). `held`:
-    /// the interval whose changes `c.delta` holds (written only when it
-    /// changes).
+    /// X stays in the interval, one flash row more at a crossing).
     #[inline(always)]
     fn coefficients_into(
         &mut self,
@@ -692,28 +690,16 @@ impl IntervalCache {
         n: usize,
         x: XInches,
         c: &mut Coefficients,
-        held: &mut Option<u32>,
     ) -> Result<(), Fault> {
         let f = match self.seek(g, n, x)? {
             Seek::In(f) => f,
-            Seek::Null | Seek::General => {
-                *held = None;
-                return g.coefficients_into(x, c);
-            }
+            Seek::Null | Seek::General => return g.coefficients_into(x, c),
         };
-        for (v, (lo, d)) in c
-            .value
-            .iter_mut()
-            .zip(self.lo.iter().zip(self.d.iter()))
-            .take(n)
-        {
+        let src = self.lo.iter().zip(self.d.iter());
+        let dst = c.value.iter_mut().zip(c.delta.iter_mut());
+        for ((v, dv), (lo, d)) in dst.zip(src).take(n) {
             *v = Self::lerp(*lo, *d, f);
-        }
-        if *held != self.interval {
-            for (dv, d) in c.delta.iter_mut().zip(self.d.iter()).take(n) {
-                *dv = *d;
-            }
-            *held = self.interval;
+            *dv = *d;
         }
         c.set_live(n as u8, x);
         Ok(())
@@ -866,12 +852,17 @@ enum Estimator {
 }
 
 #[derive(Clone, Debug)]
+// The large variant is the only one a modern-X firmware uses (no heap to
+// box it in; the enum lives once, in the loop-tick state). Keeping the
+// cache here measured cheaper on the M4 than a separate field, and so did
+// copying the slopes every time over testing whether they changed.
+#[allow(clippy::large_enum_variant)]
 enum LoopX {
     /// Coefficients arrive from the X handler.
     Published,
-    /// Modern X: re-interpolated in the tick (through
-    /// [`LoopState::x_cache`] when the table takes the fast path).
-    Count(CountX),
+    /// Modern X: re-interpolated in the tick, through the interval cache
+    /// when the table takes the fast path (`Some`).
+    Count(CountX, Option<IntervalCache>),
     None,
 }
 
@@ -889,9 +880,6 @@ pub struct LoopState {
     gen: Option<CommandGen<'static>>,
     spindle: Estimator,
     x: LoopX,
-    /// Modern X on a fast-path table: the interval cache, and the interval
-    /// whose changes `coeffs.delta` holds.
-    x_cache: Option<(IntervalCache, Option<u32>)>,
     gauge_reversed: bool,
     coeffs: Coefficients,
     coeff_seen: u32,
@@ -935,7 +923,6 @@ impl LoopState {
             gen: None,
             spindle: Estimator::None,
             x: LoopX::None,
-            x_cache: None,
             gauge_reversed: false,
             coeffs: Coefficients::NULL,
             coeff_seen: 0,
@@ -1118,17 +1105,13 @@ impl LoopState {
         };
 
         // Modern X: re-interpolate when the count moved.
-        if let LoopX::Count(cx) = &mut self.x {
+        if let LoopX::Count(cx, cache) = &mut self.x {
             if self.last_x_count != Some(input.x_count) {
                 self.last_x_count = Some(input.x_count);
-                let r = match (
-                    cx.on_tick(input.x_count),
-                    self.gen.as_ref(),
-                    &mut self.x_cache,
-                ) {
-                    (Ok(x), Some(g), Some((c, held))) => {
+                let r = match (cx.on_tick(input.x_count), self.gen.as_ref(), cache) {
+                    (Ok(x), Some(g), Some(c)) => {
                         let n = usize::from(g.interpolator().table().header().terms);
-                        c.coefficients_into(g, n.min(COLS), x, &mut self.coeffs, held)
+                        c.coefficients_into(g, n.min(COLS), x, &mut self.coeffs)
                     }
                     (Ok(x), Some(g), None) => g.coefficients_into(x, &mut self.coeffs),
                     (Err(f), _, _) => Err(f),
@@ -1346,8 +1329,7 @@ impl Firmware {
             XMode::Count(c) => {
                 let cx = CountX::new(c).ok_or(ConfigError::Count)?;
                 let fast = fast_and_terms(gen.as_ref()).0;
-                lp.x_cache = fast.then(|| (IntervalCache::new(gen.as_ref()), None));
-                LoopX::Count(cx)
+                LoopX::Count(cx, fast.then(|| IntervalCache::new(gen.as_ref())))
             }
         };
         if let Err(e) = loaded {
