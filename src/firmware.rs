@@ -510,35 +510,13 @@ impl EventState {
             }
             _ => None,
         };
-        let (fast, terms) = match gen {
-            Some(g) => {
-                let h = g.interpolator().table().header();
-                (
-                    h.coeff_frac_bits == 30
-                        && g.interpolator().max_abs_q30() <= i64::from(COEFF_LIMIT / 2)
-                        && g.interpolator().x_in_grid_units(),
-                    h.terms.min(MAX_TERMS),
-                )
-            }
-            None => (false, 0),
-        };
+        let (fast, terms) = fast_and_terms(gen.as_ref());
         Self {
             gen,
             legacy,
             coefficient_output: cfg.coefficient_output,
             out: LegacyOutput::new(),
-            cache: IntervalCache {
-                interval: None,
-                lo: [0; COLS],
-                d: [0; COLS],
-                x_lo: 0,
-                x_hi: 0,
-                x0: gen.map_or(0, |g| g.interpolator().table().node_x(0).to_bits()),
-                dx: gen.map_or(0, |g| {
-                    let t = g.interpolator().table();
-                    t.node_x(1).to_bits().wrapping_sub(t.node_x(0).to_bits())
-                }),
-            },
+            cache: IntervalCache::new(gen.as_ref()),
             fast,
             terms,
             slot_interval: [None; 2],
@@ -656,17 +634,172 @@ fn general_columns(
     Ok(true)
 }
 
-/// The columns at `x` for Q30 tables within ±2²⁶ (every real one), bit
-/// for bit what [`CommandGen::coefficients_into`] gives:
-///
-/// * the interval: the cached one while X stays in it (X moves by
-///   half-mils, ~60 events per 1/32 in), its neighbour when X crosses a
-///   node, a search only after a jump; the fraction from the remainder
-///   exactly as [`crate::interp::Interpolator::locate`] forms it;
-/// * the two node rows and their differences read once per interval;
-/// * per column one 32×32 → 64 multiply-add, no division anywhere;
-/// * the interval changes written to a slot only when that slot does not
-///   hold them yet.
+/// Whether `gen`'s table takes the cached path: Q30 with every
+/// |coefficient| ≤ COEFF_LIMIT/2 (all real ones: no clamp in
+/// `coefficients_into`, node changes fit an i32) and a grid in X bits; and
+/// its live column count.
+fn fast_and_terms(gen: Option<&CommandGen<'static>>) -> (bool, u8) {
+    match gen {
+        Some(g) => {
+            let h = g.interpolator().table().header();
+            (
+                h.coeff_frac_bits == 30
+                    && g.interpolator().max_abs_q30() <= i64::from(COEFF_LIMIT / 2)
+                    && g.interpolator().x_in_grid_units(),
+                h.terms.min(MAX_TERMS),
+            )
+        }
+        None => (false, 0),
+    }
+}
+
+/// Where [`IntervalCache::seek`] found X.
+enum Seek {
+    /// Beyond the table's command range: the null command.
+    Null,
+    /// On the last node: the command path's own way.
+    General,
+    /// Inside the cached interval, Q31 position in it.
+    In(i32),
+}
+
+impl IntervalCache {
+    fn new(gen: Option<&CommandGen<'static>>) -> Self {
+        Self {
+            interval: None,
+            lo: [0; COLS],
+            d: [0; COLS],
+            x_lo: 0,
+            x_hi: 0,
+            x0: gen.map_or(0, |g| g.interpolator().table().node_x(0).to_bits()),
+            dx: gen.map_or(0, |g| {
+                let t = g.interpolator().table();
+                t.node_x(1).to_bits().wrapping_sub(t.node_x(0).to_bits())
+            }),
+        }
+    }
+
+    /// The coefficients at `x` into `c`, bit for bit what
+    /// [`CommandGen::coefficients_into`] gives (the modern X mode's
+    /// re-interpolation in the loop tick: one multiply-add per column while
+    /// X stays in the interval, one flash row more at a crossing).
+    #[inline(always)]
+    fn coefficients_into(
+        &mut self,
+        g: &CommandGen<'static>,
+        n: usize,
+        x: XInches,
+        c: &mut Coefficients,
+    ) -> Result<(), Fault> {
+        let f = match self.seek(g, n, x)? {
+            Seek::In(f) => f,
+            Seek::Null | Seek::General => return g.coefficients_into(x, c),
+        };
+        let src = self.lo.iter().zip(self.d.iter());
+        let dst = c.value.iter_mut().zip(c.delta.iter_mut());
+        for ((v, dv), (lo, d)) in dst.zip(src).take(n) {
+            *v = Self::lerp(*lo, *d, f);
+            *dv = *d;
+        }
+        c.set_live(n as u8, x);
+        Ok(())
+    }
+
+    /// Moves the cache to the interval holding `x` (for Q30 tables within
+    /// ±2²⁶, every real one) and gives the position in it, bit for bit what
+    /// [`crate::interp::Interpolator::locate`] gives:
+    ///
+    /// * the cached interval while X stays in it (X moves by half-mils,
+    ///   ~60 events per 1/32 in), its neighbour when X crosses a node, a
+    ///   search only after a jump; the fraction from the remainder exactly
+    ///   as `locate` forms it;
+    /// * at a crossing to a neighbour only the one new node row is read
+    ///   from flash: the shared node's values are the cached `lo` or
+    ///   `lo + d`, exactly (the change was formed from them);
+    /// * no division anywhere.
+    #[inline(always)]
+    fn seek(&mut self, g: &CommandGen<'static>, n: usize, x: XInches) -> Result<Seek, Fault> {
+        if x > g.x_null() {
+            return Ok(Seek::Null);
+        }
+        let it = g.interpolator();
+        let t = it.table();
+        let bits = x.to_bits();
+        let inside = self.interval.is_some() && bits >= self.x_lo && bits < self.x_hi;
+        if !inside {
+            let dx = self.dx;
+            let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
+            let node = match self.interval {
+                Some(k) if bits >= self.x_hi && bits - self.x_hi < dx && k + 2 < t.node_count() => {
+                    // Up: the old high node is the new low one.
+                    let hi = t.node_row(k + 2).chunks_exact(4);
+                    for ((lo, d), b) in self.lo.iter_mut().zip(self.d.iter_mut()).zip(hi).take(n) {
+                        // |values| ≤ 2²⁶ (checked at load): sums and
+                        // changes fit an i32.
+                        *lo = lo.wrapping_add(*d);
+                        *d = word(b).wrapping_sub(*lo);
+                    }
+                    k + 1
+                }
+                Some(k) if bits < self.x_lo && self.x_lo - bits <= dx && k > 0 => {
+                    // Down: the old low node is the new high one.
+                    let lo_row = t.node_row(k - 1).chunks_exact(4);
+                    for ((lo, d), a) in self
+                        .lo
+                        .iter_mut()
+                        .zip(self.d.iter_mut())
+                        .zip(lo_row)
+                        .take(n)
+                    {
+                        let v = word(a);
+                        *d = lo.wrapping_sub(v);
+                        *lo = v;
+                    }
+                    k - 1
+                }
+                _ => {
+                    let node = match g.locate(x)? {
+                        None => return Ok(Seek::Null),
+                        Some(at) if at.node + 1 < t.node_count() => at.node,
+                        Some(_) => return Ok(Seek::General),
+                    };
+                    let rows = t
+                        .node_row(node)
+                        .chunks_exact(4)
+                        .zip(t.node_row(node + 1).chunks_exact(4));
+                    for ((lo, d), (a, b)) in self.lo.iter_mut().zip(self.d.iter_mut()).zip(rows) {
+                        *lo = word(a);
+                        *d = word(b).wrapping_sub(*lo);
+                    }
+                    node
+                }
+            };
+            self.interval = Some(node);
+            // The grid is exact in X bits (fast path): x0 + node·ΔX, no
+            // overflow (the parser checked the last node fits).
+            self.x_lo = self.x0.wrapping_add((node as i32).wrapping_mul(self.dx));
+            self.x_hi = self.x_lo.wrapping_add(self.dx);
+        }
+        let rem = u64::from(bits.wrapping_sub(self.x_lo) as u32);
+        // Interpolator::interval: Q31 position = the Q32 fraction >> 1.
+        Ok(Seek::In((it.frac_of_rem(rem) >> 1) as i32))
+    }
+
+    /// Column `lo + d·f` of the cached interval at Q31 position `f`:
+    /// `Interpolator::lerp` for Q30 tables, (d·f + 2³⁰) >> 31, as
+    /// (2d·f + 2³¹) >> 32: the same integer (|2d| ≤ 2²⁸ fits an i32), and
+    /// one SMMULR on the M4.
+    #[inline(always)]
+    fn lerp(lo: i32, d: i32, f: i32) -> i32 {
+        let step = (i64::from(d << 1) * i64::from(f) + (1 << 31)) >> 32;
+        lo.wrapping_add(step as i32)
+    }
+}
+
+/// The columns at `x` through the interval cache ([`IntervalCache::seek`]),
+/// bit for bit what [`CommandGen::coefficients_into`] gives: per column one
+/// 32×32 → 64 multiply-add; the interval changes written to a slot only
+/// when that slot does not hold them yet.
 #[inline(always)]
 fn fast_columns(
     g: &CommandGen<'static>,
@@ -677,56 +810,14 @@ fn fast_columns(
     which: usize,
     x: XInches,
 ) -> Result<bool, Fault> {
-    if x > g.x_null() {
-        return Ok(false);
-    }
-    let it = g.interpolator();
-    let t = it.table();
-    let bits = x.to_bits();
-    let inside = c.interval.is_some() && bits >= c.x_lo && bits < c.x_hi;
-    if !inside {
-        let dx = c.dx;
-        let node = match c.interval {
-            Some(n) if bits >= c.x_hi && bits - c.x_hi < dx && n + 2 < t.node_count() => n + 1,
-            Some(n) if bits < c.x_lo && c.x_lo - bits <= dx && n > 0 => n - 1,
-            _ => match g.locate(x)? {
-                None => return Ok(false),
-                Some(at) if at.node + 1 < t.node_count() => at.node,
-                // X on the last node: the command path's own way.
-                Some(_) => return general_columns(g, held, n, slot, which, x),
-            },
-        };
-        // The rows are stepped with `next`, not zipped: a zip of
-        // `ChunksExact` sizes itself with a division by the run-time chunk
-        // size, which left a `panic_const_div_by_zero` call in the X handler
-        // (found by `cargo xtask no-panic`).
-        let mut lo_rows = t.node_row(node).chunks_exact(4);
-        let mut hi_rows = t.node_row(node + 1).chunks_exact(4);
-        let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
-        for (lo, d) in c.lo.iter_mut().zip(c.d.iter_mut()) {
-            let (Some(a), Some(b)) = (lo_rows.next(), hi_rows.next()) else {
-                break;
-            };
-            // |values| ≤ 2²⁶ (checked at load): the change fits an i32.
-            *lo = word(a);
-            *d = word(b).wrapping_sub(*lo);
-        }
-        c.interval = Some(node);
-        // The grid is exact in X bits (fast path): x0 + node·ΔX, no overflow
-        // (the parser checked the last node fits).
-        c.x_lo = c.x0.wrapping_add((node as i32).wrapping_mul(c.dx));
-        c.x_hi = c.x_lo.wrapping_add(c.dx);
-    }
-    let rem = u64::from(bits.wrapping_sub(c.x_lo) as u32);
-    // Interpolator::interval: Q31 position = the Q32 fraction >> 1.
-    let f = (it.frac_of_rem(rem) >> 1) as i32;
+    let f = match c.seek(g, n, x)? {
+        Seek::Null => return Ok(false),
+        Seek::General => return general_columns(g, held, n, slot, which, x),
+        Seek::In(f) => f,
+    };
     let cols = c.lo.iter().zip(c.d.iter());
     for ((lo, d), v) in cols.zip(slot.value.iter()).take(n) {
-        // Interpolator::lerp for Q30 tables, (d·f + 2³⁰) >> 31, as
-        // (2d·f + 2³¹) >> 32: the same integer (|2d| ≤ 2²⁸ fits an i32),
-        // and one SMMULR on the M4.
-        let step = (i64::from(d << 1) * i64::from(f) + (1 << 31)) >> 32;
-        v.store(lo.wrapping_add(step as i32), Ordering::Relaxed);
+        v.store(IntervalCache::lerp(*lo, *d, f), Ordering::Relaxed);
     }
     if let Some(s) = held.get_mut(which) {
         if *s != c.interval {
@@ -761,10 +852,17 @@ enum Estimator {
 }
 
 #[derive(Clone, Debug)]
+// The large variant is the only one a modern-X firmware uses (no heap to
+// box it in; the enum lives once, in the loop-tick state). Keeping the
+// cache here measured cheaper on the M4 than a separate field, and so did
+// copying the slopes every time over testing whether they changed.
+#[allow(clippy::large_enum_variant)]
 enum LoopX {
     /// Coefficients arrive from the X handler.
     Published,
-    Count(CountX),
+    /// Modern X: re-interpolated in the tick, through the interval cache
+    /// when the table takes the fast path (`Some`).
+    Count(CountX, Option<IntervalCache>),
     None,
 }
 
@@ -1014,13 +1112,17 @@ impl LoopState {
         };
 
         // Modern X: re-interpolate when the count moved.
-        if let LoopX::Count(cx) = &mut self.x {
+        if let LoopX::Count(cx, cache) = &mut self.x {
             if self.last_x_count != Some(input.x_count) {
                 self.last_x_count = Some(input.x_count);
-                let r = match (cx.on_tick(input.x_count), self.gen.as_ref()) {
-                    (Ok(x), Some(g)) => g.coefficients_into(x, &mut self.coeffs),
-                    (Err(f), _) => Err(f),
-                    (Ok(_), None) => Ok(()),
+                let r = match (cx.on_tick(input.x_count), self.gen.as_ref(), cache) {
+                    (Ok(x), Some(g), Some(c)) => {
+                        let n = usize::from(g.interpolator().table().header().terms);
+                        c.coefficients_into(g, n.min(COLS), x, &mut self.coeffs)
+                    }
+                    (Ok(x), Some(g), None) => g.coefficients_into(x, &mut self.coeffs),
+                    (Err(f), _, _) => Err(f),
+                    (Ok(_), None, _) => Ok(()),
                 };
                 if let Err(f) = r {
                     self.trip(f);
@@ -1231,7 +1333,11 @@ impl Firmware {
         lp.x = match cfg.x {
             XMode::None => LoopX::None,
             XMode::Legacy { .. } => LoopX::Published,
-            XMode::Count(c) => LoopX::Count(CountX::new(c).ok_or(ConfigError::Count)?),
+            XMode::Count(c) => {
+                let cx = CountX::new(c).ok_or(ConfigError::Count)?;
+                let fast = fast_and_terms(gen.as_ref()).0;
+                LoopX::Count(cx, fast.then(|| IntervalCache::new(gen.as_ref())))
+            }
         };
         if let Err(e) = loaded {
             lp.trip(Fault::Table(e));
@@ -1940,6 +2046,49 @@ mod tests {
         input.x_count = 10;
         fw.loop_tick(&input, &mut g, &mut d);
         assert_eq!(fw.fault(), Some(Fault::XGlitchStorm));
+    }
+
+    /// The modern X mode's cached re-interpolation equals the command path
+    /// bit for bit over the whole table: walking up and down through every
+    /// interval (crossings to both neighbours), jumps of several intervals,
+    /// every node exactly, the last node and the null zone.
+    #[test]
+    fn modern_x_cache_matches_the_command_path_over_the_table() {
+        let cc = CountConfig {
+            counts_per_inch: 1 << 24, // one count per X LSB: nodes exactly
+            zero_count: 0,
+            max_step_counts: u32::MAX,
+        };
+        let mut fw = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
+        let gen = *fw.command_gen().unwrap();
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        let t = gen.interpolator().table();
+        let last = t.node_x(t.node_count() - 1).to_bits();
+        let dx = t.node_x(1).to_bits() - t.node_x(0).to_bits();
+        // Steps that are not a divisor of the grid, so every phase occurs.
+        let up = (0..=last + dx).step_by(40_009);
+        let down = (0..=last + dx).rev().step_by(33_331);
+        let jumps = (0..400i64).map(|k| ((k * 7_919_993) % i64::from(last + dx)) as i32);
+        let nodes = (0..t.node_count()).map(|n| t.node_x(n).to_bits());
+        let mut checked = 0;
+        for bits in up.chain(down).chain(jumps).chain(nodes) {
+            let mut input = TickInput::NONE;
+            input.x_count = bits as u32;
+            fw.loop_tick(&input, &mut g, &mut d);
+            let got = fw.loop_state().coefficients();
+            assert_eq!(got.x().to_bits(), bits);
+            let want = gen.coefficients(got.x()).unwrap();
+            assert_eq!(got.null, want.null, "x bits {bits}");
+            if !want.null {
+                let n = usize::from(want.terms());
+                assert_eq!(got.terms(), want.terms());
+                assert_eq!(got.value[..n], want.value[..n], "x bits {bits}");
+                assert_eq!(got.delta[..n], want.delta[..n], "x bits {bits}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 1000);
+        assert_eq!(fw.fault(), None);
     }
 
     #[test]

@@ -57,116 +57,32 @@ fn qemu_major() -> u32 {
         .unwrap_or(0)
 }
 
+/// Image variants measured: the `boards/qemu` cargo features and the suffix
+/// of their report names. The modern X mode (X count re-interpolated in the
+/// loop tick) first, so the plain (legacy X) image is the one left built.
+const VARIANTS: [(Option<&str>, &str); 2] = [(Some("modern-x"), "_modern"), (None, "")];
+
 pub fn run(json: bool) -> Result<u8, String> {
     crate::require_for_qemu()?;
-    crate::build_qemu_image()?;
-    let elf_path = crate::qemu_elf();
-    let mut funcs: Vec<Symbol> = elf::functions(&elf_path)?
-        .into_iter()
-        .filter(|f| f.size > 0)
-        .collect();
-    funcs.sort_by_key(|f| f.addr);
-    funcs.dedup_by_key(|f| f.addr);
-    let mut targets: BTreeMap<u32, &str> = BTreeMap::new();
-    for (report, pattern) in TARGETS {
-        let f = funcs
-            .iter()
-            .find(|f| f.name == pattern || (pattern.len() > 8 && f.name.contains(pattern)))
-            .ok_or_else(|| format!("isr-cost: no function `{pattern}` in the image"))?;
-        targets.insert(f.addr, report);
-    }
-
-    let mut cmd = crate::qemu_command(&elf_path);
-    if qemu_major() >= 8 {
-        cmd.args(["-accel", "tcg,one-insn-per-tb=on"]);
-    } else {
-        cmd.arg("-singlestep");
-    }
-    cmd.args(["-d", "exec,nochain"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped());
-    eprintln!("isr-cost: running the QEMU image with an execution trace");
-    let mut child = cmd
-        .spawn()
-        .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
-    let trace = child.stderr.take().ok_or("no QEMU stderr")?;
-
-    let mut stats: BTreeMap<&str, Stats> = BTreeMap::new();
-    // Open measurements: (report, caller range start, caller range end, count).
-    let mut open: Vec<(&str, u32, u32, u64)> = Vec::new();
-    let mut prev_pc: Option<u32> = None;
-    // `ISR_COST_PROFILE=<report>`: that report's count per call and its
-    // executions per instruction address (to stderr), for finding where a
-    // handler's budget goes; `ISR_COST_CALL=<n>` limits the histogram to
-    // call n (numbered from 0).
-    let profile = std::env::var("ISR_COST_PROFILE").ok();
-    let mut histogram: BTreeMap<u32, u64> = BTreeMap::new();
-    for line in BufReader::new(trace).lines().map_while(Result::ok) {
-        // "Trace 0: 0x7f.. [00800408/000024ae/00000110/ff020201] name"
-        let Some(pc) = line
-            .split_once('[')
-            .and_then(|(_, r)| r.split('/').nth(1))
-            .and_then(|h| u32::from_str_radix(h, 16).ok())
-        else {
-            continue;
+    let mut stats: BTreeMap<String, Stats> = BTreeMap::new();
+    // `ISR_COST_VARIANT=modern` (or `legacy`): trace that image only.
+    let only = std::env::var("ISR_COST_VARIANT").ok();
+    for (features, suffix) in VARIANTS {
+        let name = if suffix.is_empty() {
+            "legacy"
+        } else {
+            "modern"
         };
-        // Close measurements whose caller is running again (innermost first).
-        while let Some(&(report, lo, hi, n)) = open.last() {
-            if pc >= lo && pc < hi {
-                open.pop();
-                let s = stats.entry(report).or_default();
-                if profile.as_deref() == Some(report) {
-                    eprintln!("  call {} {n}", s.calls);
-                }
-                s.calls += 1;
-                s.total += n;
-                s.max = s.max.max(n);
-                s.min = if s.calls == 1 { n } else { s.min.min(n) };
-            } else {
-                break;
-            }
+        if only.as_deref().is_some_and(|o| o != name) {
+            continue;
         }
-        // Every open measurement counts the instruction, down to (and
-        // including) the innermost exception handler: a handler that
-        // preempted a measured function is not that function's cost.
-        for m in open.iter_mut().rev() {
-            m.3 += 1;
-            if profile.as_deref() == Some(m.0) {
-                let call = stats.get(m.0).map_or(0, |s| s.calls);
-                if std::env::var("ISR_COST_CALL").map_or(true, |c| c == call.to_string()) {
-                    *histogram.entry(pc).or_default() += 1;
-                }
-            }
-            if m.0.starts_with("TIMER") {
-                break;
-            }
+        match features {
+            Some(f) => crate::build_qemu_image_with(f)?,
+            None => crate::build_qemu_image()?,
         }
-        if let Some(&report) = targets.get(&pc) {
-            let caller = prev_pc.and_then(|p| find(&funcs, p));
-            if let Some(c) = caller {
-                if !(pc >= c.addr && pc < c.addr + c.size) {
-                    open.push((report, c.addr, c.addr + c.size, 1));
-                }
-            }
-        }
-        prev_pc = Some(pc);
+        stats.extend(measure(suffix)?);
     }
-    let status = child.wait().map_err(|e| format!("qemu: {e}"))?;
-    if !status.success() {
-        return Err(format!("the QEMU image failed under tracing ({status})"));
-    }
-    let sizes = elf::sizes(&elf_path)?;
-    if let Some(p) = &profile {
-        let calls = stats.get(p.as_str()).map_or(1, |s| s.calls.max(1));
-        eprintln!(
-            "isr-cost profile of {p} ({calls} calls): address, executions per call, function"
-        );
-        for (pc, n) in &histogram {
-            let f = find(&funcs, *pc).map_or("?", |f| f.name.as_str());
-            eprintln!("  {pc:#010x} {:8.2}  {f}", *n as f64 / calls as f64);
-        }
-    }
+    let sizes = elf::sizes(&crate::qemu_elf())?;
 
     if json {
         let mut out = String::from("{");
@@ -203,4 +119,122 @@ pub fn run(json: bool) -> Result<u8, String> {
         );
     }
     Ok(0)
+}
+
+/// Runs the image built last under an execution trace; reports named with
+/// `suffix` appended.
+fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
+    let elf_path = crate::qemu_elf();
+    let mut funcs: Vec<Symbol> = elf::functions(&elf_path)?
+        .into_iter()
+        .filter(|f| f.size > 0)
+        .collect();
+    funcs.sort_by_key(|f| f.addr);
+    funcs.dedup_by_key(|f| f.addr);
+    let mut targets: BTreeMap<u32, String> = BTreeMap::new();
+    for (report, pattern) in TARGETS {
+        let found = funcs
+            .iter()
+            .find(|f| f.name == pattern || (pattern.len() > 8 && f.name.contains(pattern)));
+        let f = match found {
+            Some(f) => f,
+            // A variant may not call every entry point (the modern X image
+            // has no X event); the plain image must have them all.
+            None if !suffix.is_empty() => continue,
+            None => return Err(format!("isr-cost: no function `{pattern}` in the image")),
+        };
+        targets.insert(f.addr, format!("{report}{suffix}"));
+    }
+
+    let mut cmd = crate::qemu_command(&elf_path);
+    if qemu_major() >= 8 {
+        cmd.args(["-accel", "tcg,one-insn-per-tb=on"]);
+    } else {
+        cmd.arg("-singlestep");
+    }
+    cmd.args(["-d", "exec,nochain"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    eprintln!("isr-cost: running the QEMU image with an execution trace");
+    let mut child = cmd
+        .spawn()
+        .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
+    let trace = child.stderr.take().ok_or("no QEMU stderr")?;
+
+    let mut stats: BTreeMap<String, Stats> = BTreeMap::new();
+    // Open measurements: (report, caller range start, caller range end, count).
+    let mut open: Vec<(&str, u32, u32, u64)> = Vec::new();
+    let mut prev_pc: Option<u32> = None;
+    // `ISR_COST_PROFILE=<report>`: that report's count per call and its
+    // executions per instruction address (to stderr), for finding where a
+    // handler's budget goes; `ISR_COST_CALL=<n>` limits the histogram to
+    // call n (numbered from 0).
+    let profile = std::env::var("ISR_COST_PROFILE").ok();
+    let mut histogram: BTreeMap<u32, u64> = BTreeMap::new();
+    for line in BufReader::new(trace).lines().map_while(Result::ok) {
+        // "Trace 0: 0x7f.. [00800408/000024ae/00000110/ff020201] name"
+        let Some(pc) = line
+            .split_once('[')
+            .and_then(|(_, r)| r.split('/').nth(1))
+            .and_then(|h| u32::from_str_radix(h, 16).ok())
+        else {
+            continue;
+        };
+        // Close measurements whose caller is running again (innermost first).
+        while let Some(&(report, lo, hi, n)) = open.last() {
+            if pc >= lo && pc < hi {
+                open.pop();
+                let s = stats.entry(report.to_string()).or_default();
+                if profile.as_deref() == Some(report) {
+                    eprintln!("  call {} {n}", s.calls);
+                }
+                s.calls += 1;
+                s.total += n;
+                s.max = s.max.max(n);
+                s.min = if s.calls == 1 { n } else { s.min.min(n) };
+            } else {
+                break;
+            }
+        }
+        // Every open measurement counts the instruction, down to (and
+        // including) the innermost exception handler: a handler that
+        // preempted a measured function is not that function's cost.
+        for m in open.iter_mut().rev() {
+            m.3 += 1;
+            if profile.as_deref() == Some(m.0) {
+                let call = stats.get(m.0).map_or(0, |s| s.calls);
+                if std::env::var("ISR_COST_CALL").map_or(true, |c| c == call.to_string()) {
+                    *histogram.entry(pc).or_default() += 1;
+                }
+            }
+            if m.0.starts_with("TIMER") {
+                break;
+            }
+        }
+        if let Some(report) = targets.get(&pc) {
+            let caller = prev_pc.and_then(|p| find(&funcs, p));
+            if let Some(c) = caller {
+                if !(pc >= c.addr && pc < c.addr + c.size) {
+                    open.push((report.as_str(), c.addr, c.addr + c.size, 1));
+                }
+            }
+        }
+        prev_pc = Some(pc);
+    }
+    let status = child.wait().map_err(|e| format!("qemu: {e}"))?;
+    if !status.success() {
+        return Err(format!("the QEMU image failed under tracing ({status})"));
+    }
+    if let Some(p) = &profile {
+        let calls = stats.get(p.as_str()).map_or(1, |s| s.calls.max(1));
+        eprintln!(
+            "isr-cost profile of {p} ({calls} calls): address, executions per call, function"
+        );
+        for (pc, n) in &histogram {
+            let f = find(&funcs, *pc).map_or("?", |f| f.name.as_str());
+            eprintln!("  {pc:#010x} {:8.2}  {f}", *n as f64 / calls as f64);
+        }
+    }
+    Ok(stats)
 }

@@ -285,6 +285,21 @@ pub fn build_qemu_image() -> Result<()> {
     build_qemu()
 }
 
+/// The QEMU image with extra cargo features of `boards/qemu` (e.g.
+/// `modern-x`), at the same path as [`build_qemu_image`]'s: build the plain
+/// one again before running the log check.
+pub fn build_qemu_image_with(features: &str) -> Result<()> {
+    step(&format!(
+        "QEMU image: cargo build --release --features {features} (boards/qemu)"
+    ));
+    run(
+        cargo()
+            .current_dir(qemu_dir())
+            .args(["build", "--release", "--features", features]),
+        "QEMU image build",
+    )
+}
+
 fn build_qemu() -> Result<()> {
     step("QEMU image: cargo build --release (boards/qemu, mps2-an386)");
     // From its own directory: that picks up its .cargo/config.toml (target,

@@ -13,6 +13,12 @@
 //!   (with duplicate words the debounce must ignore and a reversal), and the
 //!   spindle's index pulses, into `EventState::x_event` / `index_event`.
 //! * The two handlers share only `SHARED` (atomics, `zslide::firmware`).
+//! * With the `modern-x` feature X is instead a count (0.5 µin per count)
+//!   read by the loop tick, moving at the same 20 in/min from 2.0 in (a new
+//!   count nearly every tick, so the tick re-interpolates the coefficients
+//!   nearly every time: the worst case of that mode); timer 1 plays only
+//!   the index pulses, and check 2 asks for no X events and the loop's
+//!   coefficients at the last count's X.
 //!
 //! World time is the loop tick count × 50 µs (the firmware's clock counts
 //! 25 MHz from it), so the run and its log are deterministic. defmt goes out
@@ -55,7 +61,7 @@ use zslide::hw::EncoderSample;
 use zslide::safety::{Device, Fault};
 use zslide::spindle::EncoderConfig;
 use zslide::units::SpindleAngle;
-use zslide::xpos::{half_mils_to_x, latch_word};
+use zslide::xpos::{half_mils_to_x, latch_word, CountConfig, CountX};
 
 /// Loop-tick rate, Hz (the real board's rate).
 const LOOP_HZ: u32 = 20_000;
@@ -87,6 +93,14 @@ const INDEX0: u32 = 300;
 const X_START_HM: u32 = 4_000;
 const X_FIRST: u32 = 10;
 const X_EVERY: u32 = 30;
+/// Modern X (`modern-x`): counts per inch of the X count (0.5 µin each),
+/// 1000 counts per half-mil.
+const X_COUNTS_PER_INCH: i32 = 2_000_000;
+const X_COUNT_CFG: CountConfig = CountConfig {
+    counts_per_inch: X_COUNTS_PER_INCH,
+    zero_count: 0,
+    max_step_counts: 1_000,
+};
 /// Events (by number) that the latch repeats right away: debounced.
 const DUPLICATES: [u32; 4] = [15, 45, 75, 105];
 /// From this event on the feed reverses one half-mil and resumes.
@@ -135,9 +149,20 @@ fn x_script(i: u32) -> u32 {
 fn x_tick(i: u32) -> u32 {
     X_FIRST + X_EVERY * i
 }
-/// X events scheduled before [`EVENTS_UNTIL`].
+/// X events scheduled before [`EVENTS_UNTIL`] (none with a counted X).
 fn x_events() -> u32 {
+    if cfg!(feature = "modern-x") {
+        return 0;
+    }
     (EVENTS_UNTIL - X_FIRST).div_ceil(X_EVERY)
+}
+/// The X count at loop tick `n` (`modern-x`): the same 20 in/min from
+/// 2.0000 in as the legacy script (one half-mil per [`X_EVERY`] ticks from
+/// tick [`X_FIRST`]), continuous, until [`EVENTS_UNTIL`].
+fn x_count_at(n: u32) -> u32 {
+    let per_hm = (X_COUNTS_PER_INCH / 2000) as u32;
+    let moved = n.clamp(X_FIRST, EVENTS_UNTIL) - X_FIRST;
+    X_START_HM * per_hm + moved * per_hm / X_EVERY
 }
 /// Index pulses before [`EVENTS_UNTIL`].
 fn index_pulses() -> u32 {
@@ -215,7 +240,7 @@ fn TIMER0() {
     let input = TickInput {
         now: now as u32,
         spindle: SpindleReading::Encoder(encoder_at(now)),
-        x_count: 0,
+        x_count: x_count_at(n),
     };
 
     run.lp
@@ -331,7 +356,11 @@ fn main() -> ! {
             index_tolerance_counts: 32,
             index_angle: SpindleAngle(0),
         }),
-        x: XMode::Legacy { clock_hz: CLOCK_HZ },
+        x: if cfg!(feature = "modern-x") {
+            XMode::Count(X_COUNT_CFG)
+        } else {
+            XMode::Legacy { clock_hz: CLOCK_HZ }
+        },
         coefficient_output: false,
         gauge_reversed: false,
     };
@@ -455,7 +484,11 @@ fn main() -> ! {
 
     let scheduled = x_events();
     let dups = DUPLICATES.iter().filter(|&&i| i < scheduled).count() as u32;
-    let last_x = half_mils_to_x(x_script(scheduled - 1));
+    let last_x = match (scheduled.checked_sub(1), CountX::new(X_COUNT_CFG)) {
+        (Some(last), _) => half_mils_to_x(x_script(last)),
+        (None, Some(cx)) => cx.x(x_count_at(INJECT_AT)),
+        (None, None) => zslide::units::XInches::ZERO,
+    };
     let (accepted, ignored) = (SHARED.x_accepted(), SHARED.x_ignored());
     defmt::info!(
         "X events: {=u32} accepted, {=u32} ignored (scripted {=u32} + {=u32} duplicates); {=u32} coefficient sets published; loop coefficients at {} (last X {}), null {=bool}",
