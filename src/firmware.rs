@@ -732,8 +732,13 @@ impl IntervalCache {
             let node = match self.interval {
                 Some(k) if bits >= self.x_hi && bits - self.x_hi < dx && k + 2 < t.node_count() => {
                     // Up: the old high node is the new low one.
-                    let hi = t.node_row(k + 2).chunks_exact(4);
-                    for ((lo, d), b) in self.lo.iter_mut().zip(self.d.iter_mut()).zip(hi).take(n) {
+                    // Rows are stepped with `next`, never zipped: a zip of
+                    // `ChunksExact` sizes itself with a division by the
+                    // run-time chunk size, a `panic_const_div_by_zero` path
+                    // in the handler (`cargo xtask no-panic` finds it).
+                    let mut hi = t.node_row(k + 2).chunks_exact(4);
+                    for (lo, d) in self.lo.iter_mut().zip(self.d.iter_mut()).take(n) {
+                        let Some(b) = hi.next() else { break };
                         // |values| ≤ 2²⁶ (checked at load): sums and
                         // changes fit an i32.
                         *lo = lo.wrapping_add(*d);
@@ -743,14 +748,9 @@ impl IntervalCache {
                 }
                 Some(k) if bits < self.x_lo && self.x_lo - bits <= dx && k > 0 => {
                     // Down: the old low node is the new high one.
-                    let lo_row = t.node_row(k - 1).chunks_exact(4);
-                    for ((lo, d), a) in self
-                        .lo
-                        .iter_mut()
-                        .zip(self.d.iter_mut())
-                        .zip(lo_row)
-                        .take(n)
-                    {
+                    let mut lo_row = t.node_row(k - 1).chunks_exact(4);
+                    for (lo, d) in self.lo.iter_mut().zip(self.d.iter_mut()).take(n) {
+                        let Some(a) = lo_row.next() else { break };
                         let v = word(a);
                         *d = lo.wrapping_sub(v);
                         *lo = v;
@@ -763,11 +763,12 @@ impl IntervalCache {
                         Some(at) if at.node + 1 < t.node_count() => at.node,
                         Some(_) => return Ok(Seek::General),
                     };
-                    let rows = t
-                        .node_row(node)
-                        .chunks_exact(4)
-                        .zip(t.node_row(node + 1).chunks_exact(4));
-                    for ((lo, d), (a, b)) in self.lo.iter_mut().zip(self.d.iter_mut()).zip(rows) {
+                    let mut lo_row = t.node_row(node).chunks_exact(4);
+                    let mut hi_row = t.node_row(node + 1).chunks_exact(4);
+                    for (lo, d) in self.lo.iter_mut().zip(self.d.iter_mut()) {
+                        let (Some(a), Some(b)) = (lo_row.next(), hi_row.next()) else {
+                            break;
+                        };
                         *lo = word(a);
                         *d = word(b).wrapping_sub(*lo);
                     }
