@@ -10,16 +10,16 @@
 #![forbid(unsafe_code)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-pub mod firmware;
-pub mod hw;
-pub mod safety;
-pub mod table;
-pub mod units;
 pub mod command;
 pub mod drivers;
+pub mod firmware;
+pub mod hw;
 pub mod interp;
+pub mod safety;
 pub mod spindle;
+pub mod table;
 pub mod trig;
+pub mod units;
 pub mod xpos;
 
 /// The default coefficient table, embedded in the firmware: the dissertation's
