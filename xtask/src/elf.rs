@@ -100,42 +100,20 @@ pub struct Symbol {
     pub size: u32,
 }
 
-/// The function symbols (STT_FUNC) of the image.
+/// The function symbols (STT_FUNC) of the image: [`image`]'s symbol table,
+/// filtered, with the Thumb bit cleared.
 pub fn functions(path: &Path) -> Result<Vec<Symbol>, String> {
-    let b = read(path)?;
-    let bad = || format!("{}: malformed ELF", path.display());
-    let secs = sections(&b).ok_or_else(bad)?;
-    let symtab = secs
-        .iter()
-        .find(|s| s.kind == SHT_SYMTAB)
-        .ok_or_else(|| format!("{}: no symbol table", path.display()))?;
-    let strtab = secs.get(symtab.link as usize).ok_or_else(bad)?;
-    let mut out = Vec::new();
-    let count = symtab.size as usize / 16;
-    for i in 0..count {
-        let at = symtab.offset as usize + i * 16;
-        let (Some(name), Some(value), Some(size), Some(&info)) = (
-            u32_at(&b, at),
-            u32_at(&b, at + 4),
-            u32_at(&b, at + 8),
-            b.get(at + 12),
-        ) else {
-            return Err(bad());
-        };
-        if info & 0xF != 2 {
-            continue; // not STT_FUNC
-        }
-        let start = strtab.offset as usize + name as usize;
-        let Some(tail) = b.get(start..) else { continue };
-        let end = tail.iter().position(|&c| c == 0).unwrap_or(tail.len());
-        let name = String::from_utf8_lossy(&tail[..end]).into_owned();
-        out.push(Symbol {
+    const STT_FUNC: u8 = 2;
+    Ok(image(path)?
+        .symbols
+        .into_iter()
+        .filter(|s| s.3 == STT_FUNC)
+        .map(|(name, value, size, _)| Symbol {
             name,
             addr: value & !1,
             size,
-        });
-    }
-    Ok(out)
+        })
+        .collect())
 }
 
 /// What the panic-path check needs of an image: every symbol with its kind,
