@@ -16,6 +16,7 @@ pub mod firmware;
 pub mod hw;
 pub mod interp;
 pub mod safety;
+pub mod servo;
 pub mod spindle;
 pub mod table;
 pub mod trig;

@@ -37,8 +37,10 @@ pub enum Fault {
     Bus(Device),
     /// |command − position| beyond the configured limit.
     FollowingError,
-    /// Amplifier current limit reached or amplifier tripped.
+    /// The estimated coil current sat at its limit for longer than allowed.
     CurrentLimit,
+    /// The amplifier's fault line: it tripped (its own current limit).
+    AmplifierTrip,
     /// Command and response disagree in sign (reversed gauge or wiring).
     SignCheck,
     Watchdog,
@@ -74,9 +76,34 @@ impl Fault {
             | Fault::GaugeSaturated
             | Fault::Bus(_)
             | Fault::CurrentLimit
+            | Fault::AmplifierTrip
             | Fault::SignCheck
             | Fault::Watchdog
             | Fault::Panic => Reaction::DisableAmplifier,
+        }
+    }
+
+    /// The cause in words, for logs and the fault table.
+    pub const fn reason(self) -> &'static str {
+        match self {
+            Fault::Table(_) => "coefficient table refused (format, CRC or sign check at load)",
+            Fault::XOutsideTable => "X outside the range the coefficient table covers",
+            Fault::XGlitchStorm => "X counter glitch storm (too many events that changed nothing or jumped)",
+            Fault::XBadBcd => "X latch held a digit that is not BCD",
+            Fault::IndexMissing => "spindle index pulse missing",
+            Fault::IndexExtra => "extra spindle index pulse",
+            Fault::SpindleSpeed => "spindle speed outside the accepted band",
+            Fault::GaugeRange => "gauge out of range (overrange flag)",
+            Fault::GaugeSaturated => "gauge reading pinned at full scale",
+            Fault::Bus(Device::AmplifierDac) => "amplifier DAC bus error",
+            Fault::Bus(Device::GaugeAdc) => "gauge ADC bus error",
+            Fault::Bus(Device::CoefficientDac) => "coefficient DAC bus error",
+            Fault::FollowingError => "following error beyond its limit",
+            Fault::CurrentLimit => "estimated coil current held at its limit too long",
+            Fault::AmplifierTrip => "amplifier tripped (its fault line is set)",
+            Fault::SignCheck => "sign check failed: the slide did not move as commanded (reversed sign, dead amplifier or stuck slide)",
+            Fault::Watchdog => "watchdog: a handler stopped making progress",
+            Fault::Panic => "firmware panic",
         }
     }
 }

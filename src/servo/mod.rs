@@ -1,0 +1,387 @@
+//! The Z-slide position loop: what the loop tick does between reading the
+//! gauge and writing the amplifier DAC. It knows nothing of tables,
+//! interrupts or chips: it receives the gauge code, the reference from the
+//! command path (position, velocity and acceleration from the analytic
+//! derivatives), the spindle angle, and returns a DAC code and the
+//! amplifier enable.
+//!
+//! ```text
+//! gauge ─▶ hum notch ─▶ observer (ẑ, v̂, d̂) ──────────────┐
+//!                 │                                        ▼
+//! reference r,ṙ,r̈ ─▶ slew/range ─▶ + learned c(φ) ─▶ state feedback + plant-inverse FF − d̂
+//!                 │        ▲                                    │
+//!                 └─ error ┴─ repetitive (by spindle angle)      ▼
+//!                                           current limit ─▶ mode notch ─▶ DAC
+//! ```
+//!
+//! One concept per file: [`design`] (f64 design → integer coefficients),
+//! [`filters`] (idsp notches), [`observer`] (position/velocity/disturbance
+//! estimate), [`repetitive`] (angle-indexed learning), [`limits`] (slew,
+//! range, current estimate, following error), [`engage`] (arming, sign
+//! check, bumpless engagement). This file composes them.
+//!
+//! # Number formats
+//! Gauge and DAC codes are 20-bit (2¹⁹ codes = 10 V; 1 gauge code =
+//! 0.010 in / 2¹⁹ = 0.0191 µin). Positions and DAC values inside the loop
+//! are `i64` Q16 codes; velocities Q16 codes per tick; accelerations Q16
+//! codes per tick². Gains are `i32` Q24 (Q16 for the acceleration
+//! feedforward), coefficients of the observer and notches Q30. Every
+//! product is formed from bounded operands in `i64` (bounds at each
+//! product); the sum is rounded once to a DAC code and saturated.
+
+pub mod design;
+pub mod engage;
+pub mod filters;
+pub mod limits;
+pub mod observer;
+pub mod repetitive;
+
+pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};
+pub use engage::Phase;
+pub use repetitive::Freeze;
+
+use crate::safety::Fault;
+use crate::units::SpindleAngle;
+use engage::{SignCheck, SignStep};
+use filters::Notch;
+use limits::{step_toward, CurrentLimit, FollowingError};
+use observer::{Estimate, Observer};
+use repetitive::Repetitive;
+
+/// Largest 20-bit code.
+const CODE_MAX: i64 = (1 << 19) - 1;
+
+/// The reference the command path gives the loop.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Reference {
+    /// Position, gauge codes.
+    pub code: i32,
+    /// ∂Z/∂φ·Δφ, gauge codes per tick, Q16.
+    pub velocity_q16: i64,
+    /// ∂²Z/∂φ²·Δφ², gauge codes per tick², Q16.
+    pub accel_q16: i64,
+}
+
+/// What the loop tick hands the servo.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ServoInput {
+    /// Gauge, codes, +Z (already corrected for a reversed gauge).
+    pub gauge_code: i32,
+    /// Where the command path wants the slide.
+    pub reference: Reference,
+    /// Spindle angle and its step over the last tick, when known.
+    pub angle: Option<(SpindleAngle, i32)>,
+    /// Why learning must not run this tick (besides the servo's own
+    /// reasons), e.g. X jumped or a fault is latched.
+    pub freeze: Option<Freeze>,
+    /// The amplifier's fault line (it tripped).
+    pub amplifier_tripped: bool,
+}
+
+/// What the servo decided.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ServoOutput {
+    /// Amplifier DAC code.
+    pub dac_code: i32,
+    /// Whether the amplifier may be enabled.
+    pub enable: bool,
+    /// A fault the servo detected this tick.
+    pub fault: Option<Fault>,
+}
+
+/// The sign check's last verdict, for the fault log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SignCheckResult {
+    pub moved_code: i32,
+    pub expected_code: i32,
+}
+
+/// The whole loop with its state.
+#[derive(Clone, Debug)]
+pub struct Servo {
+    cfg: ServoConfig,
+    phase: Phase,
+    arm_requested: bool,
+    hum: Option<Notch>,
+    mode: Option<Notch>,
+    observer: Observer,
+    learning: Repetitive,
+    sign: SignCheck,
+    current: CurrentLimit,
+    following: FollowingError,
+    /// The slew-limited command, gauge codes Q16.
+    command_q16: i64,
+    /// The goal of the last tick, Q16.
+    goal_q16: i64,
+    /// The reference the loop followed on the last tick (command plus
+    /// learned correction), Q16.
+    reference_q16: i64,
+    /// Gauge after the hum notch, Q16.
+    measured_q16: i64,
+    /// DAC code written on the last tick, Q16 (the observer's input).
+    output_q16: i64,
+    current_limited: bool,
+    last_sign_check: Option<SignCheckResult>,
+}
+
+impl Servo {
+    pub fn new(cfg: ServoConfig) -> Self {
+        let notch = |c: Option<[i32; 5]>| c.map(Notch::from_bits);
+        Self {
+            phase: Phase::Disarmed,
+            arm_requested: false,
+            hum: notch(cfg.hum_notch),
+            mode: notch(cfg.mode_notch),
+            observer: Observer::new(cfg.observer),
+            learning: Repetitive::new(
+                cfg.learning_gain_q16,
+                cfg.learning_lead_bins,
+                cfg.learning_q_shift,
+            ),
+            sign: SignCheck::new(
+                cfg.sign_check_code,
+                cfg.sign_check_ticks,
+                cfg.sign_check_expected_code,
+            ),
+            current: CurrentLimit::new(
+                cfg.current_limit_code,
+                cfg.k_emf_q24,
+                cfg.current_limit_ticks,
+            ),
+            following: FollowingError::new(cfg.following_error_code, cfg.following_error_ticks),
+            command_q16: 0,
+            goal_q16: 0,
+            reference_q16: 0,
+            measured_q16: 0,
+            output_q16: 0,
+            current_limited: false,
+            last_sign_check: None,
+            cfg,
+        }
+    }
+
+    /// Asks the loop to arm at its next tick (sign check, then bumpless
+    /// engagement). Ignored while armed.
+    pub fn arm(&mut self) {
+        if self.phase == Phase::Disarmed {
+            self.arm_requested = true;
+        }
+    }
+
+    /// Ramps the command to null, then disables the amplifier.
+    pub fn disarm(&mut self) {
+        self.arm_requested = false;
+        match self.phase {
+            Phase::Engaging | Phase::Engaged => self.phase = Phase::Disarming,
+            Phase::SignCheck => self.phase = Phase::Disarmed,
+            Phase::Disarmed | Phase::Disarming => {}
+        }
+    }
+
+    /// Opens the loop at once (a fault that disables the amplifier).
+    pub fn stop(&mut self) {
+        self.arm_requested = false;
+        self.phase = Phase::Disarmed;
+        self.output_q16 = 0;
+        self.current.reset();
+        self.following.reset();
+    }
+
+    /// One loop tick.
+    #[inline]
+    pub fn update(&mut self, input: &ServoInput) -> ServoOutput {
+        let y_q16 = i64::from(input.gauge_code) << 16;
+        let measured_q16 = match &mut self.hum {
+            // Q8 through the filter keeps its input within ±2²⁷.
+            Some(n) => i64::from(n.process(input.gauge_code.saturating_mul(256))) << 8,
+            None => y_q16,
+        };
+        self.measured_q16 = measured_q16;
+
+        if self.phase == Phase::Disarmed {
+            self.observer.reset(measured_q16);
+            self.output_q16 = 0;
+            if !self.arm_requested {
+                return self.idle();
+            }
+            self.arm_requested = false;
+            self.learning.clear();
+            self.current.reset();
+            self.following.reset();
+            if self.sign.enabled() {
+                self.sign.start(measured_q16);
+                self.phase = Phase::SignCheck;
+            } else {
+                self.engage(measured_q16);
+            }
+        }
+        if input.amplifier_tripped {
+            self.stop();
+            return ServoOutput {
+                fault: Some(Fault::AmplifierTrip),
+                ..self.idle()
+            };
+        }
+        if self.phase == Phase::SignCheck {
+            match self.sign.step(measured_q16) {
+                SignStep::Drive(code) => {
+                    let code = i64::from(code).clamp(-CODE_MAX, CODE_MAX);
+                    self.observer.update(code << 16, measured_q16);
+                    self.output_q16 = code << 16;
+                    return ServoOutput {
+                        dac_code: code as i32,
+                        enable: true,
+                        fault: None,
+                    };
+                }
+                SignStep::Passed => self.engage(measured_q16),
+                SignStep::Failed { moved, expected } => {
+                    self.last_sign_check = Some(SignCheckResult {
+                        moved_code: moved,
+                        expected_code: expected,
+                    });
+                    self.stop();
+                    return ServoOutput {
+                        fault: Some(Fault::SignCheck),
+                        ..self.idle()
+                    };
+                }
+            }
+        }
+
+        let est = self.observer.update(self.output_q16, measured_q16);
+
+        // The command: ramp at the slew limit toward the goal; on the goal,
+        // follow the command path's analytic rates.
+        let limit = i64::from(self.cfg.command_limit_code) << 16;
+        let goal_q16 = match self.phase {
+            Phase::Disarming => 0,
+            _ => (i64::from(input.reference.code) << 16).clamp(-limit, limit),
+        };
+        let previous = self.command_q16;
+        self.command_q16 = step_toward(previous, goal_q16, self.cfg.slew_q16);
+        let on_goal = self.command_q16 == goal_q16 && previous == self.goal_q16;
+        self.goal_q16 = goal_q16;
+        let (mut v_ref, mut a_ref) = if on_goal && self.phase != Phase::Disarming {
+            (input.reference.velocity_q16, input.reference.accel_q16)
+        } else {
+            (self.command_q16 - previous, 0)
+        };
+        match self.phase {
+            Phase::Engaging if on_goal => self.phase = Phase::Engaged,
+            Phase::Disarming if self.command_q16 == 0 => {
+                self.stop();
+                return self.idle();
+            }
+            _ => {}
+        }
+
+        // Learned correction, by spindle angle.
+        let mut reference = self.command_q16;
+        if let Some((phi, dphi)) = input.angle {
+            if self.phase == Phase::Engaged {
+                let c = self.learning.correction(phi, dphi);
+                reference += c.position_q16;
+                v_ref += c.velocity_q16;
+                a_ref += c.accel_q16;
+            }
+        }
+        self.reference_q16 = reference;
+        let error_q16 = reference - measured_q16;
+        if let Some((phi, dphi)) = input.angle {
+            let freeze = if self.phase != Phase::Engaged {
+                Some(Freeze::NotEngaged)
+            } else {
+                input.freeze
+            };
+            self.learning.learn(phi, dphi, error_q16, freeze);
+        } else {
+            self.learning.hold_for(Freeze::NoAngle, 0);
+        }
+
+        let u_q16 = self.control(&est, reference, v_ref, a_ref);
+        // Output: current limit on the estimate, mode notch, DAC range.
+        let u_code = (u_q16 + (1 << 15)) >> 16;
+        let (u_code, limited, i_fault) = self.current.apply(u_code, est.v_q16);
+        self.current_limited = limited;
+        let u_code = match &mut self.mode {
+            Some(n) => {
+                let q8 = u_code.clamp(-(1 << 23), 1 << 23) as i32 * 256;
+                (i64::from(n.process(q8)) + 128) >> 8
+            }
+            None => u_code,
+        };
+        let u_code = u_code.clamp(-CODE_MAX, CODE_MAX);
+        self.output_q16 = u_code << 16;
+        let fault = i_fault.or_else(|| self.following.check(error_q16));
+        ServoOutput {
+            dac_code: u_code as i32,
+            enable: true,
+            fault,
+        }
+    }
+
+    /// State feedback on the estimate plus the plant-inverse feedforward.
+    #[inline(always)]
+    fn control(&self, est: &Estimate, r_q16: i64, v_q16: i64, a_q16: i64) -> i64 {
+        let c = &self.cfg;
+        let bound = 1i64 << 31;
+        let e_q8 = ((r_q16 - est.z_q16) >> 8).clamp(-bound, bound);
+        let ev_q8 = ((v_q16 - est.v_q16) >> 8).clamp(-bound, bound);
+        let v_q8 = (v_q16 >> 8).clamp(-bound, bound);
+        let a = a_q16.clamp(-(1 << 30), 1 << 30);
+        // Q24 gain × Q8 signal = Q32 → Q16.
+        let fb = (i64::from(c.kp_q24) * e_q8 + i64::from(c.kd_q24) * ev_q8) >> 16;
+        let ff = ((i64::from(c.kff_q24) * v_q8) >> 16) + ((i64::from(c.ka_q16) * a) >> 16);
+        fb + ff - est.d_q16
+    }
+
+    fn engage(&mut self, y_q16: i64) {
+        self.observer.reset(y_q16);
+        self.command_q16 = y_q16;
+        self.goal_q16 = y_q16;
+        self.phase = Phase::Engaging;
+        self.current.reset();
+        self.following.reset();
+    }
+
+    fn idle(&self) -> ServoOutput {
+        ServoOutput {
+            dac_code: 0,
+            enable: false,
+            fault: None,
+        }
+    }
+
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+    /// The slew-limited command, gauge codes.
+    pub fn command_code(&self) -> i32 {
+        ((self.command_q16 + (1 << 15)) >> 16) as i32
+    }
+    /// The reference followed on the last tick (command + learned
+    /// correction), gauge codes Q16.
+    pub fn reference_q16(&self) -> i64 {
+        self.reference_q16
+    }
+    /// Gauge after the hum notch, Q16.
+    pub fn measured_q16(&self) -> i64 {
+        self.measured_q16
+    }
+    pub fn estimate(&self) -> Estimate {
+        self.observer.estimate()
+    }
+    pub fn learning(&self) -> &Repetitive {
+        &self.learning
+    }
+    pub fn current_limited(&self) -> bool {
+        self.current_limited
+    }
+    pub fn last_sign_check(&self) -> Option<SignCheckResult> {
+        self.last_sign_check
+    }
+    pub fn config(&self) -> &ServoConfig {
+        &self.cfg
+    }
+}
