@@ -108,7 +108,8 @@ pub struct ServoDesign {
     /// Repetitive learning: fraction of a revolution's error learned per
     /// revolution (0 = off, < 1).
     pub learning_gain: f64,
-    /// Phase lead of the learning, in bins of 1/256 revolution.
+    /// Phase lead of the learning, in bins of 1/256 revolution (≥ 3: see
+    /// [`super::repetitive::MIN_LEAD`]).
     pub learning_lead_bins: u32,
     /// Q-filter: each pass smooths a bin with its neighbours by
     /// `(t[j−1] − 2t[j] + t[j+1]) / 2^shift` (2 = [1 2 1]/4; larger = weaker).
@@ -138,16 +139,16 @@ impl ServoDesign {
         Self {
             rate_hz,
             slide: SlideModel::BRIEF,
-            bandwidth_hz: 40.0,
+            bandwidth_hz: 16.0,
             damping: 0.8,
-            observer_hz: 120.0,
+            observer_hz: 40.0,
             hum_notch_hz: 120.0,
             hum_notch_q: 2.0,
             mode_notch_hz: 3150.0,
             mode_notch_q: 0.7,
-            learning_gain: 0.3,
-            learning_lead_bins: 1,
-            learning_q_shift: 3,
+            learning_gain: 0.2,
+            learning_lead_bins: 3,
+            learning_q_shift: 2,
             slew_in_per_s: 0.25,
             command_limit_in: 0.0095,
             current_limit_a: 6.0,
@@ -254,7 +255,8 @@ impl ServoDesign {
         if !(0.0..1.0).contains(&self.learning_gain) {
             return Err(E::Learning);
         }
-        if self.learning_lead_bins > 32 || !(1..=8).contains(&self.learning_q_shift) {
+        if !(3..=32).contains(&self.learning_lead_bins) || !(1..=8).contains(&self.learning_q_shift)
+        {
             return Err(E::Learning);
         }
         let cpi = s.codes_per_in();
@@ -313,6 +315,7 @@ impl ServoDesign {
             sign_check_code: libm::round(pulse_code) as i32,
             sign_check_ticks: ticks(self.sign_check_ms),
             sign_check_expected_code: libm::round(expected) as i32,
+            settle_ticks: libm::round(10.0 / (self.damping * w) * fs) as u32,
         })
     }
 
@@ -446,7 +449,7 @@ impl DesignError {
                 "mode_notch_hz/mode_notch_q: frequency in (0, rate/2), q > 0 (0 = off)"
             }
             Self::Learning => {
-                "learning_gain in [0, 1), learning_lead_bins <= 32, learning_q_shift 1..=8"
+                "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=8"
             }
             Self::Slew => "slew_in_per_s: must be in (0, 10]",
             Self::CommandLimit => "command_limit_in: must be in (0, 0.010]",
@@ -491,6 +494,9 @@ pub struct ServoConfig {
     pub sign_check_ticks: u32,
     /// Gauge move expected at the end of the doublet's first half, codes.
     pub sign_check_expected_code: i32,
+    /// Ticks the loop needs to settle after engaging (ten time constants
+    /// of the error dynamics) before the learning starts.
+    pub settle_ticks: u32,
 }
 
 #[cfg(test)]

@@ -24,8 +24,10 @@
 //! revolution whatever the speed.
 //!
 //! Robustness: the lead (in bins) compensates the loop's residual lag; the
-//! Q-filter `t[k] += (t[k−1] − 2t[k] + t[k+1]) / 2^shift`, applied to each
-//! bin once per revolution when it is complete, limits the learning to low
+//! Q-filter `t[k] += (t[k−1] − 2t[k] + t[k+1]) / 2^shift`, applied twice
+//! to each bin per revolution when it is complete (for shift 2 the kernel
+//! [1 4 6 4 1]/16: gain cos⁴(πh/256) at harmonic h, 0.89 at h = 20, 0.25
+//! at h = 64), limits the learning to low
 //! harmonics (zero phase in angle) and makes it forget slowly, which is
 //! also how the table follows X as the feed moves the radius. Entries are
 //! clamped to ± a quarter of the gauge range (memory bounded in size and
@@ -45,6 +47,12 @@ const BIN_BITS: u32 = 24;
 const MASK: usize = BINS - 1;
 /// |entry| ≤ 2¹⁷ codes (a quarter of the gauge range), Q8.
 const ENTRY_LIMIT: i32 = 1 << 25;
+/// The correction at bin i reads bins i−1..i+2; an update at i − lead
+/// (and the bin after it) must not touch them in the same revolution, or
+/// the learning would feed back within the revolution (an integrator at
+/// the tick rate that amplifies gauge noise) instead of from one
+/// revolution to the next.
+pub const MIN_LEAD: usize = 3;
 /// Largest angle step per tick the learning accepts (1/4 bin: 1170 rpm at
 /// 20 kHz); larger steps are a jump, not motion.
 const MAX_DPHI: i32 = 1 << 22;
@@ -95,7 +103,7 @@ impl Repetitive {
         Self {
             table: [0; BINS],
             gain_q16: i64::from(gain_q16.max(0)),
-            lead: (lead_bins as usize) & MASK,
+            lead: (lead_bins as usize).clamp(MIN_LEAD, MASK),
             q_shift: q_shift.clamp(1, 16),
             last_bin: None,
             frozen: if gain_q16 > 0 {
@@ -165,8 +173,12 @@ impl Repetitive {
         let i = (phi.0 >> BIN_BITS) as usize;
         if let Some(b) = self.last_bin {
             if b != i {
-                // Bin b is left: the bin whose last update it was is complete.
-                self.q_filter((b + BINS - self.lead) & MASK);
+                // Bin b is left: the bin whose last update it was is complete;
+                // smooth it, and its predecessor a second time (two passes of
+                // the 3-tap kernel = a 5-tap binomial for shift 2).
+                let k = (b + BINS - self.lead) & MASK;
+                self.q_filter(k);
+                self.q_filter(k + MASK);
                 if i == 0 {
                     self.passes = self.passes.saturating_add(1);
                 }
@@ -254,7 +266,7 @@ mod tests {
     #[test]
     fn learning_converges_on_a_periodic_error_at_any_speed() {
         for ticks_per_rev in [3000u32, 4000, 5000] {
-            let mut r = Repetitive::new((0.3 * 65536.0) as i32, 0, 8);
+            let mut r = Repetitive::new((0.3 * 65536.0) as i32, 3, 8);
             let dphi = (TURN / f64::from(ticks_per_rev)) as u32;
             let mut phi = 0u32;
             for _ in 0..(ticks_per_rev * 40) {
