@@ -841,6 +841,8 @@ pub struct LoopState {
     last_coeff_x: Option<XInches>,
     /// Offset added to the table command, gauge codes.
     target: i32,
+    /// The offset on the last tick.
+    last_target: i32,
     /// Table command of the last tick, gauge codes.
     table_code: i32,
     /// Velocity input of the last tick (∂Z/∂φ·Δφ), codes/tick Q16.
@@ -882,6 +884,7 @@ impl LoopState {
             last_phi: None,
             last_coeff_x: None,
             target: 0,
+            last_target: 0,
             table_code: 0,
             ff_q16: 0,
             accel_q16: 0,
@@ -1119,12 +1122,16 @@ impl LoopState {
             // RampToNull: the loop stays closed and ramps to null.
             Reference::default()
         } else {
+            // The target offset's own rate (a user signal, clean) joins the
+            // table's analytic rate in the velocity feedforward.
+            let target_step = i64::from(self.target) - i64::from(self.last_target);
             Reference {
                 code: self.target.saturating_add(table_code).clamp(CODE_MIN, CODE_MAX),
-                velocity_q16: slope,
+                velocity_q16: slope + (target_step << 16),
                 accel_q16: accel,
             }
         };
+        self.last_target = self.target;
         let out = self.servo.update(&ServoInput {
             gauge_code: y,
             reference,

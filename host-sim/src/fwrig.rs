@@ -33,10 +33,11 @@ use zslide::drivers::ad4020::Ad4020;
 use zslide::drivers::ad5686::Ad5686;
 use zslide::drivers::ad5791::Ad5791;
 use zslide::firmware::{
-    Firmware, FirmwareConfig, LoopConfig, SpindleMode, SpindleReading, TickInput, XMode,
+    Firmware, FirmwareConfig, Request, SpindleMode, SpindleReading, TickInput, XMode,
 };
 use zslide::hw::{Clock, Encoder, Tachometer, XLatch};
 use zslide::safety::{Device, Fault};
+use zslide::servo::ServoConfig;
 use zslide::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
 use zslide::units::{SpindleAngle, XInches};
 use zslide::xpos::{CountConfig, CountX, XEvent};
@@ -196,7 +197,7 @@ impl FirmwareWorld {
     /// Rig and firmware; the DAC initialised through the core driver (zero
     /// code, control register, read-back). A failed init latches
     /// `Fault::Bus(AmplifierDac)`, as the board does.
-    pub fn new(cfg: RigConfig, loop_cfg: LoopConfig) -> Self {
+    pub fn new(cfg: RigConfig, loop_cfg: ServoConfig) -> Self {
         Self::build(Rig::new(cfg), loop_cfg)
     }
 
@@ -204,7 +205,7 @@ impl FirmwareWorld {
     /// (the whole init sequence).
     pub fn new_with_dac_faults(
         cfg: RigConfig,
-        loop_cfg: LoopConfig,
+        loop_cfg: ServoConfig,
         fault: crate::chips::BusFault,
     ) -> Self {
         let rig = Rig::new(cfg);
@@ -212,7 +213,7 @@ impl FirmwareWorld {
         Self::build(rig, loop_cfg)
     }
 
-    fn build(rig: Rig, loop_cfg: LoopConfig) -> Self {
+    fn build(rig: Rig, loop_cfg: ServoConfig) -> Self {
         let dev = rig.devices();
         let mut dac = Ad5791::new(dev.amp_dac);
         let mut fw = Firmware::new(loop_cfg);
@@ -364,6 +365,8 @@ impl FirmwareWorld {
     pub fn tick(&mut self) {
         self.rig.cnv();
         let mut input = TickInput::NONE;
+        // The amplifier's fault line, as the board reads it.
+        input.amplifier_fault = self.rig.amp.tripped();
         if let Some(m) = self.machine.as_mut() {
             input.now = self.clock.now_ticks();
             // The monitor estimator sees exactly the firmware's readings.
@@ -457,6 +460,11 @@ impl FirmwareWorld {
             Some(XState::Count { enc, .. }) => enc.model().nominal_x(t_s),
             None => f64::NAN,
         }
+    }
+
+    /// Posts an operator request (arm, disarm, clear) for the next tick.
+    pub fn request(&mut self, r: Request) {
+        self.fw.request(r);
     }
 
     pub fn stats(&self) -> Option<&MachineStats> {
@@ -566,7 +574,8 @@ pub mod src {
 /// Rig + firmware at `loop_hz` with the loop-tick source registered (index
 /// [`src::LOOP_TICK`]).
 pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    let w = FirmwareWorld::new(cfg, LoopConfig::at_rate(loop_hz));
+    let loop_cfg = ServoConfig::at_rate(loop_hz).expect("the default loop design holds at any rate 1 kHz..200 kHz");
+    let w = FirmwareWorld::new(cfg, loop_cfg);
     let mut s = Scheduler::new();
     let period = 1_000_000_000 / u64::from(loop_hz.max(1));
     s.add(LoopTick {

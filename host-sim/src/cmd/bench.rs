@@ -175,6 +175,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.only_machine {
         let (mut mw, mut ms) =
             crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
+        mw.request(zslide::firmware::Request::Arm);
         let t0 = Instant::now();
         ms.run_until(&mut mw, (args.seconds * 1e9) as u64);
         let wall = t0.elapsed().as_secs_f64();
@@ -215,6 +216,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     s.run_until(&mut w, t_end);
     let wall = t0.elapsed().as_secs_f64();
     let (mut fw, mut s) = firmware_demo(sc.rig.clone(), loop_hz as u32);
+    fw.request(zslide::firmware::Request::Arm);
     let t0 = Instant::now();
     s.run_until(&mut fw, t_end);
     let fw_wall = t0.elapsed().as_secs_f64();
@@ -224,6 +226,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fw.fw.fault()
     );
     let (mut mw, mut ms) = crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
+    mw.request(zslide::firmware::Request::Arm);
     let t0 = Instant::now();
     ms.run_until(&mut mw, t_end);
     let machine_wall = t0.elapsed().as_secs_f64();
@@ -318,6 +321,7 @@ pub fn write_vcd(
     use std::cell::RefCell;
     use std::rc::Rc;
     let (mut w, mut s) = crate::fwrig::machine_demo(sc.rig.clone(), &sc.machine, loop_hz as u32);
+    w.request(zslide::firmware::Request::Arm);
     w.rig.slide.x[crate::plant::zslide::st::Z] = 0.002;
     let names: Vec<String> = (0..s.fired.len())
         .map(|k| s.source_name(k).to_string())

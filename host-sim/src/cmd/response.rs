@@ -360,6 +360,7 @@ pub fn measure_firmware(f_hz: f64, amplitude_in: f64, loop_hz: u32, rigid: bool)
         cfg.slide = cfg.slide.rigid();
     }
     let (mut w, mut s) = firmware_demo(cfg, loop_hz);
+    w.fw.request(zslide::firmware::Request::Arm);
     let period = 1_000_000_000 / u64::from(loop_hz.max(1));
     let amp_codes = amplitude_in * f64::from(1u32 << 19) / 0.010;
     let wr = std::f64::consts::TAU * f_hz;
