@@ -33,11 +33,12 @@ mod app {
     use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI3, SPI4};
     use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686, ad5791::Ad5791};
     use zslide::firmware::{
-        EventState, Firmware, FirmwareConfig, LoopConfig, LoopState, Shared, SpindleMode,
+        EventState, Firmware, FirmwareConfig, LoopState, Request, Shared, SpindleMode,
         SpindleReading, TickInput, XMode,
     };
     use zslide::hw::{Encoder, XLatch};
     use zslide::safety::{Device, Fault};
+    use zslide::servo::ServoConfig;
     use zslide::spindle::EncoderConfig;
     use zslide::units::SpindleAngle;
 
@@ -62,7 +63,10 @@ mod app {
 
     fn config() -> FirmwareConfig {
         FirmwareConfig {
-            loop_cfg: LoopConfig::at_rate(timers::LOOP_HZ),
+            loop_cfg: match ServoConfig::at_rate(timers::LOOP_HZ) {
+                Ok(c) => c,
+                Err(_) => boot_failure("servo design refused"),
+            },
             spindle: SpindleMode::Encoder(EncoderConfig {
                 counts_per_rev: SPINDLE_CPR,
                 ticks_per_s: timers::CLOCK_HZ,
@@ -104,6 +108,8 @@ mod app {
     /// The first fault the loop latched, published once for the background.
     static FAULT: Mutex<Cell<Option<Fault>>> = Mutex::new(Cell::new(None));
     static FAULT_PUBLISHED: AtomicBool = AtomicBool::new(false);
+    /// The amplifier is enabled (the loop armed), for the arm button.
+    static ARMED: AtomicBool = AtomicBool::new(false);
 
     #[entry]
     fn main() -> ! {
@@ -214,7 +220,34 @@ mod app {
     fn background() -> ! {
         let mut last_report = timers::micros();
         let mut reported_fault = false;
+        // The arm button, debounced: a level held 20 ms is a press.
+        let (mut button, mut since) = (false, timers::micros());
         loop {
+            let level = pins::ARM_BUTTON.is_high();
+            let now = timers::micros();
+            if level != button && now.wrapping_sub(since) >= 20_000 {
+                button = level;
+                if level {
+                    // A press toggles: arm when off, disarm when on. After a
+                    // fault: clear (refused while its cause is present), and
+                    // the next press arms.
+                    if ARMED.load(Ordering::Relaxed) {
+                        SHARED.request(Request::Disarm);
+                        defmt::info!("disarm requested");
+                    } else if FAULT_PUBLISHED.load(Ordering::Acquire) {
+                        SHARED.request(Request::ClearFault);
+                        FAULT_PUBLISHED.store(false, Ordering::Release);
+                        reported_fault = false;
+                        defmt::info!("fault clear requested");
+                    } else {
+                        SHARED.request(Request::Arm);
+                        defmt::info!("arm requested");
+                    }
+                }
+            }
+            if level == button {
+                since = now;
+            }
             if !reported_fault && FAULT_PUBLISHED.load(Ordering::Acquire) {
                 let fault = critical_section::with(|cs| FAULT.borrow(cs).get());
                 if let Some(f) = fault {
@@ -252,9 +285,12 @@ mod app {
             now: timers::now_ticks(),
             spindle: SpindleReading::Encoder(l.spindle.sample()),
             x_count: 0,
+            amplifier_fault: pins::AMP_FAULT.is_high(),
         };
         l.lp.loop_tick(&SHARED, &input, &mut l.gauge, &mut l.dac);
-        pins::AMP_ENABLE.set(l.lp.amplifier_enable());
+        let enable = l.lp.amplifier_enable();
+        pins::AMP_ENABLE.set(enable);
+        ARMED.store(enable, Ordering::Relaxed);
         timers::feed_watchdog();
         TICKS.store(l.lp.ticks(), Ordering::Relaxed);
         if let Some(f) = l.lp.fault() {

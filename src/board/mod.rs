@@ -55,6 +55,10 @@ pub mod pins {
     /// Spindle once-per-revolution index, EXTI3 on its rising edge.
     pub const SPINDLE_INDEX: Pin = Pin::new(Port::G, 3);
     /// Spindle encoder A/B, TIM4_CH1/CH2 (AF2): quadrature counter.
+    /// Arm/disarm: the NUCLEO's user button B1 (high while pressed).
+    pub const ARM_BUTTON: Pin = Pin::new(Port::C, 13);
+    /// The power amplifier's fault output (high: tripped), pulled down.
+    pub const AMP_FAULT: Pin = Pin::new(Port::G, 6);
     pub const SPINDLE_ENC_A: Pin = Pin::new(Port::D, 12);
     pub const SPINDLE_ENC_B: Pin = Pin::new(Port::D, 13);
 }
@@ -91,9 +95,11 @@ pub fn configure_pins() {
         X_MIL_ZERO_FLAG,
         X_HALF_MIL_IRQ,
         SPINDLE_INDEX,
+        ARM_BUTTON,
     ] {
         p.configure(Mode::Input(0));
     }
+    AMP_FAULT.configure(Mode::Input(2));
 }
 
 /// Routes PG2 to EXTI2 and PG3 to EXTI3, rising edges, unmasked for the

@@ -467,6 +467,7 @@ impl DesignError {
 /// gauge code (per tick, per tick² for the derivative and feedforward
 /// terms), limits in codes and ticks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct ServoConfig {
     pub rate_hz: u32,
     pub observer: ObserverCoeffs,

@@ -33,6 +33,7 @@
 
 /// Observer coefficients, `Q2.30` bits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct ObserverCoeffs {
     pub c1: i32,
     pub c2: i32,
