@@ -1126,7 +1126,10 @@ impl LoopState {
             // table's analytic rate in the velocity feedforward.
             let target_step = i64::from(self.target) - i64::from(self.last_target);
             Reference {
-                code: self.target.saturating_add(table_code).clamp(CODE_MIN, CODE_MAX),
+                code: self
+                    .target
+                    .saturating_add(table_code)
+                    .clamp(CODE_MIN, CODE_MAX),
                 velocity_q16: slope + (target_step << 16),
                 accel_q16: accel,
             }
@@ -1199,7 +1202,10 @@ impl LoopState {
         }
         // Arming with a ramp-to-null fault latched is allowed: the loop then
         // holds the slide at null (a refused table, a lost X).
-        if r & Request::Arm.bit() != 0 && r & Request::Disarm.bit() == 0 && !self.amplifier_must_be_off() {
+        if r & Request::Arm.bit() != 0
+            && r & Request::Disarm.bit() == 0
+            && !self.amplifier_must_be_off()
+        {
             self.servo.arm();
         }
     }
@@ -1472,7 +1478,6 @@ mod tests {
     use crate::hw::{BusError, GaugeSample};
     use std::vec::Vec;
 
-
     /// A gauge whose next reading the test sets.
     struct Gauge(Result<GaugeSample, BusError>);
     impl Gauge {
@@ -1665,7 +1670,10 @@ mod tests {
     fn a_fault_is_cleared_only_when_its_cause_is_gone_and_needs_a_new_arm() {
         let mut fw = armed_without_sign_check();
         let mut d = Dac::default();
-        let mut g = Gauge(Ok(GaugeSample { code: 1000, overrange: true }));
+        let mut g = Gauge(Ok(GaugeSample {
+            code: 1000,
+            overrange: true,
+        }));
         fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
         assert_eq!(fw.fault(), Some(Fault::GaugeRange));
         fw.request(Request::ClearFault);

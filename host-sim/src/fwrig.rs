@@ -574,7 +574,8 @@ pub mod src {
 /// Rig + firmware at `loop_hz` with the loop-tick source registered (index
 /// [`src::LOOP_TICK`]).
 pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    let loop_cfg = ServoConfig::at_rate(loop_hz).expect("the default loop design holds at any rate 1 kHz..200 kHz");
+    let loop_cfg = ServoConfig::at_rate(loop_hz)
+        .expect("the default loop design holds at any rate 1 kHz..200 kHz");
     let w = FirmwareWorld::new(cfg, loop_cfg);
     let mut s = Scheduler::new();
     let period = 1_000_000_000 / u64::from(loop_hz.max(1));

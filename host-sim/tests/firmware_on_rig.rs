@@ -22,7 +22,10 @@ fn engages_bumpless_off_null_and_holds_null() {
     let (mut w, mut s) = firmware_demo(quiet(), 20_000);
     w.rig.slide.x[st::Z] = 0.002; // 2 mil off null, as the 1983 slide often was
     s.run_until(&mut w, 50_000_000);
-    assert!(!w.rig.amp.enabled(), "the amplifier never enables on its own");
+    assert!(
+        !w.rig.amp.enabled(),
+        "the amplifier never enables on its own"
+    );
     w.request(Request::Arm);
     s.run_until(&mut w, 300_000_000);
     assert_eq!(w.fw.fault(), None);
@@ -143,7 +146,8 @@ fn dac_init_on_a_stuck_bus_is_a_bus_fault() {
         // and the world built on such a bus starts latched, amplifier off
         let mut cfg = quiet();
         cfg.seed = 2;
-        let w = FirmwareWorld::new_with_dac_faults(cfg, ServoConfig::at_rate(20_000).unwrap(), fault);
+        let w =
+            FirmwareWorld::new_with_dac_faults(cfg, ServoConfig::at_rate(20_000).unwrap(), fault);
         assert_eq!(w.fw.fault(), Some(Fault::Bus(Device::AmplifierDac)));
         assert!(!w.fw.amplifier_enable());
     }

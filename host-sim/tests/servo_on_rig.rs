@@ -1,4 +1,6 @@
-//! Tuning harness: the servo alone on the rig (temporary).
+//! The servo alone on the simulated rig (the core's `Servo` between the
+//! real AD4020/AD5791 drivers and the exact plant), with a synthetic
+//! spindle at 300 rpm: the noise and tracking figures of issue 8.
 use embedded_hal::digital::OutputPin;
 use host_sim::plant::{Rig, RigConfig};
 use zslide::drivers::ad4020::Ad4020;
@@ -66,8 +68,7 @@ fn run(design: ServoDesign, cfg: RigConfig, amp_in: f64, freq: f64, secs: f64) -
             );
         }
         if let Some(f) = out.fault {
-            eprintln!("fault {f:?} at {i}");
-            return (f64::NAN, f64::NAN, f64::NAN);
+            panic!("fault {f:?} at tick {i}");
         }
         dac.write(out.dac_code).unwrap();
         if out.enable != enabled {
@@ -104,29 +105,34 @@ fn run(design: ServoDesign, cfg: RigConfig, amp_in: f64, freq: f64, secs: f64) -
     )
 }
 
+/// Brief §6 / issue 8: at null, on the legacy-hw gauge (9.35 µin broadband
+/// with a 5 µin 120 Hz hum), the slide's true motion from gauge noise is
+/// at most 1 µin RMS with the learning running (measured 0.92 µin over the
+/// last 4 s of 8 s).
 #[test]
-fn tune() {
-    let base = ServoDesign::brief(20_000);
-    for (kl, qs, lead) in [(0.2, 2, 3), (0.15, 2, 3)] {
-        for bw in [16.0, 18.0] {
-            let mut d = base;
-            d.bandwidth_hz = bw;
-            d.observer_hz = 40.0;
-            d.learning_gain = kl;
-            d.learning_q_shift = qs;
-            d.learning_lead_bins = lead;
-            eprint!("bw {bw} ");
-            eprintln!(
-                "kl {kl} q {qs} lead {lead}: null rc {:?} track {:?}",
-                run(d, RigConfig::legacy(7), 0.0, 10.0, 8.0),
-                run(d, RigConfig::legacy(7), 0.004, 10.0, 8.0)
-            );
-        }
-    }
-    let d = ServoDesign::brief(20_000);
-    let (rms, pk, i) = run(d, RigConfig::legacy(7), 0.0, 10.0, 6.0);
-    eprintln!("null legacy: rms {rms:.3} uin, peak {pk:.3}, current {i:.4} A");
-    let (rms, pk, i) = run(d, RigConfig::legacy(7), 0.004, 10.0, 6.0);
-    eprintln!("track 10 Hz: rms {rms:.3} uin, peak {pk:.3}, current {i:.4} A");
-    eprintln!("vel noise gain {:?}", d.velocity_noise_gain());
+fn gauge_noise_moves_the_slide_less_than_one_microinch_rms_at_null() {
+    let (rms, _, _) = run(
+        ServoDesign::brief(20_000),
+        RigConfig::legacy(7),
+        0.0,
+        10.0,
+        8.0,
+    );
+    assert!(rms <= 1.0, "{rms} µin RMS");
+}
+
+/// The 1979 plan's dynamic-error goal: a 10 Hz × 0.004 in spindle-synchronous
+/// command followed within 10 µin peak (true slide position from the plant
+/// minus the exact command) after 20 revolutions of learning, on the
+/// legacy-hw noise (measured 7.0 µin peak, 1.9 µin RMS).
+#[test]
+fn ten_hz_command_is_followed_within_ten_microinch_peak_after_learning() {
+    let (rms, peak, _) = run(
+        ServoDesign::brief(20_000),
+        RigConfig::legacy(7),
+        0.004,
+        10.0,
+        8.0,
+    );
+    assert!(peak <= 10.0, "{peak} µin peak, {rms} RMS");
 }
