@@ -1179,7 +1179,7 @@ impl LoopState {
     fn note_x(&mut self, x: XInches) {
         if let Some(p) = self.last_coeff_x {
             let d = x.0.to_bits().wrapping_sub(p.0.to_bits());
-            if d > X_JUMP_BITS || d < -X_JUMP_BITS {
+            if !(-X_JUMP_BITS..=X_JUMP_BITS).contains(&d) {
                 let hold = self.servo.config().rate_hz;
                 self.servo.freeze_learning(Freeze::XJump, hold);
             }

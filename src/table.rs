@@ -232,7 +232,7 @@ impl<'a> CoeffTable<'a> {
         {
             return Err(TableError::AbsurdSize);
         }
-        if representation == Representation::Harmonic && terms % 2 == 0 {
+        if representation == Representation::Harmonic && terms.is_multiple_of(2) {
             return Err(TableError::HarmonicColumnsNotOdd(terms));
         }
         let x0_raw = i32_at(bytes, 20);

@@ -18,8 +18,8 @@
 //! (L/R = 0.26 ms, 610 Hz) is neglected in the model: it is 15× above the
 //! default bandwidth, and the robustness test covers the error.
 //!
-//! Why the bandwidth is low (40 Hz by default, where the 1983 loop had
-//! > 100 Hz): the gauge noise is measurement noise, and any feedback that
+//! Why the bandwidth is low (16 Hz by default, where the 1983 loop had
+//! more than 100 Hz): the gauge noise is measurement noise, and any feedback that
 //! follows the gauge at a frequency moves the slide with the noise there.
 //! The gauge's broadband noise (9.35 µin RMS, 5 kHz corner) has a density of
 //! ≈ 0.106 µin/√Hz, so a loop that follows it to 90 Hz already moves the
@@ -161,6 +161,8 @@ impl ServoDesign {
     }
 
     /// The integer configuration, or the first parameter out of range.
+    // Every range test is written `!(in range)` so that a NaN is refused.
+    #[allow(clippy::nonminimal_bool)]
     pub fn config(&self) -> Result<ServoConfig, DesignError> {
         use DesignError as E;
         let fs = f64::from(self.rate_hz);
@@ -509,6 +511,7 @@ impl ServoConfig {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::*;
 

@@ -43,7 +43,7 @@ impl Notch {
     /// correction going to `b1` (the symmetric term), which moves the notch
     /// frequency by far less than a millihertz.
     pub fn design(f0_hz: f64, fs_hz: f64, q: f64) -> Result<Self, FilterError> {
-        if !(f0_hz > 0.0 && fs_hz > 0.0 && f0_hz < fs_hz / 2.0) || !f0_hz.is_finite() {
+        if !(f0_hz > 0.0 && fs_hz > 0.0 && f0_hz < fs_hz / 2.0 && f0_hz.is_finite()) {
             return Err(FilterError::Frequency);
         }
         if !(q > 0.0 && q.is_finite()) {
@@ -103,6 +103,7 @@ impl Notch {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::*;
 

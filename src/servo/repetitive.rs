@@ -133,7 +133,7 @@ impl Repetitive {
         // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17.
         let v = (slope2 * d) >> 17;
         // (s2 − s1)/2 per bin² · dphi² / 2⁴⁸, Q8 → Q16: >> 41 in two steps.
-        let a = (((s2 - s1) * d) >> 21) * d >> 20;
+        let a = ((((s2 - s1) * d) >> 21) * d) >> 20;
         Correction {
             position_q16: c_q8 << 8,
             velocity_q16: v,
@@ -189,7 +189,7 @@ impl Repetitive {
         let f = i64::from((phi.0 >> (BIN_BITS - 16)) & 0xFFFF);
         let e_q8 = (error_q16 >> 8).clamp(-(1 << 28), 1 << 28);
         // κ · e · Δφ / bin, rounded: Σ over a bin is κ·ē.
-        let inc = ((((e_q8 * i64::from(dphi)) >> 16) * self.gain_q16) >> 24) + 0;
+        let inc = (((e_q8 * i64::from(dphi)) >> 16) * self.gain_q16) >> 24;
         let lo = (inc * (65_536 - f)) >> 16;
         let hi = inc - lo;
         self.add(j, lo);
@@ -255,6 +255,7 @@ impl Repetitive {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::*;
 
