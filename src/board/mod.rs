@@ -58,7 +58,7 @@ pub mod pins {
     /// Arm/disarm: the NUCLEO's user button B1 (high while pressed).
     pub const ARM_BUTTON: Pin = Pin::new(Port::C, 13);
     /// The power amplifier's fault output (high: tripped), pulled down.
-    pub const AMP_FAULT: Pin = Pin::new(Port::G, 6);
+    pub const AMP_FAULT: Pin = Pin::new(Port::G, 9);
     pub const SPINDLE_ENC_A: Pin = Pin::new(Port::D, 12);
     pub const SPINDLE_ENC_B: Pin = Pin::new(Port::D, 13);
 }
