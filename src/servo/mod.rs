@@ -265,7 +265,9 @@ impl Servo {
         let limit = i64::from(self.cfg.command_limit_code) << 16;
         let goal_q16 = match self.phase {
             Phase::Disarming => 0,
-            _ => (i64::from(input.reference.code) << 16).clamp(-limit, limit),
+            // max/min, not `clamp`: its min ≤ max assertion would be a panic
+            // path in the handler (the limit comes from the configuration).
+            _ => (i64::from(input.reference.code) << 16).max(-limit).min(limit),
         };
         let previous = self.command_q16;
         self.command_q16 = step_toward(previous, goal_q16, self.cfg.slew_q16);
