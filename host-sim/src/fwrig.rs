@@ -576,6 +576,15 @@ pub mod src {
 pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
     let loop_cfg = ServoConfig::at_rate(loop_hz)
         .expect("the default loop design holds at any rate 1 kHz..200 kHz");
+    firmware_with(cfg, loop_hz, loop_cfg)
+}
+
+/// [`firmware_demo`] with a given loop configuration.
+pub fn firmware_with(
+    cfg: RigConfig,
+    loop_hz: u32,
+    loop_cfg: ServoConfig,
+) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
     let w = FirmwareWorld::new(cfg, loop_cfg);
     let mut s = Scheduler::new();
     let period = 1_000_000_000 / u64::from(loop_hz.max(1));
@@ -593,7 +602,25 @@ pub fn machine_demo(
     machine: &MachineConfig,
     loop_hz: u32,
 ) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    let (mut w, mut s) = firmware_demo(cfg, loop_hz);
+    let loop_cfg = ServoConfig::at_rate(loop_hz)
+        .expect("the default loop design holds at any rate 1 kHz..200 kHz");
+    machine_with(cfg, machine, loop_hz, loop_cfg)
+}
+
+/// The scenario's machine with its `[servo]` loop (rig, X slide, spindle,
+/// firmware; disarmed until [`FirmwareWorld::request`] arms it).
+pub fn scenario_demo(sc: &crate::scenario::Scenario) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
+    machine_with(sc.rig.clone(), &sc.machine, sc.loop_hz, sc.servo)
+}
+
+/// [`machine_demo`] with a given loop configuration.
+pub fn machine_with(
+    cfg: RigConfig,
+    machine: &MachineConfig,
+    loop_hz: u32,
+    loop_cfg: ServoConfig,
+) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
+    let (mut w, mut s) = firmware_with(cfg, loop_hz, loop_cfg);
     w.attach_machine(machine);
     if let Some(m) = &w.machine {
         if let XState::Legacy { link, .. } = &m.x {

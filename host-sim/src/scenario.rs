@@ -24,6 +24,7 @@ use crate::plant::zslide::{ModeParams, ZSlideParams};
 use crate::plant::RigConfig;
 use anyhow::{bail, Context};
 use serde::Deserialize;
+use zslide::servo::{ServoConfig, ServoDesign, SlideModel};
 use std::path::Path;
 
 /// lbm per slug.
@@ -53,6 +54,54 @@ pub struct ScenarioFile {
     pub cutting: Cutting,
     pub x: XSlide,
     pub spindle: Spindle,
+    /// The digital loop's design (`zslide::servo::ServoDesign`); absent
+    /// fields take the firmware's defaults, the slide model is `[motor]`.
+    #[serde(default)]
+    pub servo: ServoSection,
+}
+
+/// `[servo]`: the loop's gains, filters, learning and limits, in physical
+/// units (see `docs/TUNING.md`). Every field is optional.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ServoSection {
+    pub bandwidth_hz: Option<f64>,
+    pub damping: Option<f64>,
+    pub observer_hz: Option<f64>,
+    pub hum_notch_hz: Option<f64>,
+    pub hum_notch_q: Option<f64>,
+    pub mode_notch_hz: Option<f64>,
+    pub mode_notch_q: Option<f64>,
+    pub learning_gain: Option<f64>,
+    pub learning_lead_bins: Option<u32>,
+    pub learning_q_shift: Option<u32>,
+    pub slew_in_per_s: Option<f64>,
+    pub command_limit_in: Option<f64>,
+    pub current_limit_a: Option<f64>,
+    pub current_limit_ms: Option<f64>,
+    pub following_error_in: Option<f64>,
+    pub following_error_ms: Option<f64>,
+    pub sign_check_v: Option<f64>,
+    pub sign_check_ms: Option<f64>,
+}
+
+impl ServoSection {
+    /// The design: the firmware's defaults at `rate_hz` for the slide the
+    /// scenario describes, overridden field by field.
+    pub fn design(&self, rate_hz: u32, slide: SlideModel) -> ServoDesign {
+        let mut d = ServoDesign::brief(rate_hz);
+        d.slide = slide;
+        macro_rules! set {
+            ($($f:ident),*) => {$( if let Some(v) = self.$f { d.$f = v; } )*};
+        }
+        set!(
+            bandwidth_hz, damping, observer_hz, hum_notch_hz, hum_notch_q, mode_notch_hz,
+            mode_notch_q, learning_gain, learning_lead_bins, learning_q_shift, slew_in_per_s,
+            command_limit_in, current_limit_a, current_limit_ms, following_error_in,
+            following_error_ms, sign_check_v, sign_check_ms
+        );
+        d
+    }
 }
 
 /// Voice-coil motor and slide (chapter 4).
@@ -224,6 +273,9 @@ pub struct Scenario {
     pub machine: MachineConfig,
     pub cutting: CuttingParams,
     pub loop_hz: u32,
+    /// The digital loop's design and its integer configuration.
+    pub servo_design: ServoDesign,
+    pub servo: ServoConfig,
 }
 
 fn check(field: &str, v: f64, lo: f64, hi: f64) -> anyhow::Result<()> {
@@ -441,12 +493,27 @@ impl ScenarioFile {
                 filled: h.filled,
             },
         };
+        let slide_model = SlideModel {
+            kf_lbf_per_a: m.kf_lbf_per_a,
+            kb_v_s_per_in: m.kb_v_s_per_ft / 12.0,
+            r_ohm: m.r_ohm,
+            mass_lbf_s2_per_in: m.moving_mass_lbm / LBM_PER_SLUG / 12.0,
+            b_lbf_s_per_in: m.b_lbf_s_per_ft / 12.0,
+            amp_gain: self.amplifier.gain,
+            gauge_v_per_in: self.gauge.v_per_mil * 1000.0,
+        };
+        let servo_design = self.servo.design(self.loop_.rate_hz, slide_model);
+        let servo = servo_design
+            .config()
+            .map_err(|e| anyhow::anyhow!("servo.{}", e.reason()))?;
         Ok(Scenario {
             file: self.clone(),
             rig,
             machine,
             cutting,
             loop_hz: self.loop_.rate_hz,
+            servo_design,
+            servo,
         })
     }
 }

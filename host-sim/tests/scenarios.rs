@@ -112,3 +112,21 @@ fn out_of_range_values_are_refused_by_name() {
         assert!(e.contains(field), "{field}: {e}");
     }
 }
+
+#[test]
+fn servo_section_sets_the_loop_and_refuses_a_bad_field_by_name() {
+    use host_sim::scenario::parse;
+    let text = include_str!("../../scenarios/legacy-hw.toml");
+    let sc = parse(text, "legacy-hw").unwrap();
+    assert_eq!(sc.servo_design.bandwidth_hz, 16.0);
+    assert_eq!(sc.servo, sc.servo_design.config().unwrap());
+    let faster = text.replace("bandwidth_hz = 16.0", "bandwidth_hz = 30.0");
+    let sc30 = parse(&faster, "x").unwrap();
+    assert!(sc30.servo.kp_q24 > sc.servo.kp_q24);
+    let bad = text.replace("bandwidth_hz = 16.0", "bandwidth_hz = 5000.0");
+    let e = format!("{:#}", parse(&bad, "bad").unwrap_err());
+    assert!(e.contains("servo.bandwidth_hz"), "{e}");
+    let unknown = text.replace("damping = 0.8", "dampng = 0.8");
+    let e = format!("{:#}", parse(&unknown, "typo").unwrap_err());
+    assert!(e.contains("dampng"), "{e}");
+}
