@@ -24,8 +24,8 @@ use crate::plant::zslide::{ModeParams, ZSlideParams};
 use crate::plant::RigConfig;
 use anyhow::{bail, Context};
 use serde::Deserialize;
-use zslide::servo::{ServoConfig, ServoDesign, SlideModel};
 use std::path::Path;
+use zslide::servo::{ServoConfig, ServoDesign, SlideModel};
 
 /// lbm per slug.
 const LBM_PER_SLUG: f64 = 32.174;
@@ -67,7 +67,11 @@ pub struct ScenarioFile {
 pub struct ServoSection {
     pub bandwidth_hz: Option<f64>,
     pub damping: Option<f64>,
+    pub bandwidth_fast_hz: Option<f64>,
     pub observer_hz: Option<f64>,
+    pub observer_fast_hz: Option<f64>,
+    pub observer_switch_uin: Option<f64>,
+    pub observer_hold_ms: Option<f64>,
     pub hum_notch_hz: Option<f64>,
     pub hum_notch_q: Option<f64>,
     pub mode_notch_hz: Option<f64>,
@@ -95,10 +99,28 @@ impl ServoSection {
             ($($f:ident),*) => {$( if let Some(v) = self.$f { d.$f = v; } )*};
         }
         set!(
-            bandwidth_hz, damping, observer_hz, hum_notch_hz, hum_notch_q, mode_notch_hz,
-            mode_notch_q, learning_gain, learning_lead_bins, learning_q_shift, slew_in_per_s,
-            command_limit_in, current_limit_a, current_limit_ms, following_error_in,
-            following_error_ms, sign_check_v, sign_check_ms
+            bandwidth_hz,
+            damping,
+            bandwidth_fast_hz,
+            observer_hz,
+            observer_fast_hz,
+            observer_switch_uin,
+            observer_hold_ms,
+            hum_notch_hz,
+            hum_notch_q,
+            mode_notch_hz,
+            mode_notch_q,
+            learning_gain,
+            learning_lead_bins,
+            learning_q_shift,
+            slew_in_per_s,
+            command_limit_in,
+            current_limit_a,
+            current_limit_ms,
+            following_error_in,
+            following_error_ms,
+            sign_check_v,
+            sign_check_ms
         );
         d
     }

@@ -1,16 +1,45 @@
-//! The servo alone on the simulated rig (the core's `Servo` between the
-//! real AD4020/AD5791 drivers and the exact plant), with a synthetic
-//! spindle at 300 rpm: the noise and tracking figures of issue 8.
+//! The servo alone on the simulated rig: the core's `Servo` between the real
+//! AD4020/AD5791 drivers and the exact plant (`host_sim::plant::Rig`, with
+//! the coil inductance, the 3150 Hz mode, the amplifier's limit and trip,
+//! and the scenario's gauge noise and hum), with a synthetic spindle whose
+//! speed profile each test sets. The figures of issue 8 on `legacy-hw`.
+
 use embedded_hal::digital::OutputPin;
 use host_sim::plant::{Rig, RigConfig};
 use zslide::drivers::ad4020::Ad4020;
 use zslide::drivers::ad5791::Ad5791;
 use zslide::hw::{AmplifierDac, GaugeAdc};
+use zslide::safety::Fault;
 use zslide::servo::{Reference, Servo, ServoDesign, ServoInput};
 use zslide::units::SpindleAngle;
 
-fn run(design: ServoDesign, cfg: RigConfig, amp_in: f64, freq: f64, secs: f64) -> (f64, f64, f64) {
-    let mut rig = Rig::new(cfg);
+const TURN: f64 = 4_294_967_296.0;
+const CODES_PER_IN: f64 = 524_288.0 / 0.010;
+
+struct Run {
+    /// Command amplitude (in) and harmonic per revolution: Z = A(sin kθ − 1).
+    amp_in: f64,
+    k: f64,
+    /// Spindle speed (rev/s) at angle θ (revolutions).
+    speed: Box<dyn Fn(f64) -> f64>,
+    /// External force on the slide along +Z (lbf) at time t and angle θ.
+    force: Box<dyn Fn(f64, f64) -> f64>,
+    secs: f64,
+    /// Measurement window start, s.
+    from_s: f64,
+}
+
+#[derive(Debug)]
+struct Result {
+    rms_uin: f64,
+    peak_uin: f64,
+    current_peak_a: f64,
+    amp_trips: u32,
+    fault: Option<Fault>,
+}
+
+fn run(design: ServoDesign, rig_cfg: RigConfig, r: Run) -> Result {
+    let mut rig = Rig::new(rig_cfg);
     let dev = rig.devices();
     let mut adc = Ad4020::new(dev.gauge_adc);
     let mut dac = Ad5791::new(dev.amp_dac);
@@ -18,57 +47,44 @@ fn run(design: ServoDesign, cfg: RigConfig, amp_in: f64, freq: f64, secs: f64) -
     let mut en = dev.amp_enable;
     let mut servo = Servo::new(design.config().unwrap());
     servo.arm();
-    let fs = design.rate_hz as f64;
+    let fs = f64::from(design.rate_hz);
     let h_ns = (1e9 / fs) as u64;
-    let rpm = 300.0;
-    let turn = 4294967296.0;
-    let dphi = (rpm / 60.0 / fs * turn) as u32;
-    let k = (freq / (rpm / 60.0)).round().max(1.0);
-    let cpi = 524288.0 / 0.010;
-    let mut phi: u32 = 0;
-    let n = (secs * fs) as u64;
-    let (mut s2, mut peak, mut cnt, mut cur2) = (0.0, 0.0f64, 0.0, 0.0);
-    let mut sum = 0.0;
+    let n = (r.secs * fs) as u64;
+    let mut theta = 0.0f64; // revolutions
+    let (mut s2, mut sum, mut cnt, mut peak, mut ipk) = (0.0, 0.0, 0.0, 0.0f64, 0.0f64);
     let mut enabled = false;
+    let mut fault = None;
     for i in 1..=n {
         let t = i * h_ns;
+        let ts = t as f64 * 1e-9;
         rig.time.set(t);
         rig.advance_to(t);
+        let rev_per_tick = (r.speed)(theta) / fs;
+        theta += rev_per_tick;
+        rig.set_force_lbf((r.force)(ts, theta));
         rig.cnv();
         let y = adc.read().unwrap().code;
-        phi = phi.wrapping_add(dphi);
-        let th = phi as f64 / turn * std::f64::consts::TAU;
-        let w = std::f64::consts::TAU * dphi as f64 / turn; // rad/tick
-        let r = amp_in * ((k * th).sin() - 1.0);
-        let v = amp_in * k * w * (k * th).cos();
-        let a = -amp_in * k * k * w * w * (k * th).sin();
-        let reference = Reference {
-            code: (r * cpi).round() as i32,
-            velocity_q16: (v * cpi * 65536.0) as i64,
-            accel_q16: (a * cpi * 65536.0) as i64,
-        };
+        let th = theta * std::f64::consts::TAU;
+        let w = std::f64::consts::TAU * rev_per_tick; // rad per tick
+        let k = r.k;
+        let z = r.amp_in * ((k * th).sin() - 1.0);
+        let v = r.amp_in * k * w * (k * th).cos();
+        let a = -r.amp_in * k * k * w * w * (k * th).sin();
+        let phi = SpindleAngle(((theta.fract()) * TURN) as u32);
+        let dphi = (rev_per_tick * TURN) as i32;
         let out = servo.update(&ServoInput {
             gauge_code: y,
-            reference,
-            angle: Some((SpindleAngle(phi), dphi as i32)),
+            reference: Reference {
+                code: (z * CODES_PER_IN).round() as i32,
+                velocity_q16: (v * CODES_PER_IN * 65536.0) as i64,
+                accel_q16: (a * CODES_PER_IN * 65536.0) as i64,
+            },
+            angle: Some((phi, dphi)),
             freeze: None,
             amplifier_tripped: rig.amp.tripped(),
         });
-        if std::env::var("TRACE").is_ok() && (i < 200 || i % 100 == 0) && i < 3000 {
-            let e = servo.estimate();
-            eprintln!(
-                "{i} {:?} y={y} u={} z^={} v^={} d^={} cmd={} en={}",
-                servo.phase(),
-                out.dac_code,
-                e.z_q16 >> 16,
-                e.v_q16 as f64 / 65536.0,
-                e.d_q16 >> 16,
-                servo.command_code(),
-                out.enable
-            );
-        }
-        if let Some(f) = out.fault {
-            panic!("fault {f:?} at tick {i}");
+        if fault.is_none() {
+            fault = out.fault;
         }
         dac.write(out.dac_code).unwrap();
         if out.enable != enabled {
@@ -79,60 +95,180 @@ fn run(design: ServoDesign, cfg: RigConfig, amp_in: f64, freq: f64, secs: f64) -
                 en.set_low().unwrap()
             }
         }
-        if std::env::var("REV").is_ok() && i % 4000 == 0 {
-            eprintln!(
-                "rev {} table peak {} frozen {:?} err {:.2}",
-                i / 4000,
-                servo.learning().peak_code(),
-                servo.learning().frozen(),
-                (rig.slide.position_in() - r) * 1e6
-            );
-        }
-        if i > n / 2 {
-            let e = rig.slide.position_in() - r;
+        if ts >= r.from_s {
+            let e = rig.slide.position_in() - z;
             s2 += e * e;
             sum += e;
-            peak = peak.max(e.abs());
             cnt += 1.0;
-            cur2 += rig.slide.current_a().powi(2);
+            peak = peak.max(e.abs());
+            ipk = ipk.max(rig.slide.current_a().abs());
         }
     }
     let mean = sum / cnt;
-    (
-        (s2 / cnt - mean * mean).sqrt() * 1e6,
-        peak * 1e6,
-        (cur2 / cnt).sqrt(),
-    )
+    Result {
+        rms_uin: (s2 / cnt - mean * mean).max(0.0).sqrt() * 1e6,
+        peak_uin: peak * 1e6,
+        current_peak_a: ipk,
+        amp_trips: rig.amp.trips,
+        fault,
+    }
+}
+
+fn steady(rps: f64) -> Box<dyn Fn(f64) -> f64> {
+    Box::new(move |_| rps)
+}
+
+fn no_force() -> Box<dyn Fn(f64, f64) -> f64> {
+    Box::new(|_, _| 0.0)
+}
+
+/// 10 Hz × 0.004 in at 300 rpm (2 per revolution), 12 s, measured over
+/// the last 4 s (20 revolutions) after 40 of learning.
+fn track_10hz() -> Run {
+    Run {
+        amp_in: 0.004,
+        k: 2.0,
+        speed: steady(5.0),
+        force: no_force(),
+        secs: 12.0,
+        from_s: 8.0,
+    }
 }
 
 /// Brief §6 / issue 8: at null, on the legacy-hw gauge (9.35 µin broadband
 /// with a 5 µin 120 Hz hum), the slide's true motion from gauge noise is
-/// at most 1 µin RMS with the learning running (measured 0.92 µin over the
-/// last 4 s of 8 s).
+/// at most 1 µin RMS with the learning running (measured 0.88 µin).
 #[test]
 fn gauge_noise_moves_the_slide_less_than_one_microinch_rms_at_null() {
-    let (rms, _, _) = run(
+    let r = run(
         ServoDesign::brief(20_000),
         RigConfig::legacy(7),
-        0.0,
-        10.0,
-        8.0,
+        Run {
+            amp_in: 0.0,
+            ..track_10hz()
+        },
     );
-    assert!(rms <= 1.0, "{rms} µin RMS");
+    assert!(r.rms_uin <= 1.0, "{r:?}");
 }
 
 /// The 1979 plan's dynamic-error goal: a 10 Hz × 0.004 in spindle-synchronous
 /// command followed within 10 µin peak (true slide position from the plant
-/// minus the exact command) after 20 revolutions of learning, on the
-/// legacy-hw noise (measured 7.0 µin peak, 1.9 µin RMS).
+/// minus the exact command) after learning (measured 7.0 µin peak).
 #[test]
 fn ten_hz_command_is_followed_within_ten_microinch_peak_after_learning() {
-    let (rms, peak, _) = run(
+    let r = run(
         ServoDesign::brief(20_000),
         RigConfig::legacy(7),
-        0.004,
-        10.0,
-        8.0,
+        track_10hz(),
     );
-    assert!(peak <= 10.0, "{peak} µin peak, {rms} RMS");
+    assert!(r.peak_uin <= 10.0 && r.fault.is_none(), "{r:?}");
+}
+
+/// Issue 8: stable and within 2× of its nominal tracking with the plant's
+/// gain ±20 % (force constant), moving mass ±10 % and mode frequency ±10 %,
+/// every combination, while the firmware's model stays nominal.
+#[test]
+fn tracking_holds_within_twice_nominal_over_plant_variations() {
+    let nominal = run(
+        ServoDesign::brief(20_000),
+        RigConfig::legacy(7),
+        track_10hz(),
+    );
+    let mut worst: (f64, String) = (0.0, String::new());
+    for g in [0.8, 1.2] {
+        for m in [0.9, 1.1] {
+            for f in [0.9, 1.1] {
+                let mut cfg = RigConfig::legacy(7);
+                cfg.slide.kf_lbf_per_a *= g;
+                cfg.slide.mass_lbf_s2_per_in *= m;
+                if let Some(mode) = cfg.slide.mode.as_mut() {
+                    mode.pole_hz *= f;
+                    mode.zero_hz *= f;
+                }
+                let r = run(ServoDesign::brief(20_000), cfg, track_10hz());
+                eprintln!("gain {g} mass {m} mode {f}: {r:?}");
+                assert!(
+                    r.fault.is_none() && r.amp_trips == 0,
+                    "gain {g} mass {m} mode {f}: {r:?}"
+                );
+                if r.peak_uin > worst.0 {
+                    worst = (r.peak_uin, format!("gain {g} mass {m} mode {f}: {r:?}"));
+                }
+            }
+        }
+    }
+    assert!(
+        worst.0 <= 2.0 * nominal.peak_uin,
+        "nominal {:?}; worst {}",
+        nominal,
+        worst.1
+    );
+}
+
+/// Issue 8 / chapter 5: the tool leaving a bolt hole, a 10 lbf (3.5 A at
+/// 2.9 lbf/A) thrust released within 3° of spindle angle at 300 rpm, does
+/// not trip the amplifier nor fault the loop (the following-error limit is
+/// 0.004 in); the spike stays below 3000 µin (measured 2270 µin; 1983:
+/// several hundred, from an analog loop that passed 20 µin of gauge noise
+/// to the amplifier). The limit is the gauge-only sensing: the loop keeps
+/// its 40 Hz observer for the 1 µin noise goal and switches to 400 Hz only
+/// once the innovation exceeds 150 µin; in a cut the holes repeat every
+/// revolution and the learning takes them out.
+#[test]
+fn sudden_loss_of_cutting_force_does_not_trip_and_the_spike_is_bounded() {
+    let r = run(
+        ServoDesign::brief(20_000),
+        RigConfig::legacy(3),
+        Run {
+            amp_in: 0.0,
+            k: 2.0,
+            speed: steady(5.0),
+            force: Box::new(|t, _| {
+                let f = 10.0;
+                if t < 0.2 {
+                    0.0
+                } else if t < 0.3 {
+                    -f * (t - 0.2) / 0.1
+                } else if t < 1.0 {
+                    -f
+                } else {
+                    -f * (1.0 - ((t - 1.0) / 1.67e-3).min(1.0))
+                }
+            }),
+            secs: 1.3,
+            from_s: 1.0,
+        },
+    );
+    eprintln!("bolt-hole release: {r:?}");
+    assert!(r.amp_trips == 0 && r.fault.is_none(), "{r:?}");
+    assert!(r.peak_uin < 3000.0, "{r:?}");
+    // The coil current stays within the servo's 6 A estimate limit, well
+    // below the amplifier's 8 A.
+    assert!(r.current_peak_a < 6.0, "{r:?}");
+}
+
+/// Issue 8: the spindle sagging 5 % within a revolution (300 → 285 rpm and
+/// back, once per revolution, under a cutting torque that follows the
+/// part) does not make the angle-indexed learning diverge: the tracking
+/// after learning stays within 2× of the steady-speed figure.
+#[test]
+fn five_percent_sag_within_a_revolution_does_not_make_learning_diverge() {
+    let steady_run = run(
+        ServoDesign::brief(20_000),
+        RigConfig::legacy(7),
+        track_10hz(),
+    );
+    let sag = run(
+        ServoDesign::brief(20_000),
+        RigConfig::legacy(7),
+        Run {
+            speed: Box::new(|th| 5.0 * (1.0 - 0.025 * (1.0 - (std::f64::consts::TAU * th).cos()))),
+            ..track_10hz()
+        },
+    );
+    assert!(sag.fault.is_none(), "{sag:?}");
+    assert!(
+        sag.peak_uin <= 2.0 * steady_run.peak_uin.max(5.0),
+        "steady {steady_run:?}, sag {sag:?}"
+    );
 }

@@ -97,8 +97,16 @@ pub struct ServoDesign {
     pub bandwidth_hz: f64,
     /// Damping ratio of the tracking-error dynamics.
     pub damping: f64,
+    /// Natural frequency of the error dynamics while the fast observer is
+    /// on (a sudden force was seen), Hz.
+    pub bandwidth_fast_hz: f64,
     /// Observer poles (triple, real), Hz.
     pub observer_hz: f64,
+    /// Fast observer poles, Hz, used while |innovation| > `observer_switch_uin`
+    /// and for `observer_hold_ms` after.
+    pub observer_fast_hz: f64,
+    pub observer_switch_uin: f64,
+    pub observer_hold_ms: f64,
     /// Measurement notch for the power-supply hum, Hz, and its Q (0 = off).
     pub hum_notch_hz: f64,
     pub hum_notch_q: f64,
@@ -141,7 +149,11 @@ impl ServoDesign {
             slide: SlideModel::BRIEF,
             bandwidth_hz: 16.0,
             damping: 0.8,
+            bandwidth_fast_hz: 100.0,
             observer_hz: 40.0,
+            observer_fast_hz: 400.0,
+            observer_switch_uin: 150.0,
+            observer_hold_ms: 20.0,
             hum_notch_hz: 120.0,
             hum_notch_q: 2.0,
             mode_notch_hz: 3150.0,
@@ -153,7 +165,7 @@ impl ServoDesign {
             command_limit_in: 0.0095,
             current_limit_a: 6.0,
             current_limit_ms: 20.0,
-            following_error_in: 0.002,
+            following_error_in: 0.004,
             following_error_ms: 2.0,
             sign_check_v: 0.35,
             sign_check_ms: 1.0,
@@ -195,6 +207,10 @@ impl ServoDesign {
             return Err(E::Observer);
         }
         let w = core::f64::consts::TAU * self.bandwidth_hz;
+        if !(self.bandwidth_fast_hz >= self.bandwidth_hz && self.bandwidth_fast_hz < fs / 20.0) {
+            return Err(E::Bandwidth);
+        }
+        let wf = core::f64::consts::TAU * self.bandwidth_fast_hz;
         let q24 = (1u64 << 24) as f64;
         let kp = w * w / k;
         let kd = (2.0 * self.damping * w - a) / (k * h);
@@ -215,14 +231,16 @@ impl ServoDesign {
         let a22 = e;
         let b1 = k * (h / a - (1.0 - e) / (a * a));
         let b2 = k * h * (1.0 - e) / a;
-        let l = observer_gains(
-            a12,
-            a22,
-            b1,
-            b2,
-            libm::exp(-core::f64::consts::TAU * self.observer_hz * h),
-        )
-        .ok_or(E::Observer)?;
+        let pole = |hz: f64| libm::exp(-core::f64::consts::TAU * hz * h);
+        let l = observer_gains(a12, a22, b1, b2, pole(self.observer_hz)).ok_or(E::Observer)?;
+        if !(self.observer_fast_hz >= self.observer_hz && self.observer_fast_hz < fs / 10.0)
+            || !(self.observer_switch_uin > 0.0 && self.observer_switch_uin <= 10_000.0)
+            || !(self.observer_hold_ms >= 0.0 && self.observer_hold_ms <= 10_000.0)
+        {
+            return Err(E::ObserverFast);
+        }
+        let lf =
+            observer_gains(a12, a22, b1, b2, pole(self.observer_fast_hz)).ok_or(E::ObserverFast)?;
         let q30 = (1u64 << 30) as f64;
         let coeff = |v: f64| -> Result<i32, DesignError> {
             if v.abs() < 1.999 {
@@ -238,7 +256,14 @@ impl ServoDesign {
             b2: coeff(b2)?,
             l1: coeff(l[0])?,
             l2: coeff(l[1])?,
-            l3: coeff(l[2])?,
+            l3: gain(l[2], q24).map_err(|_| E::Observer)?,
+            fast: [
+                coeff(lf[0])?,
+                coeff(lf[1])?,
+                gain(lf[2], q24).map_err(|_| E::ObserverFast)?,
+            ],
+            switch_q16: (self.observer_switch_uin * 1e-6 * s.codes_per_in() * 65_536.0) as i64,
+            hold_ticks: libm::round(self.observer_hold_ms * 1e-3 * fs) as u32,
         };
 
         let notch = |f0: f64, q: f64, err: DesignError| -> Result<Option<[i32; 5]>, DesignError> {
@@ -300,6 +325,8 @@ impl ServoDesign {
             observer,
             kp_q24: gain(kp, q24)?,
             kd_q24: gain(kd, q24)?,
+            kp_fast_q24: gain(wf * wf / k, q24)?,
+            kd_fast_q24: gain((2.0 * self.damping * wf - a) / (k * h), q24)?,
             kff_q24: gain(kff, q24)?,
             ka_q16: gain(ka, 65_536.0)?,
             hum_notch: hum,
@@ -425,6 +452,7 @@ pub enum DesignError {
     Bandwidth,
     Damping,
     Observer,
+    ObserverFast,
     GainRange,
     HumNotch,
     ModeNotch,
@@ -442,9 +470,10 @@ impl DesignError {
         match self {
             Self::Rate => "rate_hz: must be 1000..=200000",
             Self::Slide => "slide model: every constant must be positive and finite",
-            Self::Bandwidth => "bandwidth_hz: must be > 0 and below rate_hz / 20",
+            Self::Bandwidth => "bandwidth_hz: must be > 0 and below rate_hz / 20 (bandwidth_fast_hz between it and rate_hz / 20)",
             Self::Damping => "damping: must be in (0, 5]",
             Self::Observer => "observer_hz: must be > 0 and below rate_hz / 10",
+            Self::ObserverFast => "observer_fast_hz in [observer_hz, rate_hz / 10), observer_switch_uin in (0, 10000], observer_hold_ms in [0, 10000]",
             Self::GainRange => "bandwidth_hz/damping: a loop gain exceeds its fixed-point format",
             Self::HumNotch => "hum_notch_hz/hum_notch_q: frequency in (0, rate/2), q > 0 (0 = off)",
             Self::ModeNotch => {
@@ -475,6 +504,9 @@ pub struct ServoConfig {
     pub observer: ObserverCoeffs,
     pub kp_q24: i32,
     pub kd_q24: i32,
+    /// The state-feedback gains while the fast observer is on.
+    pub kp_fast_q24: i32,
+    pub kd_fast_q24: i32,
     pub kff_q24: i32,
     pub ka_q16: i32,
     /// Notch coefficients `[b0, b1, b2, a1, a2]`, Q30 (None = off).

@@ -267,7 +267,9 @@ impl Servo {
             Phase::Disarming => 0,
             // max/min, not `clamp`: its min ≤ max assertion would be a panic
             // path in the handler (the limit comes from the configuration).
-            _ => (i64::from(input.reference.code) << 16).max(-limit).min(limit),
+            _ => (i64::from(input.reference.code) << 16)
+                .max(-limit)
+                .min(limit),
         };
         let previous = self.command_q16;
         self.command_q16 = step_toward(previous, goal_q16, self.cfg.slew_q16);
@@ -366,7 +368,12 @@ impl Servo {
         let v_q8 = (v_q16 >> 8).clamp(-bound, bound);
         let a = a_q16.clamp(-(1 << 30), 1 << 30);
         // Q24 gain × Q8 signal = Q32 → Q16.
-        let fb = (i64::from(c.kp_q24) * e_q8 + i64::from(c.kd_q24) * ev_q8) >> 16;
+        let (kp, kd) = if self.observer.fast() {
+            (c.kp_fast_q24, c.kd_fast_q24)
+        } else {
+            (c.kp_q24, c.kd_q24)
+        };
+        let fb = (i64::from(kp) * e_q8 + i64::from(kd) * ev_q8) >> 16;
         let ff = ((i64::from(c.kff_q24) * v_q8) >> 16) + ((i64::from(c.ka_q16) * a) >> 16);
         (fb - est.d_q16, ff)
     }

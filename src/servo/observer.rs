@@ -24,10 +24,17 @@
 //! gain the design reports. `d` is the loop's integral action (it absorbs
 //! cutting force, amplifier offset and model error), in DAC codes.
 //!
+//! Two sets of gains: slow poles (40 Hz by default) while the innovation is
+//! within a few gauge-noise σ, so that gauge noise barely reaches the
+//! slide, and fast poles (400 Hz) for a hold time after the innovation
+//! exceeds the switch level, so that a sudden force (the tool leaving a
+//! bolt hole) is estimated and cancelled within a millisecond or two, not
+//! tens. With gauge noise alone the switch level is a > 5σ event.
+//!
 //! # Number formats
 //! States are `i64` Q16 (position in gauge codes·2¹⁶, velocity in codes per
 //! tick·2¹⁶, disturbance in DAC codes·2¹⁶); coefficients are `i32` Q30
-//! (each |c| < 2). Inputs are bounded before the products (innovation to
+//! (each |c| < 2), except the disturbance gains `l3`, Q24 (|l3| < 128). Inputs are bounded before the products (innovation to
 //! ±2¹⁴ codes, velocity to ±2¹⁴ codes per tick, `u + d` to ±2²⁰ codes), so
 //! every product is below 2⁶² and the sums cannot overflow.
 
@@ -42,6 +49,12 @@ pub struct ObserverCoeffs {
     pub l1: i32,
     pub l2: i32,
     pub l3: i32,
+    /// Gains of the fast observer, used while the innovation is large.
+    pub fast: [i32; 3],
+    /// |innovation| beyond which the fast gains take over, codes Q16.
+    pub switch_q16: i64,
+    /// Ticks the fast gains stay after the innovation was last large.
+    pub hold_ticks: u32,
 }
 
 /// The estimate.
@@ -61,6 +74,8 @@ pub struct Estimate {
 pub struct Observer {
     k: ObserverCoeffs,
     x: Estimate,
+    /// Ticks left on the fast gains.
+    fast_left: u32,
 }
 
 const INNOVATION_LIMIT: i64 = 1 << 30;
@@ -74,11 +89,20 @@ fn mul_q30(c: i32, x: i64) -> i64 {
     (i64::from(c) * x + (1 << 29)) >> 30
 }
 
+/// The disturbance gain is larger (DAC codes per gauge code: up to ~100
+/// for fast poles), so it is Q24; the innovation is bounded to 2³⁰ so the
+/// product stays below 2⁶¹.
+#[inline(always)]
+fn mul_q24(c: i32, x: i64) -> i64 {
+    (i64::from(c) * x + (1 << 23)) >> 24
+}
+
 impl Observer {
     pub fn new(k: ObserverCoeffs) -> Self {
         Self {
             k,
             x: Estimate::default(),
+            fast_left: 0,
         }
     }
 
@@ -102,14 +126,27 @@ impl Observer {
         let z_pred = x.z_q16 + v - mul_q30(k.c1, v) + mul_q30(k.b1, w);
         let v_pred = v - mul_q30(k.c2, v) + mul_q30(k.b2, w);
         let innovation = (y_q16 - z_pred).clamp(-INNOVATION_LIMIT, INNOVATION_LIMIT);
-        x.z_q16 = z_pred + mul_q30(k.l1, innovation);
-        x.v_q16 = v_pred + mul_q30(k.l2, innovation);
-        x.d_q16 =
-            (x.d_q16 + mul_q30(k.l3, innovation)).clamp(-DISTURBANCE_LIMIT, DISTURBANCE_LIMIT);
+        if innovation.abs() > k.switch_q16 {
+            self.fast_left = k.hold_ticks;
+        }
+        let (l1, l2, l3) = if self.fast_left > 0 {
+            self.fast_left -= 1;
+            (k.fast[0], k.fast[1], k.fast[2])
+        } else {
+            (k.l1, k.l2, k.l3)
+        };
+        x.z_q16 = z_pred + mul_q30(l1, innovation);
+        x.v_q16 = v_pred + mul_q30(l2, innovation);
+        x.d_q16 = (x.d_q16 + mul_q24(l3, innovation)).clamp(-DISTURBANCE_LIMIT, DISTURBANCE_LIMIT);
         *x
     }
 
     pub fn estimate(&self) -> Estimate {
         self.x
+    }
+
+    /// Whether the fast gains are in use.
+    pub fn fast(&self) -> bool {
+        self.fast_left > 0
     }
 }

@@ -225,7 +225,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "firmware faulted in the benchmark: {:?}",
         fw.fw.fault()
     );
-    let (mut mw, mut ms) = crate::fwrig::machine_with(sc.rig.clone(), &sc.machine, loop_hz as u32, sc.servo);
+    let (mut mw, mut ms) =
+        crate::fwrig::machine_with(sc.rig.clone(), &sc.machine, loop_hz as u32, sc.servo);
     mw.request(zslide::firmware::Request::Arm);
     let t0 = Instant::now();
     ms.run_until(&mut mw, t_end);
@@ -320,7 +321,8 @@ pub fn write_vcd(
     use crate::vcd::{SignalKind, VcdRecorder};
     use std::cell::RefCell;
     use std::rc::Rc;
-    let (mut w, mut s) = crate::fwrig::machine_with(sc.rig.clone(), &sc.machine, loop_hz as u32, sc.servo);
+    let (mut w, mut s) =
+        crate::fwrig::machine_with(sc.rig.clone(), &sc.machine, loop_hz as u32, sc.servo);
     w.request(zslide::firmware::Request::Arm);
     w.rig.slide.x[crate::plant::zslide::st::Z] = 0.002;
     let names: Vec<String> = (0..s.fired.len())
