@@ -80,6 +80,7 @@ pub struct ServoSection {
     pub learning_lead_bins: Option<u32>,
     pub learning_q_shift: Option<u32>,
     pub slew_in_per_s: Option<f64>,
+    pub slew_accel_in_per_s2: Option<f64>,
     pub command_limit_in: Option<f64>,
     pub current_limit_a: Option<f64>,
     pub current_limit_ms: Option<f64>,

@@ -122,8 +122,9 @@ pub struct ServoDesign {
     /// Q-filter: each pass smooths a bin with its neighbours by
     /// `(t[j−1] − 2t[j] + t[j+1]) / 2^shift` (2 = [1 2 1]/4; larger = weaker).
     pub learning_q_shift: u32,
-    /// Command slew limit, in/s.
+    /// Command slew limit, in/s, and its acceleration limit, in/s².
     pub slew_in_per_s: f64,
+    pub slew_accel_in_per_s2: f64,
     /// |command| limit, in.
     pub command_limit_in: f64,
     /// Estimated coil current limit, A (the board has no current sense:
@@ -158,10 +159,11 @@ impl ServoDesign {
             hum_notch_q: 2.0,
             mode_notch_hz: 3150.0,
             mode_notch_q: 0.7,
-            learning_gain: 0.2,
+            learning_gain: 0.4,
             learning_lead_bins: 3,
             learning_q_shift: 2,
             slew_in_per_s: 0.25,
+            slew_accel_in_per_s2: 20.0,
             command_limit_in: 0.0095,
             current_limit_a: 6.0,
             current_limit_ms: 20.0,
@@ -288,7 +290,9 @@ impl ServoDesign {
         }
         let cpi = s.codes_per_in();
         let codes_per_tick = |in_per_s: f64| in_per_s * cpi * h;
-        if !(self.slew_in_per_s > 0.0 && self.slew_in_per_s <= 10.0) {
+        if !(self.slew_in_per_s > 0.0 && self.slew_in_per_s <= 10.0)
+            || !(self.slew_accel_in_per_s2 > 0.0 && self.slew_accel_in_per_s2 <= 1_000.0)
+        {
             return Err(E::Slew);
         }
         if !(self.command_limit_in > 0.0 && self.command_limit_in <= 0.010) {
@@ -335,6 +339,7 @@ impl ServoDesign {
             learning_lead_bins: self.learning_lead_bins,
             learning_q_shift: self.learning_q_shift,
             slew_q16: (codes_per_tick(self.slew_in_per_s) * 65_536.0).max(1.0) as i64,
+            slew_accel_q16: (self.slew_accel_in_per_s2 * cpi * h * h * 65_536.0).max(1.0) as i64,
             command_limit_code: (self.command_limit_in * cpi) as i32,
             current_limit_code: gain(i_lim_code, 1.0)?,
             k_emf_q24: gain(k_emf, q24)?,
@@ -482,7 +487,7 @@ impl DesignError {
             Self::Learning => {
                 "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=3 (a weaker Q-filter leaves the harmonics the lead turns past 90° unstable)"
             }
-            Self::Slew => "slew_in_per_s: must be in (0, 10]",
+            Self::Slew => "slew_in_per_s in (0, 10], slew_accel_in_per_s2 in (0, 1000]",
             Self::CommandLimit => "command_limit_in: must be in (0, 0.010]",
             Self::CurrentLimit => "current_limit_a in (0, 100], current_limit_ms in (0, 10000]",
             Self::FollowingError => {
@@ -517,6 +522,8 @@ pub struct ServoConfig {
     pub learning_q_shift: u32,
     /// Largest command step per tick, gauge codes Q16.
     pub slew_q16: i64,
+    /// Largest change of that step per tick, gauge codes Q16.
+    pub slew_accel_q16: i64,
     pub command_limit_code: i32,
     /// DAC code that drives the current limit through the coil at rest.
     pub current_limit_code: i32,

@@ -24,6 +24,94 @@ pub const fn step_toward(from: i64, to: i64, max_step: i64) -> i64 {
     }
 }
 
+/// The command's approach to a goal it is not on (engagement, disarming, a
+/// target step, a fault's ramp to null): velocity limited to the slew rate
+/// and acceleration limited, braking in time to arrive at rest, so that
+/// the feedforward of the ramp (its acceleration through the plant
+/// inverse) stays bounded and the slide does not overshoot at the end of
+/// a ramp. No division: the braking test is `v² ≥ 2·a·|d|`.
+#[derive(Clone, Debug)]
+pub struct SlewProfile {
+    v_max_q16: i64,
+    a_max_q16: i64,
+    /// Velocity of the command, codes per tick Q16.
+    v_q16: i64,
+}
+
+impl SlewProfile {
+    pub fn new(v_max_q16: i64, a_max_q16: i64) -> Self {
+        Self {
+            v_max_q16: v_max_q16.clamp(1, 1 << 31),
+            a_max_q16: a_max_q16.clamp(1, (1 << 26) - 1),
+            v_q16: 0,
+        }
+    }
+
+    /// One tick from `cmd` toward `goal` (Q16 codes): the new command and
+    /// its velocity and acceleration (Q16 per tick, per tick²). The speed
+    /// toward the goal never exceeds √(2·a·distance) (it can always stop
+    /// in time), so it arrives on the goal without overshooting, landing
+    /// from at most 2a.
+    #[inline]
+    pub fn step(&mut self, cmd: i64, goal: i64) -> (i64, i64, i64) {
+        let d = goal - cmd;
+        let v0 = self.v_q16;
+        let a = self.a_max_q16;
+        // 2·a·|d| < 2⁶⁴: a < 2²⁶ (the design's bound) and |d| < 2³⁷ (twice
+        // the gauge's span, Q16); beyond that the speed is the rate limit.
+        let dist = d.unsigned_abs().min((1 << 37) - 1);
+        let vmax = self.v_max_q16.unsigned_abs();
+        let two_a_d = 2 * a.unsigned_abs() * dist;
+        // Far from the goal the rate limit holds and no root is needed.
+        let speed = if vmax.saturating_mul(vmax) <= two_a_d {
+            vmax
+        } else {
+            isqrt_u64(two_a_d).min(vmax)
+        } as i64;
+        let target_v = if d > 0 { speed } else { -speed };
+        let v = step_toward(v0, target_v, a);
+        let toward = d != 0 && (v > 0) == (d > 0);
+        if d == 0 || (toward && v.abs() >= d.abs()) {
+            // Arrives this tick (from at most about 2a): stop on the goal.
+            self.v_q16 = 0;
+            return (goal, d, d - v0);
+        }
+        self.v_q16 = v;
+        (cmd + v, v, v - v0)
+    }
+
+    /// Starts from rest (engagement).
+    pub fn reset(&mut self) {
+        self.v_q16 = 0;
+    }
+
+    /// Sets the velocity relative to the goal (the command's velocity minus
+    /// the goal's), bounded by the rate limit.
+    #[inline(always)]
+    pub fn set_velocity(&mut self, v_q16: i64) {
+        self.v_q16 = v_q16.max(-self.v_max_q16).min(self.v_max_q16);
+    }
+}
+
+/// ⌊√x⌋, digit by digit: no division, a fixed 32 rounds (the handler has
+/// no panic path and a bounded cost; only a slewing command pays it).
+#[inline]
+pub fn isqrt_u64(x: u64) -> u64 {
+    let mut rem = x;
+    let mut root: u64 = 0;
+    let mut bit: u64 = 1 << 62;
+    for _ in 0..32 {
+        if rem >= root + bit {
+            rem -= root + bit;
+            root = (root >> 1) + bit;
+        } else {
+            root >>= 1;
+        }
+        bit >>= 2;
+    }
+    root
+}
+
 /// The current limit with its persistence counter.
 #[derive(Clone, Debug)]
 pub struct CurrentLimit {
@@ -105,6 +193,59 @@ impl FollowingError {
 #[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn isqrt_is_the_floor_square_root() {
+        for x in [
+            0u64,
+            1,
+            2,
+            3,
+            4,
+            15,
+            16,
+            17,
+            1 << 40,
+            (1 << 62) + 12345,
+            u64::MAX,
+        ] {
+            let r = u128::from(isqrt_u64(x));
+            let x = u128::from(x);
+            assert!(r * r <= x && (r + 1) * (r + 1) > x, "{x}: {r}");
+        }
+    }
+
+    /// A 100 000-code move at ≤ 655 codes/tick and ≤ 3 codes/tick²
+    /// (reaching 655 would take 143 000 codes, so the profile is a
+    /// triangle), and a 400 000-code move (a trapezoid): the closed-form
+    /// durations within the discrete braking's slack, arriving at rest on
+    /// the goal, never exceeding either limit or overshooting.
+    #[test]
+    fn slew_profile_is_a_bounded_trapezoid_that_arrives_at_rest() {
+        let (vm, am) = (655i64 << 16, 3i64 << 16);
+        // Triangle: t = 2√(d/a) = 365; trapezoid: t = d/vm + vm/a = 829.
+        for (d, expected) in [(100_000i64, 365.0), (400_000, 829.0)] {
+            let mut p = SlewProfile::new(vm, am);
+            let (mut cmd, goal) = (0i64, d << 16);
+            let mut ticks = 0;
+            let mut v_prev = 0;
+            while cmd != goal {
+                let (c, v, a) = p.step(cmd, goal);
+                assert!(v.abs() <= vm && a.abs() <= vm.max(am));
+                assert!((v - v_prev).abs() <= am || c == goal);
+                assert!(c <= goal, "no overshoot");
+                v_prev = v;
+                cmd = c;
+                ticks += 1;
+                assert!(ticks < 10_000);
+            }
+            let t = f64::from(ticks);
+            assert!(
+                (t / expected - 1.0).abs() < 0.06,
+                "{d}: {ticks} vs {expected}"
+            );
+        }
+    }
 
     /// At rest the limit is the configured code either way; moving at v the
     /// window shifts by the back-EMF k·v (a slide running forward may be

@@ -44,7 +44,7 @@ use crate::safety::Fault;
 use crate::units::SpindleAngle;
 use engage::{SignCheck, SignStep};
 use filters::Notch;
-use limits::{step_toward, CurrentLimit, FollowingError};
+use limits::{CurrentLimit, FollowingError, SlewProfile};
 use observer::{Estimate, Observer};
 use repetitive::Repetitive;
 
@@ -116,8 +116,12 @@ pub struct Servo {
     sign: SignCheck,
     current: CurrentLimit,
     following: FollowingError,
-    /// The slew-limited command, gauge codes Q16.
+    slew: SlewProfile,
+    /// The slew-limited command, gauge codes Q16, and its velocity.
     command_q16: i64,
+    command_v_q16: i64,
+    /// The goal's velocity on the last tick, Q16.
+    goal_v_q16: i64,
     /// The goal of the last tick, Q16.
     goal_q16: i64,
     /// The reference the loop followed on the last tick (command plus
@@ -157,7 +161,10 @@ impl Servo {
                 cfg.current_limit_ticks,
             ),
             following: FollowingError::new(cfg.following_error_code, cfg.following_error_ticks),
+            slew: SlewProfile::new(cfg.slew_q16, cfg.slew_accel_q16),
             command_q16: 0,
+            command_v_q16: 0,
+            goal_v_q16: 0,
             goal_q16: 0,
             reference_q16: 0,
             measured_q16: 0,
@@ -221,7 +228,7 @@ impl Servo {
                 self.sign.start(measured_q16);
                 self.phase = Phase::SignCheck;
             } else {
-                self.engage(measured_q16, true);
+                self.engage(measured_q16, true, input.reference.velocity_q16);
             }
         }
         if input.amplifier_tripped {
@@ -243,7 +250,7 @@ impl Servo {
                         fault: None,
                     };
                 }
-                SignStep::Passed => self.engage(measured_q16, false),
+                SignStep::Passed => self.engage(measured_q16, false, input.reference.velocity_q16),
                 SignStep::Failed { moved, expected } => {
                     self.last_sign_check = Some(SignCheckResult {
                         moved_code: moved,
@@ -271,15 +278,37 @@ impl Servo {
                 .max(-limit)
                 .min(limit),
         };
-        let previous = self.command_q16;
-        self.command_q16 = step_toward(previous, goal_q16, self.cfg.slew_q16);
-        let on_goal = self.command_q16 == goal_q16 && previous == self.goal_q16;
-        self.goal_q16 = goal_q16;
-        let (mut v_ref, mut a_ref) = if on_goal && self.phase != Phase::Disarming {
-            (input.reference.velocity_q16, input.reference.accel_q16)
+        // The command is the goal plus an offset that the slew profile
+        // takes to zero (bounded relative velocity and acceleration,
+        // arriving at rest on the goal): a goal that moves (the table's
+        // command) is joined, not chased, and a goal that jumps (a target
+        // step, a fault's null) is approached smoothly. The command's own
+        // velocity stays continuous when the goal's rates change.
+        let (v_goal, a_goal) = if self.phase == Phase::Disarming {
+            (0, 0)
         } else {
-            (self.command_q16 - previous, 0)
+            (input.reference.velocity_q16, input.reference.accel_q16)
         };
+        // Relative to the goal's previous velocity while the goal moves
+        // smoothly (its own acceleration is in a_goal); re-expressed against
+        // its new velocity when that jumps (the rates of a fault's null).
+        let v_goal_then = if (v_goal - self.goal_v_q16).abs() > self.cfg.slew_accel_q16 {
+            v_goal
+        } else {
+            self.goal_v_q16
+        };
+        self.goal_v_q16 = v_goal;
+        self.slew.set_velocity(self.command_v_q16 - v_goal_then);
+        // Where the command stands against the new goal had it moved with
+        // the goal's velocity this tick: 0 while tracking, the jump when
+        // the goal jumped.
+        let offset = self.command_q16 + v_goal_then - goal_q16;
+        let (offset, v_o, a_o) = self.slew.step(offset, 0);
+        self.command_q16 = goal_q16 + offset;
+        let (mut v_ref, mut a_ref) = (v_goal + v_o, a_goal + a_o);
+        self.command_v_q16 = v_ref;
+        let on_goal = offset == 0;
+        self.goal_q16 = goal_q16;
         match self.phase {
             Phase::Engaging if on_goal => {
                 self.phase = Phase::Engaged;
@@ -308,12 +337,15 @@ impl Servo {
         self.reference_q16 = reference;
         let error_q16 = reference - measured_q16;
         // The learning drives the command's error to zero (not the error
-        // to the corrected reference, which the loop itself removes).
-        // It must not learn the hum must not learn the hum (at 300 rpm it is exactly the
-        // 24th spindle harmonic): its error goes through its own notch.
+        // to the corrected reference, which the loop itself removes), as
+        // the gauge measures it (the observer's estimate would carry the
+        // model's error into the table when the plant differs from it).
+        // The hum (at 300 rpm exactly the 24th spindle harmonic) goes
+        // through its own notch.
+        let learn_raw = self.command_q16 - measured_q16;
         let learn_error_q16 = match &mut self.learn_hum {
-            Some(n) => i64::from(n.process(q8(self.command_q16 - measured_q16))) << 8,
-            None => self.command_q16 - measured_q16,
+            Some(n) => i64::from(n.process(q8(learn_raw))) << 8,
+            None => learn_raw,
         };
         if let Some((phi, dphi)) = input.angle {
             let freeze = if self.phase != Phase::Engaged {
@@ -382,13 +414,17 @@ impl Servo {
     /// sign check the observer has followed the doublet (it saw the DAC
     /// codes), so it keeps its estimate, velocity included; from rest it
     /// starts at rest.
-    fn engage(&mut self, y_q16: i64, from_rest: bool) {
+    fn engage(&mut self, y_q16: i64, from_rest: bool, v_goal_q16: i64) {
         if from_rest {
             self.observer.reset(y_q16);
         }
         let z = self.observer.estimate().z_q16;
         self.command_q16 = z;
+        self.command_v_q16 = 0;
+        // The goal already moves: the command starts at rest and joins it.
+        self.goal_v_q16 = v_goal_q16;
         self.goal_q16 = z;
+        self.slew.reset();
         self.phase = Phase::Engaging;
         self.current.reset();
         self.following.reset();

@@ -26,8 +26,8 @@
 //! Robustness: the lead (in bins) compensates the loop's residual lag; the
 //! Q-filter `t[k] += (t[k−1] − 2t[k] + t[k+1]) / 2^shift`, applied twice
 //! to each bin per revolution when it is complete (for shift 2 the kernel
-//! [1 4 6 4 1]/16: gain cos⁴(πh/256) at harmonic h, 0.89 at h = 20, 0.25
-//! at h = 64), limits the learning to low
+//! [1 4 6 4 1]/16: gain cos⁴(πh/256) at harmonic h, 0.9976 at h = 2,
+//! 0.87 at h = 21, 0.25 at h = 64), limits the learning to low
 //! harmonics (zero phase in angle) and makes it forget slowly, which is
 //! also how the table follows X as the feed moves the radius. Entries are
 //! clamped to ± a quarter of the gauge range (memory bounded in size and
@@ -55,7 +55,7 @@ const ENTRY_LIMIT: i32 = 1 << 25;
 pub const MIN_LEAD: usize = 3;
 /// Largest angle step per tick the learning accepts (1/4 bin: 1170 rpm at
 /// 20 kHz); larger steps are a jump, not motion.
-const MAX_DPHI: i32 = 1 << 22;
+const MAX_DPHI: i32 = 1 << (BIN_BITS - 2);
 
 /// Why the learning is not running.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -73,6 +73,10 @@ pub enum Freeze {
     XJump,
     /// A fault is latched.
     Fault,
+    /// The table's command is null (X in the null zone, no X or no angle
+    /// yet): the slide is held at zero, nothing periodic to learn, and
+    /// learning would only write gauge noise into the table.
+    Null,
 }
 
 /// The learned reference correction at one angle.
@@ -131,9 +135,9 @@ impl Repetitive {
         let slope2 = s1 + (((s2 - s1) * f) >> 16);
         let d = i64::from(dphi.clamp(-MAX_DPHI, MAX_DPHI));
         // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17.
-        let v = (slope2 * d) >> 17;
+        let v = (slope2 * d) >> (BIN_BITS - 7);
         // (s2 − s1)/2 per bin² · dphi² / 2⁴⁸, Q8 → Q16: >> 41 in two steps.
-        let a = ((((s2 - s1) * d) >> 21) * d) >> 20;
+        let a = ((((s2 - s1) * d) >> 20) * d) >> (2 * BIN_BITS - 27);
         Correction {
             position_q16: c_q8 << 8,
             velocity_q16: v,
@@ -189,7 +193,7 @@ impl Repetitive {
         let f = i64::from((phi.0 >> (BIN_BITS - 16)) & 0xFFFF);
         let e_q8 = (error_q16 >> 8).clamp(-(1 << 28), 1 << 28);
         // κ · e · Δφ / bin, rounded: Σ over a bin is κ·ē.
-        let inc = (((e_q8 * i64::from(dphi)) >> 16) * self.gain_q16) >> 24;
+        let inc = (((e_q8 * i64::from(dphi)) >> 16) * self.gain_q16) >> BIN_BITS;
         let lo = (inc * (65_536 - f)) >> 16;
         let hi = inc - lo;
         self.add(j, lo);
@@ -281,7 +285,7 @@ mod tests {
             }
             // residual after 40 revolutions at κ = 0.3: (0.7)^40 ~ 6e-7 plus
             // the Q-filter's steady forgetting at harmonic 2:
-            // (1 − cos⁴(2π/256))/κ ≈ 0.4 %.
+            // (1 − cos⁴(2π/256))/κ ≈ 0.8 %.
             let mut worst: f64 = 0.0;
             for k in 0..360 {
                 let p = (k as f64 / 360.0 * TURN) as u32;
@@ -302,7 +306,8 @@ mod tests {
         let mut r = Repetitive::new(1, 0, 8);
         let a = 10_000.0;
         for (i, t) in r.table.iter_mut().enumerate() {
-            *t = (a * 256.0 * libm::sin(2.0 * core::f64::consts::TAU * i as f64 / 256.0)) as i32;
+            *t = (a * 256.0 * libm::sin(2.0 * core::f64::consts::TAU * i as f64 / BINS as f64))
+                as i32;
         }
         let dphi = (TURN / 4000.0) as i32;
         let w = core::f64::consts::TAU / 4000.0; // rad per tick
