@@ -1,8 +1,8 @@
 //! Portable core of the Z-slide controller.
 //!
 //! `no_std`, no allocation, no chips and no simulator: boards (`src/main.rs`,
-//! `boards/qemu`) and `host-sim` implement its traits. The data path reads in
-//! the module order: X position and spindle angle arrive by interrupt, the
+//! `boards/qemu`) and `host-sim` implement its traits. The module list below
+//! follows the data path: X position and spindle angle arrive by interrupt, the
 //! coefficient table is interpolated at X, the command is formed at φ, the
 //! loop closes on the gauge, and the result goes to the DAC. See
 //! `docs/ARCHITECTURE.md`.
@@ -10,18 +10,29 @@
 #![forbid(unsafe_code)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+// Types and traits.
+pub mod hw;
+pub mod safety;
+pub mod units;
+// Configuration and the coefficient table.
+pub mod codes;
+pub mod config;
+pub mod table;
+// The data path: interrupt → X / angle → coefficients → command → loop → DAC.
+pub mod coeffcache;
 pub mod command;
 pub mod drivers;
-pub mod firmware;
-pub mod hw;
+pub mod handoff;
 pub mod interp;
-pub mod safety;
+pub mod looptick;
 pub mod servo;
+pub mod setpoint;
 pub mod spindle;
-pub mod table;
 pub mod trig;
-pub mod units;
+pub mod xevent;
 pub mod xpos;
+// The bundle the boards and host-sim use.
+pub mod firmware;
 
 /// The default coefficient table, embedded in the firmware: the dissertation's
 /// part (c = 316.7 in, S_y = 28 in, r_t = 0.125 in), 5-term sin-power series on

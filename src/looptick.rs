@@ -1,0 +1,548 @@
+//! The loop-tick handler (highest priority): takes what the X and index
+//! handlers published, reads the gauge, forms the spindle angle, (modern X)
+//! the coefficients, the setpoint with its analytic rates, hands them to
+//! the servo and writes its DAC code. It only orchestrates: the loop
+//! itself is `servo`, the command `command`/`setpoint`.
+
+use crate::codes::{CODE_MAX, CODE_MIN};
+use crate::coeffcache::IntervalCache;
+use crate::command::{Coefficients, CommandGen};
+use crate::config::COLS;
+use crate::handoff::{Request, Shared, NULL_META, X_FAULTS};
+use crate::hw::{AmplifierDac, EncoderSample, GaugeAdc};
+use crate::safety::{Device, Fault, Reaction};
+use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
+use crate::setpoint::{setpoint, SetpointState};
+use crate::spindle::{EncoderAngle, TachAngle};
+use crate::units::XInches;
+use crate::xpos::CountX;
+use core::sync::atomic::{fence, Ordering};
+
+/// One spindle reading, as the hw traits deliver it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpindleReading {
+    /// No reading (no spindle configured).
+    None,
+    /// [`crate::hw::Encoder::sample`] of the spindle encoder.
+    Encoder(EncoderSample),
+    /// [`crate::hw::Tachometer::millivolts`].
+    Tach(i32),
+}
+
+/// What the loop tick samples besides the gauge, read by the board from its
+/// hw-trait implementations at the tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TickInput {
+    /// [`crate::hw::Clock::now_ticks`] at the sampling instant.
+    pub now: u32,
+    pub spindle: SpindleReading,
+    /// Modern X mode: the X encoder's count ([`crate::hw::Encoder`]).
+    pub x_count: u32,
+    /// The power amplifier's fault line (high: it tripped).
+    pub amplifier_fault: bool,
+}
+
+impl TickInput {
+    /// No spindle, no X: the bench's input.
+    pub const NONE: Self = Self {
+        now: 0,
+        spindle: SpindleReading::None,
+        x_count: 0,
+        amplifier_fault: false,
+    };
+}
+
+#[derive(Clone, Debug)]
+pub(crate) enum Estimator {
+    None,
+    Encoder(EncoderAngle),
+    Tach(TachAngle),
+}
+
+#[derive(Clone, Debug)]
+// The large variant is the only one a modern-X firmware uses (no heap to
+// box it in; the enum lives once, in the loop-tick state). Keeping the
+// cache here measured cheaper on the M4 than a separate field, and so did
+// copying the slopes every time over testing whether they changed.
+#[allow(clippy::large_enum_variant)]
+pub(crate) enum LoopX {
+    /// Coefficients arrive from the X handler.
+    Published,
+    /// Modern X: re-interpolated in the tick, through the interval cache
+    /// when the table takes the fast path (`Some`).
+    Count(CountX, Option<IntervalCache>),
+    None,
+}
+
+/// State of the loop-tick handler (highest priority).
+#[derive(Clone, Debug)]
+pub struct LoopState {
+    pub(crate) gen: Option<CommandGen<'static>>,
+    pub(crate) spindle: Estimator,
+    pub(crate) x: LoopX,
+    pub(crate) gauge_reversed: bool,
+    pub(crate) coeffs: Coefficients,
+    pub(crate) coeff_seen: u32,
+    pub(crate) index_seen: u32,
+    pub(crate) x_faults_seen: u32,
+    pub(crate) last_x_count: Option<u32>,
+    /// The angle history of the setpoint's rates.
+    pub(crate) sp: SetpointState,
+    /// X of the last coefficient set (learning freezes when it jumps).
+    pub(crate) last_coeff_x: Option<XInches>,
+    /// Offset added to the table command, gauge codes.
+    pub(crate) target: i32,
+    /// The offset on the last tick.
+    pub(crate) last_target: i32,
+    /// Table command of the last tick, gauge codes.
+    pub(crate) table_code: i32,
+    /// Velocity input of the last tick (∂Z/∂φ·Δφ), codes/tick Q16.
+    pub(crate) ff_q16: i64,
+    /// Acceleration input of the last tick, codes/tick², Q16.
+    pub(crate) accel_q16: i64,
+    pub(crate) servo: Servo,
+    /// Gauge code of the last good sample (+Z).
+    pub(crate) position: i32,
+    /// Whether the last gauge sample was bad (range, rail, bus).
+    pub(crate) gauge_bad: bool,
+    pub(crate) ticks: u32,
+    pub(crate) output: i32,
+    pub(crate) fault: Option<Fault>,
+    /// The last clear request was refused (the cause was still present).
+    pub(crate) clear_refused: Option<Fault>,
+    pub(crate) dac_clamped: bool,
+    /// The DAC holds code 0 (disarmed).
+    pub(crate) dac_zeroed: bool,
+}
+
+/// |ΔX| between two coefficient sets beyond which the learned table no
+/// longer belongs to the radius: 0.01 in (the feed moves 100 µin per
+/// revolution; a jump this size is a restart elsewhere or a bad count).
+pub(crate) const X_JUMP_BITS: i32 = (0.01 * (1u64 << 24) as f64) as i32;
+
+impl LoopState {
+    pub(crate) fn new(cfg: ServoConfig) -> Self {
+        Self {
+            gen: None,
+            spindle: Estimator::None,
+            x: LoopX::None,
+            gauge_reversed: false,
+            coeffs: Coefficients::NULL,
+            coeff_seen: 0,
+            index_seen: 0,
+            x_faults_seen: 0,
+            last_x_count: None,
+            sp: SetpointState::default(),
+            last_coeff_x: None,
+            target: 0,
+            last_target: 0,
+            table_code: 0,
+            ff_q16: 0,
+            accel_q16: 0,
+            servo: Servo::new(cfg),
+            position: 0,
+            gauge_bad: false,
+            ticks: 0,
+            output: 0,
+            fault: None,
+            clear_refused: None,
+            dac_clamped: false,
+            dac_zeroed: false,
+        }
+    }
+
+    /// Latches `fault` unless a fault with an equally or more severe reaction
+    /// is already latched (the first cause stays readable).
+    pub fn trip(&mut self, fault: Fault) {
+        match self.fault {
+            Some(f) if f.reaction() >= fault.reaction() => {}
+            _ => self.fault = Some(fault),
+        }
+    }
+
+    /// Sets an offset added to the table command (with no table: where the
+    /// slide should go); the command ramps there at the slew limit. Clamped
+    /// to the gauge range.
+    pub fn set_target_code(&mut self, code: i32) {
+        self.target = code.clamp(CODE_MIN, CODE_MAX);
+    }
+
+    /// Picks up what the X / index handlers published.
+    #[inline(always)]
+    pub(crate) fn take_published(&mut self, sh: &Shared) {
+        let xf = sh.x_faults.load(Ordering::Relaxed);
+        if xf != self.x_faults_seen {
+            let new = xf & !self.x_faults_seen;
+            self.x_faults_seen = xf;
+            for (bit, f) in X_FAULTS {
+                if new & bit != 0 {
+                    self.trip(f);
+                }
+            }
+        }
+        let s = sh.index_seq.load(Ordering::Acquire);
+        if s != self.index_seen {
+            let missed = s.wrapping_sub(self.index_seen) > 1;
+            let slot = &sh.index[(s & 1) as usize];
+            let count = slot[0].load(Ordering::Relaxed);
+            let edge = slot[1].load(Ordering::Relaxed);
+            fence(Ordering::Acquire);
+            if slot[2].load(Ordering::Relaxed) != s {
+                // Overwritten while read (a writer that can preempt the
+                // tick): the pulses came faster than the loop rate.
+                self.index_seen = s;
+                self.trip(Fault::IndexExtra);
+                return;
+            }
+            self.index_seen = s;
+            if missed {
+                // Two index pulses within one loop period: noise.
+                self.trip(Fault::IndexExtra);
+            }
+            let r = match &mut self.spindle {
+                Estimator::Encoder(e) => e.on_index(count, edge),
+                Estimator::Tach(t) => t.on_index(edge),
+                Estimator::None => Ok(()),
+            };
+            if let Err(f) = r {
+                self.trip(f);
+            }
+        }
+        if matches!(self.x, LoopX::Published) {
+            let g = sh.coeff_gen.load(Ordering::Acquire);
+            if g != self.coeff_seen {
+                let slot = &sh.coeff[(g & 1) as usize];
+                let meta = slot.meta.load(Ordering::Relaxed);
+                let x = XInches::from_bits(slot.x.load(Ordering::Relaxed));
+                if meta & NULL_META != 0 {
+                    self.coeffs.set_null(x);
+                } else {
+                    let n = (meta as usize).min(COLS);
+                    let src = slot.value.iter().zip(slot.delta.iter());
+                    let dst = self
+                        .coeffs
+                        .value
+                        .iter_mut()
+                        .zip(self.coeffs.delta.iter_mut());
+                    for ((v, d), (sv, sd)) in dst.zip(src).take(n) {
+                        *v = sv.load(Ordering::Relaxed);
+                        *d = sd.load(Ordering::Relaxed);
+                    }
+                    self.coeffs.set_live(n as u8, x);
+                }
+                self.note_x(x);
+                fence(Ordering::Acquire);
+                // Overwritten while copying (only possible if the writer can
+                // preempt the tick): drop it, take the next one.
+                if slot.seq.load(Ordering::Relaxed) == g {
+                    self.coeff_seen = g;
+                } else {
+                    self.coeffs.set_null(x);
+                }
+            }
+        }
+    }
+
+    /// The loop-tick interrupt: gauge and spindle sample in, one DAC code out.
+    ///
+    /// Never inlined, so that `cargo xtask isr-cost` finds it in the image
+    /// and counts its instructions apart from the board's glue.
+    #[inline(never)]
+    pub fn loop_tick(
+        &mut self,
+        sh: &Shared,
+        input: &TickInput,
+        gauge: &mut impl GaugeAdc,
+        dac: &mut impl AmplifierDac,
+    ) {
+        self.ticks = self.ticks.wrapping_add(1);
+        self.take_published(sh);
+        // The gauge is read even with the amplifier off: a clear request
+        // needs to see whether a gauge fault's cause is gone.
+        let read = gauge.read();
+        let gauge_fault = match read {
+            Err(_) => Some(Fault::Bus(Device::GaugeAdc)),
+            Ok(s) if s.overrange => Some(Fault::GaugeRange),
+            // A reading on a rail without OV: the gauge's own output is
+            // pinned, so the loop cannot see where the slide is beyond it.
+            Ok(s) if s.code <= CODE_MIN || s.code >= CODE_MAX => Some(Fault::GaugeSaturated),
+            Ok(_) => None,
+        };
+        self.gauge_bad = gauge_fault.is_some();
+        self.take_requests(sh, input.amplifier_fault);
+        let sample = match (read, gauge_fault) {
+            (Ok(s), None) => s,
+            (_, f) => {
+                self.trip(f.unwrap_or(Fault::Bus(Device::GaugeAdc)));
+                self.hold_safe(dac);
+                return;
+            }
+        };
+        if self.amplifier_must_be_off() {
+            self.hold_safe(dac);
+            return;
+        }
+        let code = if self.gauge_reversed {
+            sample.code.saturating_neg()
+        } else {
+            sample.code
+        };
+        let y = code.clamp(CODE_MIN, CODE_MAX);
+        self.position = y;
+
+        // Spindle angle.
+        let est = match (&mut self.spindle, input.spindle) {
+            (Estimator::Encoder(e), SpindleReading::Encoder(s)) => {
+                let est = e.tick(s.count, s.edge_ticks, input.now);
+                e.referenced().then_some(est)
+            }
+            (Estimator::Tach(t), SpindleReading::Tach(mv)) => {
+                let est = t.tick(mv, input.now);
+                t.referenced().then_some(est)
+            }
+            _ => None,
+        };
+        let phi = match est {
+            Some(e) => {
+                if let Some(f) = e.fault {
+                    self.trip(f);
+                }
+                Some(e.angle)
+            }
+            None => None,
+        };
+
+        // Modern X: re-interpolate when the count moved.
+        if let LoopX::Count(cx, cache) = &mut self.x {
+            if self.last_x_count != Some(input.x_count) {
+                self.last_x_count = Some(input.x_count);
+                let moved = cx.on_tick(input.x_count);
+                let r = match (moved, self.gen.as_ref(), cache) {
+                    (Ok(x), Some(g), Some(c)) => {
+                        let n = usize::from(g.interpolator().table().header().terms);
+                        c.coefficients_into(g, n.min(COLS), x, &mut self.coeffs)
+                    }
+                    (Ok(x), Some(g), None) => g.coefficients_into(x, &mut self.coeffs),
+                    (Err(f), _, _) => Err(f),
+                    (Ok(_), None, _) => Ok(()),
+                };
+                if let Err(f) = r {
+                    self.trip(f);
+                }
+                if let Ok(x) = moved {
+                    self.note_x(x);
+                }
+            }
+        }
+
+        // The command and its analytic rates.
+        let dphi = self.sp.dphi(phi);
+        let table = setpoint(self.gen.as_ref(), &self.coeffs, phi, &mut self.sp);
+        let (table_code, slope, accel) = (table.code, table.velocity_q16, table.accel_q16);
+        self.table_code = table_code;
+        self.ff_q16 = slope;
+        self.accel_q16 = accel;
+        let faulted = self.fault.is_some();
+        let reference = if faulted {
+            // RampToNull: the loop stays closed and ramps to null.
+            Reference::default()
+        } else {
+            // The target offset's own rate (a user signal, clean) joins the
+            // table's analytic rate in the velocity feedforward when it is a
+            // motion (a step is approached by the servo's slew profile).
+            let step = i64::from(self.target) - i64::from(self.last_target);
+            let slew_codes = self.servo.config().slew_q16 >> 16;
+            let target_step = if step.abs() <= slew_codes { step } else { 0 };
+            Reference {
+                code: self
+                    .target
+                    .saturating_add(table_code)
+                    .clamp(CODE_MIN, CODE_MAX),
+                velocity_q16: slope + (target_step << 16),
+                accel_q16: accel,
+            }
+        };
+        self.last_target = self.target;
+        let out = self.servo.update(&ServoInput {
+            gauge_code: y,
+            reference,
+            angle: phi.map(|p| (p, dphi)),
+            freeze: if faulted {
+                Some(Freeze::Fault)
+            } else if self.coeffs.null || self.gen.is_none() {
+                Some(Freeze::Null)
+            } else {
+                None
+            },
+            amplifier_tripped: input.amplifier_fault,
+        });
+        if let Some(f) = out.fault {
+            self.trip(f);
+            if self.amplifier_must_be_off() {
+                self.hold_safe(dac);
+                return;
+            }
+        }
+        if !out.enable {
+            // Disarmed: DAC at zero volts (written once), enable low.
+            if !self.dac_zeroed {
+                match dac.write(0) {
+                    Ok(()) => self.dac_zeroed = true,
+                    Err(_) => {
+                        self.trip(Fault::Bus(Device::AmplifierDac));
+                        self.hold_safe(dac);
+                    }
+                }
+            }
+            self.output = 0;
+            return;
+        }
+        self.dac_zeroed = false;
+        match dac.write(out.dac_code) {
+            Ok(()) => self.output = out.dac_code,
+            Err(_) => {
+                self.trip(Fault::Bus(Device::AmplifierDac));
+                self.hold_safe(dac);
+            }
+        }
+    }
+
+    /// Remembers the X of a new coefficient set; a jump freezes learning
+    /// for a second (the table belongs to another radius).
+    #[inline(always)]
+    pub(crate) fn note_x(&mut self, x: XInches) {
+        if let Some(p) = self.last_coeff_x {
+            let d = x.0.to_bits().wrapping_sub(p.0.to_bits());
+            if !(-X_JUMP_BITS..=X_JUMP_BITS).contains(&d) {
+                let hold = self.servo.config().rate_hz;
+                self.servo.freeze_learning(Freeze::XJump, hold);
+            }
+        }
+        self.last_coeff_x = Some(x);
+    }
+
+    /// Operator requests posted in [`Shared`].
+    #[inline(always)]
+    pub(crate) fn take_requests(&mut self, sh: &Shared, amplifier_fault: bool) {
+        if sh.requests.load(Ordering::Relaxed) == 0 {
+            return;
+        }
+        let r = sh.requests.swap(0, Ordering::Acquire);
+        if r & Request::Disarm.bit() != 0 {
+            self.servo.disarm();
+        }
+        if r & Request::ClearFault.bit() != 0 {
+            self.clear_fault(amplifier_fault);
+        }
+        // Arming with a ramp-to-null fault latched is allowed: the loop then
+        // holds the slide at null (a refused table, a lost X).
+        if r & Request::Arm.bit() != 0
+            && r & Request::Disarm.bit() == 0
+            && !self.amplifier_must_be_off()
+        {
+            self.servo.arm();
+        }
+    }
+
+    /// Clears the latched fault when the loop is disarmed and the cause is
+    /// no longer seen; otherwise records the refusal.
+    pub(crate) fn clear_fault(&mut self, amplifier_fault: bool) {
+        let Some(f) = self.fault else {
+            return;
+        };
+        let present = self.servo.phase() != Phase::Disarmed
+            || match f {
+                Fault::GaugeRange | Fault::GaugeSaturated | Fault::Bus(Device::GaugeAdc) => {
+                    self.gauge_bad
+                }
+                Fault::AmplifierTrip => amplifier_fault,
+                // A refused table stays refused: only a new table clears it.
+                Fault::Table(_) => true,
+                _ => false,
+            };
+        if present {
+            self.clear_refused = Some(f);
+        } else {
+            self.fault = None;
+            self.clear_refused = None;
+            self.dac_clamped = false;
+        }
+    }
+
+    pub(crate) fn amplifier_must_be_off(&self) -> bool {
+        matches!(self.fault, Some(f) if f.reaction() == Reaction::DisableAmplifier)
+    }
+
+    pub(crate) fn hold_safe(&mut self, dac: &mut impl AmplifierDac) {
+        self.output = 0;
+        self.servo.stop();
+        self.dac_zeroed = false;
+        if !self.dac_clamped && dac.clamp_to_ground().is_ok() {
+            self.dac_clamped = true;
+        }
+    }
+
+    /// Whether the board may drive the amplifier-enable line high: the loop
+    /// is armed (never on its own: only after [`Request::Arm`]) and no
+    /// fault demands it off.
+    pub fn amplifier_enable(&self) -> bool {
+        self.servo.phase() != Phase::Disarmed && !self.amplifier_must_be_off()
+    }
+    /// The servo (engagement phase, estimate, learning, configuration).
+    pub fn servo(&self) -> &Servo {
+        &self.servo
+    }
+    /// The fault a clear request could not clear (its cause was present or
+    /// the loop armed), until the next successful clear.
+    pub fn clear_refused(&self) -> Option<Fault> {
+        self.clear_refused
+    }
+    /// Loop ticks run so far (wrapping), faulted ticks included.
+    pub fn ticks(&self) -> u32 {
+        self.ticks
+    }
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+    /// The command the loop followed on the last tick, gauge codes.
+    pub fn command_code(&self) -> i32 {
+        self.servo.command_code()
+    }
+    /// The table's Z command of the last tick, gauge codes (0 when null).
+    pub fn table_code(&self) -> i32 {
+        self.table_code
+    }
+    /// The offset (no table: the target) the command ramps to, gauge codes.
+    pub fn target_code(&self) -> i32 {
+        self.target
+    }
+    /// The gauge code of the last good sample (Z sense).
+    pub fn position_code(&self) -> i32 {
+        self.position
+    }
+    /// The DAC code written on the last tick (0 when held safe).
+    pub fn output_code(&self) -> i32 {
+        self.output
+    }
+    /// Velocity feedforward input of the last tick, gauge codes per tick, Q16.
+    pub fn feedforward_q16(&self) -> i64 {
+        self.ff_q16
+    }
+    /// Acceleration feedforward input of the last tick (∂²Z/∂φ²·Δφ²),
+    /// gauge codes per tick², Q16.
+    pub fn accel_q16(&self) -> i64 {
+        self.accel_q16
+    }
+    /// Whether the DAC has acknowledged its clamp to ground.
+    pub fn dac_clamped(&self) -> bool {
+        self.dac_clamped
+    }
+    /// The coefficients the loop tick evaluates.
+    pub fn coefficients(&self) -> &Coefficients {
+        &self.coeffs
+    }
+    pub fn config(&self) -> &ServoConfig {
+        self.servo.config()
+    }
+}

@@ -1,0 +1,163 @@
+//! The X / index handlers (one priority level below the loop tick):
+//! legacy half-mil X events decoded, debounced and scheduled, the
+//! coefficients at the new X published for the loop tick (and, in the
+//! legacy coefficient-output mode, written to the quad DAC); index pulses
+//! published as they come.
+
+use crate::coeffcache::{fast_and_terms, fast_columns, general_columns, IntervalCache};
+use crate::command::{CommandGen, LegacyOutput};
+use crate::config::{FirmwareConfig, XMode};
+use crate::handoff::{Shared, NULL_META};
+use crate::hw::{BusError, CoefficientDac, XLatchWord};
+use crate::safety::{Device, Fault};
+use crate::units::XInches;
+use crate::xpos::{LegacyConfig, LegacyX, XEvent};
+use core::sync::atomic::{fence, Ordering};
+
+/// A quad DAC that is not there (the coefficient-output mode is off).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoCoefficientDac;
+
+impl CoefficientDac for NoCoefficientDac {
+    fn output(&mut self, _codes: &[u16; 4], _update: u8) -> Result<(), BusError> {
+        Ok(())
+    }
+}
+
+/// State of the X and index handlers (one priority level below the tick).
+#[derive(Clone, Debug)]
+pub struct EventState {
+    pub(crate) gen: Option<CommandGen<'static>>,
+    pub(crate) legacy: Option<LegacyX>,
+    pub(crate) coefficient_output: bool,
+    pub(crate) out: LegacyOutput,
+    pub(crate) cache: IntervalCache,
+    /// Q30 tables with every |coefficient| ≤ COEFF_LIMIT/2 (all real ones:
+    /// no clamp in `coefficients_into`, node changes fit an i32) take the
+    /// cached path; others the command path's general one.
+    pub(crate) fast: bool,
+    pub(crate) terms: u8,
+    /// The interval whose changes each slot's `delta` holds.
+    pub(crate) slot_interval: [Option<u32>; 2],
+    pub(crate) coeff_gen: u32,
+}
+
+impl EventState {
+    pub(crate) fn new(gen: Option<CommandGen<'static>>, cfg: &FirmwareConfig) -> Self {
+        let legacy = match (cfg.x, gen) {
+            (XMode::Legacy { clock_hz }, Some(g)) => {
+                Some(LegacyX::new(LegacyConfig::new(g.x_null(), clock_hz)))
+            }
+            (XMode::Legacy { clock_hz }, None) => {
+                // No table: every position is "null zone".
+                Some(LegacyX::new(LegacyConfig::new(XInches::ZERO, clock_hz)))
+            }
+            _ => None,
+        };
+        let (fast, terms) = fast_and_terms(gen.as_ref());
+        Self {
+            gen,
+            legacy,
+            coefficient_output: cfg.coefficient_output,
+            out: LegacyOutput::new(),
+            cache: IntervalCache::new(gen.as_ref()),
+            fast,
+            terms,
+            slot_interval: [None; 2],
+            coeff_gen: 0,
+        }
+    }
+
+    /// The legacy half-mil interrupt: `word` latched at the edge, `now` the
+    /// clock then. Decode, debounce, schedule ([`LegacyX`]); an accepted
+    /// event publishes the coefficients at the new X for the loop tick and,
+    /// in the coefficient-output mode, writes the scheduled C0j to `quad`
+    /// and strobes it. Faults go to the loop tick through `sh`.
+    ///
+    /// Never inlined, so `cargo xtask isr-cost` can find and count it.
+    #[inline(never)]
+    pub fn x_event(
+        &mut self,
+        sh: &Shared,
+        word: XLatchWord,
+        now: u32,
+        quad: &mut impl CoefficientDac,
+    ) -> Result<XEvent, Fault> {
+        let Some(lx) = self.legacy.as_mut() else {
+            return Ok(XEvent::Ignored);
+        };
+        let u = match lx.on_interrupt(word, now) {
+            Ok(XEvent::Update(u)) => u,
+            Ok(XEvent::Ignored) => {
+                // One writer: a load and a store, no read-modify-write loop.
+                let n = sh.x_ignored.load(Ordering::Relaxed);
+                sh.x_ignored.store(n.wrapping_add(1), Ordering::Relaxed);
+                return Ok(XEvent::Ignored);
+            }
+            Err(f) => {
+                sh.raise(f);
+                return Err(f);
+            }
+        };
+        let n = sh.x_accepted.load(Ordering::Relaxed);
+        sh.x_accepted.store(n.wrapping_add(1), Ordering::Relaxed);
+        if let Err(f) = self.publish(sh, u.x, u.null) {
+            sh.raise(f);
+            return Err(f);
+        }
+        if self.coefficient_output {
+            if let Some(g) = self.gen.as_ref() {
+                let frame = self.out.frame(g, &u)?;
+                if quad.output(&frame.codes, frame.update).is_err() {
+                    let f = Fault::Bus(Device::CoefficientDac);
+                    sh.raise(f);
+                    return Err(f);
+                }
+            }
+        }
+        Ok(XEvent::Update(u))
+    }
+
+    /// Computes every column at `x` into the free slot and publishes it.
+    #[inline(always)]
+    pub(crate) fn publish(&mut self, sh: &Shared, x: XInches, null: bool) -> Result<(), Fault> {
+        let g_next = self.coeff_gen.wrapping_add(1);
+        let which = (g_next & 1) as usize;
+        let slot = &sh.coeff[which];
+        slot.seq.store(g_next, Ordering::Relaxed);
+        fence(Ordering::Release);
+        slot.x.store(x.to_bits(), Ordering::Relaxed);
+        let terms = usize::from(self.terms);
+        let (cache, held) = (&mut self.cache, &mut self.slot_interval);
+        let live = match self.gen.as_ref() {
+            Some(g) if !null => {
+                if self.fast {
+                    fast_columns(g, cache, held, terms, slot, which, x)?
+                } else {
+                    general_columns(g, held, terms, slot, which, x)?
+                }
+            }
+            _ => false,
+        };
+        let meta = if live {
+            u32::from(self.terms)
+        } else {
+            NULL_META
+        };
+        slot.meta.store(meta, Ordering::Relaxed);
+        self.coeff_gen = g_next;
+        sh.coeff_gen.store(g_next, Ordering::Release);
+        Ok(())
+    }
+}
+
+impl EventState {
+    /// The once-per-revolution index: the encoder count the hardware latched
+    /// at the edge (ignored with a tachometer) and the edge's timestamp.
+    /// Published for the loop tick, which applies it to the estimator. See
+    /// [`Shared::index_event`] (this handler's part holds no index state).
+    #[inline(never)]
+    pub fn index_event(&mut self, sh: &Shared, edge_ticks: u32, count_at_index: u32) {
+        sh.index_event(edge_ticks, count_at_index);
+    }
+}
