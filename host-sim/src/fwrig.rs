@@ -168,6 +168,23 @@ pub struct Machine {
     pub stats: MachineStats,
 }
 
+/// Which loop drives the amplifier.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Controller {
+    /// The firmware's digital loop (`zslide::servo`) writes the amplifier
+    /// DAC.
+    Digital,
+    /// The 1983 analog loop (eq 4-44 velocity loop, eq 4-45 lag at
+    /// Ko = 0.5934: Kv ≈ 4800 1/s; `analog1983`) drives the amplifier from
+    /// the gauge and the firmware's command. The 1983 command came from
+    /// analog multipliers fed by the 8080's coefficient DACs and a sine
+    /// generator; here it is the firmware's own command (the same table,
+    /// angle and X), sampled at each loop tick and held, so the comparison
+    /// isolates the loop. The firmware stays disarmed: its DAC holds 0 V
+    /// and is not connected.
+    LegacyAnalog,
+}
+
 /// Rig + the firmware with the core's drivers on the simulated chips.
 pub struct FirmwareWorld {
     pub rig: Rig,
@@ -180,6 +197,8 @@ pub struct FirmwareWorld {
     pub quad: Ad5686<SimAd5686, SimLdacPin>,
     pub machine: Option<Machine>,
     init_fault: Option<Fault>,
+    /// The 1983 loop when it drives the amplifier ([`Controller::LegacyAnalog`]).
+    pub analog: Option<crate::analog1983::AnalogController>,
 }
 
 impl World for FirmwareWorld {
@@ -244,6 +263,7 @@ impl FirmwareWorld {
             quad,
             machine: None,
             init_fault,
+            analog: None,
         }
     }
 
@@ -251,6 +271,12 @@ impl FirmwareWorld {
     /// integrated one (default table, the machine's X and spindle modes,
     /// same loop configuration). Their clocks are the rig's clock.
     pub fn attach_machine(&mut self, m: &MachineConfig) {
+        self.attach_machine_with_table(m, zslide::DEFAULT_TABLE);
+    }
+
+    /// [`Self::attach_machine`] with another coefficient table (a part of
+    /// the user's, or the sinusoid `track` commands).
+    pub fn attach_machine_with_table(&mut self, m: &MachineConfig, table: &'static [u8]) {
         let ticks_per_s = self.rig.clock_hz;
         let tps = u32::try_from(ticks_per_s).unwrap_or(u32::MAX);
         let time = self.rig.time.clone();
@@ -343,7 +369,7 @@ impl FirmwareWorld {
             coefficient_output: m.coefficient_output,
             gauge_reversed: self.rig.gauge.params.reversed,
         };
-        let mut fw = Firmware::with_table(zslide::DEFAULT_TABLE, fc)
+        let mut fw = Firmware::with_table(table, fc)
             .expect("the estimators accepted this configuration above");
         if let Some(f) = self.init_fault {
             fw.trip(f);
@@ -398,7 +424,8 @@ impl FirmwareWorld {
             m.stats.x_accepted = u64::from(sh.x_accepted());
             m.stats.x_ignored = u64::from(sh.x_ignored());
         }
-        let on = self.fw.amplifier_enable();
+        // With the 1983 loop driving, the firmware does not own the enable.
+        let on = self.fw.amplifier_enable() || self.analog.is_some();
         if on != self.rig.enable.state.borrow().enable {
             let _ = if on {
                 self.enable.set_high()
@@ -459,6 +486,26 @@ impl FirmwareWorld {
             Some(XState::Legacy { link, .. }) => link.borrow().model().nominal_x(t_s),
             Some(XState::Count { enc, .. }) => enc.model().nominal_x(t_s),
             None => f64::NAN,
+        }
+    }
+
+    /// Hands the amplifier to the 1983 analog loop (from now on; the
+    /// scheduler needs an [`AnalogSubstep`] source, see [`machine_with`]).
+    pub fn use_legacy_analog(&mut self) {
+        self.analog = Some(crate::analog1983::AnalogController::position_loop(
+            &crate::analog1983::PositionLoop1983::default(),
+        ));
+        let _ = self.enable.set_high();
+    }
+
+    /// One substep of the analog loop: its reference is the firmware's
+    /// command (V = mil), it reads the gauge and drives the amplifier.
+    #[inline]
+    pub fn analog_substep(&mut self) {
+        if let Some(a) = self.analog.as_mut() {
+            let code = self.fw.table_code().saturating_add(self.fw.target_code());
+            a.reference_v = f64::from(code) * 10.0 / 524_288.0;
+            a.tick(&mut self.rig);
         }
     }
 
@@ -566,6 +613,39 @@ impl EventSource<FirmwareWorld> for IndexSource {
     }
 }
 
+/// The analog loop's substeps (5 µs), when it drives the amplifier.
+pub struct AnalogSubstep {
+    period_ns: Nanos,
+    next: Nanos,
+}
+
+impl AnalogSubstep {
+    pub fn new(period_ns: Nanos) -> Self {
+        Self {
+            period_ns,
+            next: period_ns,
+        }
+    }
+}
+
+impl EventSource<FirmwareWorld> for AnalogSubstep {
+    #[inline]
+    fn next_time(&self) -> Option<Nanos> {
+        Some(self.next)
+    }
+    fn priority(&self) -> u8 {
+        prio::LOOP_TICK
+    }
+    fn name(&self) -> &str {
+        "analog_substep"
+    }
+    #[inline]
+    fn fire(&mut self, _now: Nanos, w: &mut FirmwareWorld) {
+        w.analog_substep();
+        self.next += self.period_ns;
+    }
+}
+
 /// Scheduler source indices of a firmware run.
 pub mod src {
     pub const LOOP_TICK: usize = 0;
@@ -622,6 +702,13 @@ pub fn machine_with(
 ) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
     let (mut w, mut s) = firmware_with(cfg, loop_hz, loop_cfg);
     w.attach_machine(machine);
+    add_machine_sources(&w, &mut s);
+    (w, s)
+}
+
+/// Registers the X half-mil (legacy X) and index sources of the attached
+/// machine, after the loop tick.
+pub fn add_machine_sources(w: &FirmwareWorld, s: &mut Scheduler<FirmwareWorld>) {
     if let Some(m) = &w.machine {
         if let XState::Legacy { link, .. } = &m.x {
             s.add(XHalfMilSource { link: link.clone() });
@@ -630,5 +717,4 @@ pub fn machine_with(
             link: m.spindle.clone(),
         });
     }
-    (w, s)
 }

@@ -13,4 +13,5 @@ pub mod plant;
 pub mod scenario;
 pub mod sched;
 pub mod surface;
+pub mod track;
 pub mod vcd;

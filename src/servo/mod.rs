@@ -290,9 +290,12 @@ impl Servo {
             (input.reference.velocity_q16, input.reference.accel_q16)
         };
         // Relative to the goal's previous velocity while the goal moves
-        // smoothly (its own acceleration is in a_goal); re-expressed against
-        // its new velocity when that jumps (the rates of a fault's null).
-        let v_goal_then = if (v_goal - self.goal_v_q16).abs() > self.cfg.slew_accel_q16 {
+        // smoothly (its own acceleration is in a_goal, and the angle
+        // estimate's noise makes its velocity jitter by a code per tick with
+        // a tachometer); re-expressed against its new velocity when that
+        // jumps by more than a quarter of the slew rate (the rates of a
+        // fault's null, a target step).
+        let v_goal_then = if (v_goal - self.goal_v_q16).abs() > self.cfg.slew_q16 / 4 {
             v_goal
         } else {
             self.goal_v_q16
