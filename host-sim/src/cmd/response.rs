@@ -33,10 +33,13 @@ pub enum Loop {
     /// The 1983 closed position loop with the eq 4-45 compensator, R2 →
     /// gauge; compare eq 4-47 (no mode) and eq 4-49 (measured).
     Position1983,
-    /// The firmware's own digital loop (`zslide::firmware`, 20 kHz) on the
-    /// rig, target → gauge, measured through the simulated chips in the
-    /// time domain (no reference equation).
-    Firmware,
+    /// The firmware's digital loop (`zslide::servo`, the scenario's
+    /// `[servo]` design) on the scenario's plant, measured through the
+    /// simulated chips in the time domain: a sinusoid injected into the
+    /// gauge's reading gives the sensitivity S (what the gauge reads) and
+    /// the complementary sensitivity T (minus the slide's true motion); the
+    /// loop gain L = T/S gives the margins.
+    Digital,
 }
 
 #[derive(clap::Args, Debug)]
@@ -74,9 +77,12 @@ pub struct Args {
     #[arg(long)]
     pub svg: Option<PathBuf>,
     /// Print a JSON summary (agreement with the published equation, mode
-    /// peak) instead of the CSV on stdout.
+    /// peak; for the digital loop the margins) instead of the CSV on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Scenario (the digital loop's plant and `[servo]` design).
+    #[command(flatten)]
+    pub scenario: crate::scenario::ScenarioArg,
 }
 
 /// The system to excite (input 0 → output 0) and the published reference.
@@ -95,8 +101,8 @@ pub fn setup(which: Loop, ko: f64, rigid: bool) -> (LinearSystem, Option<RefTf>,
                 "eq 4-44",
             )
         }
-        // Not a linear system: measured by `measure_firmware`.
-        Loop::Firmware => (analog1983::plant_open(&p, 10.0), None, "firmware"),
+        // Not a linear system: measured by `measure_digital`.
+        Loop::Digital => (analog1983::plant_open(&p, 10.0), None, "digital"),
         Loop::Position1983 => {
             let c = PositionLoop1983 {
                 ko,
@@ -196,13 +202,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     let freqs = log_freqs(args.f_min, args.f_max, args.points);
-    let pts = if args.which == Loop::Firmware {
-        let amp_in = args.amplitude.unwrap_or(10e-6);
-        freqs
-            .iter()
-            .map(|&f| measure_firmware(f, amp_in, 20_000, args.rigid))
-            .collect()
-    } else if args.method == Method::Noise {
+    if args.which == Loop::Digital {
+        return run_digital(&args, &freqs);
+    }
+    let pts = if args.method == Method::Noise {
         crate::analyser::NoiseExcitation {
             amplitude,
             ..Default::default()
@@ -343,60 +346,232 @@ pub fn unwrap_deg(phases: impl Iterator<Item = f64>) -> Vec<f64> {
     out
 }
 
-/// Swept-sine point of the firmware's closed loop: the target follows
-/// `A sin ωt` (updated just before each loop tick, in gauge codes), the
-/// gauge codes the firmware reads are fitted with a sinusoid after
-/// settling. `amplitude_in` in inches (default 10 µin: the firmware's
-/// command slew limit of 0.25 in/s is not reached below ≈ 4 kHz).
-pub fn measure_firmware(f_hz: f64, amplitude_in: f64, loop_hz: u32, rigid: bool) -> BodePoint {
-    use crate::cmd::bench::{firmware_demo, FirmwareWorld};
-    use crate::plant::{GaugeParams, RigConfig};
+/// S and T of the digital loop at one frequency.
+#[derive(Clone, Copy, Debug)]
+pub struct LoopPoint {
+    pub f_hz: f64,
+    /// Sensitivity: gauge reading / injection.
+    pub s: Complex<f64>,
+    /// Complementary sensitivity: −slide motion / injection.
+    pub t: Complex<f64>,
+}
+
+impl LoopPoint {
+    /// The loop gain L = T / S.
+    pub fn l(&self) -> Complex<f64> {
+        self.t / self.s
+    }
+}
+
+/// Swept-sine point of the digital loop on `sc`'s plant (noiseless gauge,
+/// no spindle: the learning does not run): `amplitude_in` injected into the
+/// gauge's reading, S and T fitted after settling.
+pub fn measure_digital(
+    sc: &crate::scenario::Scenario,
+    f_hz: f64,
+    amplitude_in: f64,
+    rigid: bool,
+) -> LoopPoint {
+    use crate::fwrig::{firmware_with, FirmwareWorld};
+    use crate::plant::GaugeParams;
     use crate::sched::Periodic;
-    let mut cfg = RigConfig {
-        gauge: GaugeParams::noiseless(),
-        ..RigConfig::legacy(1)
-    };
+    let mut cfg = sc.rig.clone();
+    cfg.gauge = GaugeParams::noiseless();
     if rigid {
         cfg.slide = cfg.slide.rigid();
     }
-    let (mut w, mut s) = firmware_demo(cfg, loop_hz);
+    let (mut w, mut s) = firmware_with(cfg, sc.loop_hz, sc.servo);
     w.fw.request(zslide::firmware::Request::Arm);
-    let period = 1_000_000_000 / u64::from(loop_hz.max(1));
-    let amp_codes = amplitude_in * f64::from(1u32 << 19) / 0.010;
+    let period = 1_000_000_000 / u64::from(sc.loop_hz.max(1));
     let wr = std::f64::consts::TAU * f_hz;
-    // engage first, then excite; the target is set at the tick's instant
-    // by a higher-priority source, so each tick sees the new target
-    let t0 = 20_000_000u64;
+    let t0 = 200_000_000u64;
     s.run_until(&mut w, t0);
+    // The injection is set just before each conversion (higher priority
+    // than the tick at the same instant).
     s.add(Periodic::new(
-        "excitation",
+        "injection",
         255,
         t0 + period,
         period,
         move |t, w: &mut FirmwareWorld| {
             let tt = (t - t0) as f64 * 1e-9;
-            w.fw.set_target_code((amp_codes * (wr * tt).sin()).round() as i32);
+            w.rig.gauge_injection_in = amplitude_in * (wr * tt).sin();
         },
     ));
-    let settle = (0.05f64).max(10.0 / f_hz);
-    let measure = (0.05f64).max(10.0 / f_hz);
+    let settle = (0.3f64).max(10.0 / f_hz);
+    let measure = (0.1f64).max(10.0 / f_hz);
     let t_settle = t0 + (settle * 1e9) as u64;
     s.run_until(&mut w, t_settle);
-    let rec: std::rc::Rc<std::cell::RefCell<Vec<(f64, f64)>>> = Default::default();
+    type Rec = std::rc::Rc<std::cell::RefCell<(Vec<(f64, f64)>, Vec<(f64, f64)>)>>;
+    let rec: Rec = Default::default();
     let r2 = rec.clone();
     s.on_event = Some(Box::new(move |t, k, w: &FirmwareWorld| {
         if k == 0 {
-            r2.borrow_mut()
-                .push(((t - t0) as f64 * 1e-9, f64::from(w.fw.position_code())));
+            let tt = (t - t0) as f64 * 1e-9;
+            let mut r = r2.borrow_mut();
+            r.0.push((
+                tt,
+                w.rig.slide.gauge_position_in() + w.rig.gauge_injection_in,
+            ));
+            r.1.push((tt, -w.rig.slide.gauge_position_in()));
         }
     }));
     s.run_until(&mut w, t_settle + (measure * 1e9) as u64);
-    let samples = rec.borrow();
-    let h = crate::analyser::fit_sine(&samples, wr) / amp_codes;
-    let peak = samples.iter().map(|p| p.1.abs()).fold(0.0, f64::max) * 10.0 / f64::from(1u32 << 19);
-    BodePoint {
+    let r = rec.borrow();
+    LoopPoint {
         f_hz,
-        h,
-        peak_out: peak,
+        s: crate::analyser::fit_sine(&r.0, wr) / amplitude_in,
+        t: crate::analyser::fit_sine(&r.1, wr) / amplitude_in,
     }
+}
+
+/// Gain and phase margins from the loop gain over a sweep.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Margins {
+    /// Where |L| crosses 1 (the first time from below), Hz, and 180° + ∠L there.
+    pub crossover_hz: Option<f64>,
+    pub phase_margin_deg: Option<f64>,
+    /// Where ∠L crosses −180° above the crossover, Hz, and −20·log|L|
+    /// there, dB.
+    pub phase_crossover_hz: Option<f64>,
+    pub gain_margin_db: Option<f64>,
+    /// The largest |S| (the inverse of the distance to −1), dB.
+    pub peak_sensitivity_db: f64,
+}
+
+pub fn margins(pts: &[LoopPoint]) -> Margins {
+    let mut m = Margins {
+        crossover_hz: None,
+        phase_margin_deg: None,
+        phase_crossover_hz: None,
+        gain_margin_db: None,
+        peak_sensitivity_db: pts
+            .iter()
+            .map(|p| 20.0 * p.s.norm().log10())
+            .fold(f64::NEG_INFINITY, f64::max),
+    };
+    let ph = unwrap_deg(pts.iter().map(|p| p.l().arg().to_degrees()));
+    for i in 1..pts.len() {
+        let (a, b) = (&pts[i - 1], &pts[i]);
+        let (ma, mb) = (a.l().norm().log10(), b.l().norm().log10());
+        if m.crossover_hz.is_none() && ma >= 0.0 && mb < 0.0 {
+            let f = ma / (ma - mb);
+            m.crossover_hz = Some(a.f_hz * (b.f_hz / a.f_hz).powf(f));
+            m.phase_margin_deg = Some(180.0 + ph[i - 1] + f * (ph[i] - ph[i - 1]));
+        }
+        // The gain margin is read above the crossover: below it the loop
+        // (integral action in the observer, a type-3 loop at low
+        // frequency) passes −180° with |L| ≫ 1, which is conditional
+        // stability, not a margin.
+        let (pa, pb) = (ph[i - 1] + 180.0, ph[i] + 180.0);
+        let above = m.crossover_hz.is_some_and(|fc| a.f_hz >= fc);
+        if m.phase_crossover_hz.is_none() && above && (pa > 0.0) != (pb > 0.0) {
+            let f = pa / (pa - pb);
+            m.phase_crossover_hz = Some(a.f_hz * (b.f_hz / a.f_hz).powf(f));
+            m.gain_margin_db = Some(-20.0 * (ma + f * (mb - ma)));
+        }
+    }
+    m
+}
+
+fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
+    let sc = args.scenario.load()?;
+    let amp = args.amplitude.map_or(20e-6, |v| v * 0.001);
+    let pts: Vec<LoopPoint> = freqs
+        .iter()
+        .map(|&f| measure_digital(&sc, f, amp, args.rigid))
+        .collect();
+    let m = margins(&pts);
+    let mut csv =
+        String::from("f_hz,s_mag_db,s_phase_deg,t_mag_db,t_phase_deg,l_mag_db,l_phase_deg\n");
+    for p in &pts {
+        let db = |h: Complex<f64>| 20.0 * h.norm().log10();
+        csv.push_str(&format!(
+            "{:.6},{:.4},{:.3},{:.4},{:.3},{:.4},{:.3}\n",
+            p.f_hz,
+            db(p.s),
+            p.s.arg().to_degrees(),
+            db(p.t),
+            p.t.arg().to_degrees(),
+            db(p.l()),
+            p.l().arg().to_degrees()
+        ));
+    }
+    if let Some(path) = &args.csv {
+        std::fs::write(path, &csv).with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &args.svg {
+        plot_sensitivities(path, &pts, &sc.file.name)?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "loop": "digital",
+                "scenario": sc.file.name,
+                "points": pts.len(),
+                "margins": m,
+            }))?
+        );
+    } else {
+        if args.csv.is_none() {
+            std::io::stdout().write_all(csv.as_bytes())?;
+        }
+        eprintln!(
+            "digital loop on {}: crossover {} Hz, phase margin {} deg, gain margin {} dB (at {} Hz), peak |S| {:.1} dB",
+            sc.file.name,
+            fmt_opt(m.crossover_hz, 1),
+            fmt_opt(m.phase_margin_deg, 1),
+            fmt_opt(m.gain_margin_db, 1),
+            fmt_opt(m.phase_crossover_hz, 0),
+            m.peak_sensitivity_db
+        );
+    }
+    Ok(())
+}
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("none in the sweep".into(), |x| format!("{x:.digits$}"))
+}
+
+fn plot_sensitivities(path: &PathBuf, pts: &[LoopPoint], scenario: &str) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (900, 450)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let f0 = pts.first().map_or(1.0, |p| p.f_hz);
+    let f1 = pts.last().map_or(10.0, |p| p.f_hz);
+    let db = |h: Complex<f64>| 20.0 * h.norm().log10();
+    let all: Vec<f64> = pts.iter().flat_map(|p| [db(p.s), db(p.t)]).collect();
+    let lo = all
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min)
+        .max(-80.0)
+        .floor()
+        - 5.0;
+    let hi = all.iter().cloned().fold(f64::NEG_INFINITY, f64::max).ceil() + 5.0;
+    let mut ch = ChartBuilder::on(&root)
+        .caption(
+            format!(
+                "digital loop on {scenario}: sensitivity S and complementary sensitivity T (dB)"
+            ),
+            ("sans-serif", 18),
+        )
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d((f0..f1).log_scale(), lo..hi)?;
+    ch.configure_mesh().x_desc("f (Hz)").draw()?;
+    ch.draw_series(LineSeries::new(
+        pts.iter().map(|p| (p.f_hz, db(p.s))),
+        &BLUE,
+    ))?
+    .label("S")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    ch.draw_series(LineSeries::new(pts.iter().map(|p| (p.f_hz, db(p.t))), &RED))?
+        .label("T")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+    ch.configure_series_labels().border_style(BLACK).draw()?;
+    root.present()?;
+    Ok(())
 }

@@ -70,6 +70,10 @@ pub struct Rig {
     pub f_ext: f64,
     /// Plant steps taken.
     pub steps: u64,
+    /// A signal analyser's injection into the gauge's reading, in (the
+    /// measurement disturbance the sensitivity functions are measured
+    /// with; 0 otherwise).
+    pub gauge_injection_in: f64,
 }
 
 impl Rig {
@@ -91,6 +95,7 @@ impl Rig {
             v_in: 0.0,
             f_ext: 0.0,
             steps: 0,
+            gauge_injection_in: 0.0,
         }
     }
 
@@ -113,7 +118,10 @@ impl Rig {
 
     /// CNV: the gauge ADC converts the gauge output at the plant's time.
     pub fn cnv(&mut self) {
-        let v = self.gauge.volts(self.t_ns, self.slide.gauge_position_in());
+        let v = self.gauge.volts(
+            self.t_ns,
+            self.slide.gauge_position_in() + self.gauge_injection_in,
+        );
         self.adc.state.borrow_mut().convert(v);
     }
 
