@@ -731,6 +731,71 @@ mod tests {
         assert_eq!(fw.fault(), Some(Fault::XGlitchStorm));
     }
 
+    /// The learning follows X while the feed moves the radius smoothly, and
+    /// freezes with `Freeze::XJump` for a second when X jumps by more than
+    /// 0.01 in (a restart elsewhere: the table belongs to another radius);
+    /// a null command freezes it with `Freeze::Null`.
+    #[test]
+    fn learning_freezes_when_x_jumps_and_runs_while_x_feeds() {
+        use crate::servo::Freeze;
+        let cc = CountConfig {
+            counts_per_inch: 100_000,
+            zero_count: 0,
+            max_step_counts: 5_000,
+        };
+        let mut fw = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        fw.request(Request::Arm);
+        // 20 µin per tick of feed (an X count step of 2 every tick).
+        let mut n = 0u32;
+        let mut count = 300_000u32;
+        while n < 20_000 {
+            if n % CPR == 0 {
+                fw.index_event(n * TICK, n);
+            }
+            let mut input = enc(n);
+            input.x_count = count;
+            fw.loop_tick(&input, &mut g, &mut d);
+            g.set(fw.command_code());
+            n += 1;
+            count += 2;
+        }
+        assert_eq!(fw.fault(), None);
+        assert_eq!(
+            fw.servo().learning().frozen(),
+            None,
+            "learning runs while X feeds"
+        );
+        // 0.03 in at once (within the count's step limit, beyond 0.01 in).
+        count += 3_000;
+        for _ in 0..10 {
+            if n % CPR == 0 {
+                fw.index_event(n * TICK, n);
+            }
+            let mut input = enc(n);
+            input.x_count = count;
+            fw.loop_tick(&input, &mut g, &mut d);
+            g.set(fw.command_code());
+            n += 1;
+        }
+        assert_eq!(fw.fault(), None);
+        assert_eq!(fw.servo().learning().frozen(), Some(Freeze::XJump));
+        // Into the null zone (beyond 7.2 in): the command is null.
+        let mut input = enc(n);
+        input.x_count = 800_000;
+        let mut fw2 = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
+        fw2.request(Request::Arm);
+        for k in 0..3000 {
+            if k % CPR == 0 {
+                fw2.index_event(k * TICK, k);
+            }
+            input = enc(k);
+            input.x_count = 760_000;
+            fw2.loop_tick(&input, &mut g, &mut d);
+        }
+        assert_eq!(fw2.servo().learning().frozen(), Some(Freeze::Null));
+    }
+
     /// The modern X mode's cached re-interpolation equals the command path
     /// bit for bit over the whole table: walking up and down through every
     /// interval (crossings to both neighbours), jumps of several intervals,
