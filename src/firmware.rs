@@ -781,15 +781,13 @@ mod tests {
         assert_eq!(fw.fault(), None);
         assert_eq!(fw.servo().learning().frozen(), Some(Freeze::XJump));
         // Into the null zone (beyond 7.2 in): the command is null.
-        let mut input = enc(n);
-        input.x_count = 800_000;
         let mut fw2 = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
         fw2.request(Request::Arm);
         for k in 0..3000 {
             if k % CPR == 0 {
                 fw2.index_event(k * TICK, k);
             }
-            input = enc(k);
+            let mut input = enc(k);
             input.x_count = 760_000;
             fw2.loop_tick(&input, &mut g, &mut d);
         }
