@@ -490,7 +490,7 @@ impl FirmwareWorld {
     }
 
     /// Hands the amplifier to the 1983 analog loop (from now on; the
-    /// scheduler needs an [`AnalogSubstep`] source, see [`machine_with`]).
+    /// scheduler needs the analog substep source, [`WorldTick::analog_substep`]).
     pub fn use_legacy_analog(&mut self) {
         self.analog = Some(crate::analog1983::AnalogController::position_loop(
             &crate::analog1983::PositionLoop1983::default(),
@@ -519,14 +519,39 @@ impl FirmwareWorld {
     }
 }
 
-/// Loop tick as a scheduler source (a concrete type: no boxed closure in
-/// the hot path).
-pub struct LoopTick {
+/// A periodic source of the world at the loop tick's priority: the loop
+/// tick itself, or the analog loop's substeps. A plain function pointer (no
+/// boxed closure on the hot path).
+pub struct WorldTick {
+    name: &'static str,
     period_ns: Nanos,
     next: Nanos,
+    fire: fn(&mut FirmwareWorld),
 }
 
-impl EventSource<FirmwareWorld> for LoopTick {
+impl WorldTick {
+    /// The firmware's loop tick every `period_ns`.
+    pub fn loop_tick(period_ns: Nanos) -> Self {
+        Self {
+            name: "loop_tick",
+            period_ns,
+            next: period_ns,
+            fire: FirmwareWorld::tick,
+        }
+    }
+    /// The 1983 analog loop's substeps (it drives the amplifier when
+    /// [`FirmwareWorld::use_legacy_analog`] was called).
+    pub fn analog_substep(period_ns: Nanos) -> Self {
+        Self {
+            name: "analog_substep",
+            period_ns,
+            next: period_ns,
+            fire: FirmwareWorld::analog_substep,
+        }
+    }
+}
+
+impl EventSource<FirmwareWorld> for WorldTick {
     #[inline]
     fn next_time(&self) -> Option<Nanos> {
         Some(self.next)
@@ -535,11 +560,11 @@ impl EventSource<FirmwareWorld> for LoopTick {
         prio::LOOP_TICK
     }
     fn name(&self) -> &str {
-        "loop_tick"
+        self.name
     }
     #[inline]
     fn fire(&mut self, _now: Nanos, w: &mut FirmwareWorld) {
-        w.tick();
+        (self.fire)(w);
         self.next += self.period_ns;
     }
 }
@@ -613,39 +638,6 @@ impl EventSource<FirmwareWorld> for IndexSource {
     }
 }
 
-/// The analog loop's substeps (5 µs), when it drives the amplifier.
-pub struct AnalogSubstep {
-    period_ns: Nanos,
-    next: Nanos,
-}
-
-impl AnalogSubstep {
-    pub fn new(period_ns: Nanos) -> Self {
-        Self {
-            period_ns,
-            next: period_ns,
-        }
-    }
-}
-
-impl EventSource<FirmwareWorld> for AnalogSubstep {
-    #[inline]
-    fn next_time(&self) -> Option<Nanos> {
-        Some(self.next)
-    }
-    fn priority(&self) -> u8 {
-        prio::LOOP_TICK
-    }
-    fn name(&self) -> &str {
-        "analog_substep"
-    }
-    #[inline]
-    fn fire(&mut self, _now: Nanos, w: &mut FirmwareWorld) {
-        w.analog_substep();
-        self.next += self.period_ns;
-    }
-}
-
 /// Scheduler source indices of a firmware run.
 pub mod src {
     pub const LOOP_TICK: usize = 0;
@@ -668,10 +660,7 @@ pub fn firmware_with(
     let w = FirmwareWorld::new(cfg, loop_cfg);
     let mut s = Scheduler::new();
     let period = 1_000_000_000 / u64::from(loop_hz.max(1));
-    s.add(LoopTick {
-        period_ns: period,
-        next: period,
-    });
+    s.add(WorldTick::loop_tick(period));
     (w, s)
 }
 

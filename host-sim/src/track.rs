@@ -16,7 +16,7 @@
 //! firmware's estimate): what the part would see. The gauge error is what
 //! the gauge reads minus the same command.
 
-use crate::fwrig::{AnalogSubstep, Controller};
+use crate::fwrig::{Controller, WorldTick};
 use crate::scenario::Scenario;
 use serde::Serialize;
 use zslide::firmware::Request;
@@ -122,7 +122,7 @@ pub fn run(sc: &Scenario, spec: &TrackSpec) -> anyhow::Result<TrackReport> {
         Controller::Digital => w.request(Request::Arm),
         Controller::LegacyAnalog => {
             w.use_legacy_analog();
-            s.add(AnalogSubstep::new(5_000));
+            s.add(WorldTick::analog_substep(5_000));
         }
     }
     let tick_ns = 1_000_000_000 / u64::from(sc.loop_hz);
