@@ -5,6 +5,7 @@ pub mod chips;
 pub mod cmd;
 pub mod coeffgen;
 pub mod csmp;
+pub mod cut;
 pub mod fastmath;
 pub mod fwrig;
 pub mod geometry;
