@@ -19,18 +19,18 @@ pub mod codes;
 pub mod config;
 pub mod table;
 // The data path: interrupt → X / angle → coefficients → command → loop → DAC.
-pub mod coeffcache;
-pub mod command;
-pub mod drivers;
 pub mod handoff;
-pub mod interp;
-pub mod looptick;
-pub mod servo;
-pub mod setpoint;
-pub mod spindle;
-pub mod trig;
 pub mod xevent;
 pub mod xpos;
+pub mod spindle;
+pub mod interp;
+pub mod coeffcache;
+pub mod trig;
+pub mod command;
+pub mod setpoint;
+pub mod servo;
+pub mod looptick;
+pub mod drivers;
 // The bundle the boards and host-sim use.
 pub mod firmware;
 

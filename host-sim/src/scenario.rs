@@ -115,6 +115,7 @@ impl ServoSection {
             learning_lead_bins,
             learning_q_shift,
             slew_in_per_s,
+            slew_accel_in_per_s2,
             command_limit_in,
             current_limit_a,
             current_limit_ms,

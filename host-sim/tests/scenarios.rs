@@ -130,3 +130,73 @@ fn servo_section_sets_the_loop_and_refuses_a_bad_field_by_name() {
     let e = format!("{:#}", parse(&unknown, "typo").unwrap_err());
     assert!(e.contains("dampng"), "{e}");
 }
+
+/// Every field of `[servo]` reaches the design (none is accepted and then
+/// dropped): each is set to a value off its default and read back.
+#[test]
+fn every_servo_field_reaches_the_design() {
+    use host_sim::scenario::parse;
+    let text = include_str!("../../scenarios/legacy-hw.toml");
+    let head = &text[..text.find("[servo]").unwrap()];
+    let fields: [(&str, f64); 22] = [
+        ("bandwidth_hz", 17.0),
+        ("damping", 0.9),
+        ("bandwidth_fast_hz", 90.0),
+        ("observer_hz", 45.0),
+        ("observer_fast_hz", 410.0),
+        ("observer_switch_uin", 140.0),
+        ("observer_hold_ms", 19.0),
+        ("hum_notch_hz", 121.0),
+        ("hum_notch_q", 2.5),
+        ("mode_notch_hz", 3100.0),
+        ("mode_notch_q", 0.8),
+        ("learning_gain", 0.35),
+        ("learning_lead_bins", 4.0),
+        ("learning_q_shift", 3.0),
+        ("slew_in_per_s", 0.2),
+        ("slew_accel_in_per_s2", 25.0),
+        ("command_limit_in", 0.009),
+        ("current_limit_a", 5.5),
+        ("current_limit_ms", 21.0),
+        ("following_error_in", 0.003),
+        ("following_error_ms", 2.5),
+        ("sign_check_v", 0.3),
+    ];
+    let mut servo = String::from("[servo]\n");
+    for (k, v) in &fields {
+        if k.ends_with("bins") || k.ends_with("shift") {
+            servo.push_str(&format!("{k} = {}\n", *v as u32));
+        } else {
+            servo.push_str(&format!("{k} = {v:?}\n"));
+        }
+    }
+    let sc = parse(&format!("{head}{servo}"), "all-fields").unwrap();
+    let d = sc.servo_design;
+    let got = [
+        d.bandwidth_hz,
+        d.damping,
+        d.bandwidth_fast_hz,
+        d.observer_hz,
+        d.observer_fast_hz,
+        d.observer_switch_uin,
+        d.observer_hold_ms,
+        d.hum_notch_hz,
+        d.hum_notch_q,
+        d.mode_notch_hz,
+        d.mode_notch_q,
+        d.learning_gain,
+        f64::from(d.learning_lead_bins),
+        f64::from(d.learning_q_shift),
+        d.slew_in_per_s,
+        d.slew_accel_in_per_s2,
+        d.command_limit_in,
+        d.current_limit_a,
+        d.current_limit_ms,
+        d.following_error_in,
+        d.following_error_ms,
+        d.sign_check_v,
+    ];
+    for ((k, want), got) in fields.iter().zip(got) {
+        assert_eq!(*want, got, "{k}");
+    }
+}
