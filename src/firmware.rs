@@ -750,7 +750,7 @@ mod tests {
         let mut n = 0u32;
         let mut count = 300_000u32;
         while n < 20_000 {
-            if n % CPR == 0 {
+            if n.is_multiple_of(CPR) {
                 fw.index_event(n * TICK, n);
             }
             let mut input = enc(n);
@@ -769,7 +769,7 @@ mod tests {
         // 0.03 in at once (within the count's step limit, beyond 0.01 in).
         count += 3_000;
         for _ in 0..10 {
-            if n % CPR == 0 {
+            if n.is_multiple_of(CPR) {
                 fw.index_event(n * TICK, n);
             }
             let mut input = enc(n);
@@ -784,7 +784,7 @@ mod tests {
         let mut fw2 = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
         fw2.request(Request::Arm);
         for k in 0..3000 {
-            if k % CPR == 0 {
+            if k.is_multiple_of(CPR) {
                 fw2.index_event(k * TICK, k);
             }
             let mut input = enc(k);
