@@ -783,7 +783,7 @@ mod tests {
         // Into the null zone (beyond 7.2 in): the command is null.
         let mut fw2 = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
         fw2.request(Request::Arm);
-        for k in 0..3000 {
+        for k in 0..3000u32 {
             if k.is_multiple_of(CPR) {
                 fw2.index_event(k * TICK, k);
             }
