@@ -72,6 +72,38 @@ pub enum Reaction {
 }
 
 impl Fault {
+    /// One line for the operator: what is wrong.
+    pub const fn reason(self) -> &'static str {
+        match self {
+            Fault::Table(_) => "the coefficient table was refused by its parser",
+            Fault::XOutsideTable => "X is outside the range the coefficient table covers",
+            Fault::XGlitchStorm => "the X counter is glitching",
+            Fault::XBadBcd => "a latched X digit is not a decimal digit",
+            Fault::IndexMissing => "no index pulse where one was due",
+            Fault::IndexExtra => "an index pulse came well before the expected one",
+            Fault::SpindleSpeed => "the spindle speed is outside the configured band",
+            Fault::GaugeRange => "the gauge reads outside its range",
+            Fault::GaugeSaturated => "the gauge is pinned at full scale",
+            Fault::Bus(_) => "a converter did not answer or answered nonsense",
+            Fault::FollowingError => "the following error exceeds its limit",
+            Fault::CurrentLimit => "the amplifier reached its current limit or tripped",
+            Fault::SignCheck => "command and response disagree in sign",
+            Fault::Watchdog => "the watchdog expired",
+            Fault::Panic => "the firmware panicked",
+            Fault::CentringTableStopped => {
+                "the rotary table is not turning (or not within 1-25 rpm): no encoder edge or index when one was due"
+            }
+            Fault::CentringOutOfRange => {
+                "the transducer is at the end of its +/-0.5 in travel: the part is too far off centre to measure"
+            }
+            Fault::CentringWorse => {
+                "a correction cycle left the part further off centre than before (mechanical limit reached, or a slide or its wiring is reversed)"
+            }
+            Fault::CentringNoConvergence => "the level was not reached in the allowed number of cycles",
+            Fault::CentringSlideTimeout => "a slide did not come to rest in the allowed time",
+        }
+    }
+
     /// The defined reaction. The loop stays closed (and holds the slide at
     /// null) whenever its own sensing and actuation are still trustworthy;
     /// otherwise the amplifier is disabled, because a loop on a bad gauge or

@@ -83,7 +83,6 @@ pub enum Event {
     Measured(u32, OffCentre),
     /// Both slides settled after the correction of this cycle.
     Corrected(u32),
-    Centred,
     Refused(Fault),
 }
 
