@@ -12,9 +12,14 @@
 //! Two of the seed's designs ([`LoopDesign`]):
 //! * `Critical` (ch. V): `u = A·(e_e − K₁·v_tach)`, A = 700, K₁ = 0.01,
 //!   critically damped, closed loop 8.33/(s² + 118 s + 2460) in slide inches.
-//! * `Compensated` (ch. VI, Fig. 26): the tachometer through the lead
-//!   network `T_C s/(1 + T_C s)` (T_C = 0.01 s, K₁ = 0.92) and the outer
-//!   error through `A₁(s + 40)/(s + 120)` (A₁ = 4.8), A = 2000.
+//! * `Compensated` (ch. VI, Fig. 26): the tachometer through the network
+//!   `G_C = T_C s/(s + 1/T_C)` (T_C = 0.01 s, K₁ = 0.92) and the outer
+//!   error through `A₁(s + 40)/(s + 120)` (A₁ = 4.8), A = 2000. `G_C` is
+//!   the network *as the seed analysed it*: its eq 56 coefficients (b₂ =
+//!   … + 1.31·10¹⁰ K₁T_C) carry a high-frequency gain of T_C, and only with
+//!   it are the inner-loop roots the seed's −17, −1750, −250 ± j250 (with a
+//!   unit-gain `T_C s/(1 + T_C s)` the inner loop crosses over near
+//!   2000 rad/s with −213° of phase and oscillates; we tried it).
 //!
 //! The filters are Tustin-discretised at the tick rate when the servo is
 //! built (f64 arithmetic once, at configuration; IEEE basic operations give
@@ -143,7 +148,7 @@ impl SlideServo {
                 2000,
                 0.92,
                 Some(Section::tustin(4.8, 40.0, 120.0, hz)),
-                Some(Section::tustin(1.0, 0.0, 1.0 / 0.01, hz)),
+                Some(Section::tustin(0.01, 0.0, 1.0 / 0.01, hz)),
             ),
         };
         Some(Self {

@@ -41,7 +41,9 @@ impl Table {
         Reading {
             turns,
             count: c as i64 as u32,
-            edge_ticks: ticks(edge),
+            // The edge cannot be timestamped after the instant it is read at
+            // (f64 rounding of the edge time could say so).
+            edge_ticks: ticks(edge.min(t)),
         }
     }
 
