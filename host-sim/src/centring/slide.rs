@@ -12,10 +12,12 @@
 //!   by a 16-bit converter over ±25 V.
 //! * Free play and deflection between the ball nut and the slide: while the
 //!   nut drives, the slide lags it by the elastic windup `deflection_in`
-//!   plus half the free play; when the motor comes to rest the slide settles
-//!   where static friction catches it: the windup stays (slide short by
-//!   `deflection_in` in the direction of travel) and its place within the
-//!   free play is random (uniform in ±free_play/2, seeded). The firmware
+//!   plus half the free play (a play operator: motion of the nut inside the
+//!   play does not move the slide); when the motor comes to rest after
+//!   dragging the slide, the slide settles where static friction catches
+//!   it: the windup stays (slide short by `deflection_in` in the direction
+//!   of travel) and its place within the free play is random (uniform in
+//!   ±free_play/2, seeded). The firmware
 //!   cannot see either: its only slide sensor is the tachometer on the
 //!   motor, as in 1967.
 
@@ -48,9 +50,11 @@ pub struct Slide {
     sub_steps: u32,
     mech: Mechanics,
     tach_noise_v: f64,
-    /// Slide minus nut, inches.
-    rel: f64,
+    /// Where the slide is, inches (the nut is at motor angle × lead/gear).
+    slide_in: f64,
     moving_dir: f64,
+    /// The slide moved with the nut since the drive was last at rest.
+    dragged: bool,
 }
 
 /// Motor angle to nut travel, inches per radian.
@@ -74,8 +78,9 @@ impl Slide {
             sub_steps,
             mech,
             tach_noise_v,
-            rel: 0.0,
+            slide_in: 0.0,
             moving_dir: 0.0,
+            dragged: false,
         }
     }
 
@@ -94,16 +99,24 @@ impl Slide {
         let w = self.x[1];
         let half = self.mech.deflection_in + self.mech.free_play_in / 2.0;
         if w.abs() > REST_RAD_S {
-            self.moving_dir = w.signum();
-            self.rel = self.rel.clamp(-half, half);
-        } else if self.moving_dir != 0.0 {
+            // The nut drags the slide only once it has crossed the play.
+            let nut = self.nut_in();
+            let rel = self.slide_in - nut;
+            let clamped = rel.clamp(-half, half);
+            if clamped != rel {
+                self.dragged = true;
+                self.moving_dir = w.signum();
+                self.slide_in = nut + clamped;
+            }
+        } else if self.dragged {
             let seat = if self.mech.free_play_in > 0.0 {
                 rng.random_range(-0.5..0.5) * self.mech.free_play_in
             } else {
                 0.0
             };
-            self.rel = -self.moving_dir * self.mech.deflection_in + seat;
-            self.moving_dir = 0.0;
+            let rel = (-self.moving_dir * self.mech.deflection_in + seat).clamp(-half, half);
+            self.slide_in = self.nut_in() + rel;
+            self.dragged = false;
         }
     }
 
@@ -117,7 +130,7 @@ impl Slide {
 
     /// Where the slide (and the part on it) is, inches.
     pub fn position_in(&self) -> f64 {
-        self.nut_in() + self.rel
+        self.slide_in
     }
 
     /// The tachometer through its converter, mV.
