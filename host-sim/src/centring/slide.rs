@@ -38,6 +38,9 @@ const REST_RAD_S: f64 = 0.05;
 pub struct Mechanics {
     pub free_play_in: f64,
     pub deflection_in: f64,
+    /// A left-hand leadscrew fitted: the slide runs opposite to the motor
+    /// (a wiring or assembly error the sequence must refuse, not chase).
+    pub reversed: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -125,7 +128,8 @@ impl Slide {
     }
 
     pub fn nut_in(&self) -> f64 {
-        self.x[2] * in_per_rad()
+        let sign = if self.mech.reversed { -1.0 } else { 1.0 };
+        sign * self.x[2] * in_per_rad()
     }
 
     /// Where the slide (and the part on it) is, inches.

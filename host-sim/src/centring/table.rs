@@ -58,7 +58,8 @@ impl Table {
     }
 }
 
-/// Seconds to capture-clock ticks, wrapping as the 32-bit counter does.
+/// Seconds to capture-clock ticks (nearest), wrapping as the 32-bit counter
+/// does.
 pub fn ticks(t: f64) -> u32 {
-    (t * f64::from(CLOCK_HZ)).floor() as i64 as u32
+    (t * f64::from(CLOCK_HZ)).round() as i64 as u32
 }

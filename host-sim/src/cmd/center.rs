@@ -101,6 +101,7 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
     s.mechanics = Mechanics {
         free_play_in: a.free_play_in,
         deflection_in: a.deflection_in,
+        reversed: false,
     };
     if a.lobes3_uin != 0.0 {
         s.part.lobes.push(Lobe {
