@@ -186,3 +186,4 @@ fn same_seed_same_run() {
     assert_eq!(a.final_residual_in.to_bits(), b.final_residual_in.to_bits());
     assert_eq!(a.time_s.to_bits(), b.time_s.to_bits());
 }
+

@@ -124,6 +124,13 @@ pub struct Outcome {
     pub trace: Vec<TracePoint>,
 }
 
+/// Time of loop tick `n`, s. Every use goes through here so that the
+/// previous tick's time is bit-identical to what that tick used (`t − dt`
+/// can round below it and report one index twice).
+fn tick_time(n: u64) -> f64 {
+    n as f64 / f64::from(TICK_HZ)
+}
+
 fn mag(v: [f64; 2]) -> f64 {
     v[0].hypot(v[1])
 }
@@ -182,14 +189,13 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
             s.part.offset_in[1] + sl[1].position_in(),
         ]
     };
-    let dt = 1.0 / f64::from(TICK_HZ);
     let mut dac = [0i32; 2];
     let mut cycles: Vec<Cycle> = Vec::new();
     let mut trace = Vec::new();
     let mut last_measured = [f64::NAN; 2];
     let mut n: u64 = 0;
     let fault = loop {
-        let t = n as f64 * dt;
+        let t = tick_time(n);
         let enc = tbl.read(t);
         let theta = enc.turns.fract() * std::f64::consts::TAU;
         let c = centre(&slides);
@@ -198,7 +204,11 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
             count: enc.count,
             edge_ticks: enc.edge_ticks,
             now: table::ticks(t),
-            index: if n == 0 { None } else { tbl.index_between(t - dt, t) },
+            index: if n == 0 {
+                None
+            } else {
+                tbl.index_between(tick_time(n - 1), t)
+            },
             reading: TableInches::from_f64(reading),
             tach_mv: [slides[0].tach_mv(&mut rng), slides[1].tach_mv(&mut rng)],
         };
@@ -262,7 +272,29 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
         refusal: fault.map(|f| format!("{f:?}: {}", zslide::safety::Fault::reason(f))),
         fault,
         cycles,
-        time_s: n as f64 * dt,
+        time_s: tick_time(n),
         trace,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_index_reaches_the_firmware_exactly_once() {
+        let tbl = table::Table {
+            rpm: 25.0,
+            counts_per_rev: 36_000,
+            stop_at_s: None,
+            start_turns: 0.9,
+        };
+        // 100 revolutions at 25 rpm.
+        let ticks = (100.0 * 2.4 * f64::from(TICK_HZ)) as u64;
+        let n_idx = (1..ticks)
+            .filter(|&n| tbl.index_between(tick_time(n - 1), tick_time(n)).is_some())
+            .count();
+        let turns = tbl.read(tick_time(ticks - 1)).turns.floor() as usize;
+        assert_eq!(n_idx, turns);
+    }
 }
