@@ -71,8 +71,8 @@ pub struct Inputs {
     pub index: Option<(u32, u32)>,
     /// Transducer reading, converted to inches.
     pub reading: TableInches,
-    /// Tachometers of the X′ and Y′ slide motors, mV.
-    pub tach_mv: [i32; 2],
+    /// Tachometers of the X′ and Y′ slide motors, µV.
+    pub tach_uv: [i32; 2],
 }
 
 /// Something the host or a display wants to know about, once.
@@ -175,8 +175,8 @@ impl Centring {
         }
         let ev = self.sequence(inp);
         let out = [
-            self.servo[0].tick(inp.tach_mv[0]),
-            self.servo[1].tick(inp.tach_mv[1]),
+            self.servo[0].tick(inp.tach_uv[0]),
+            self.servo[1].tick(inp.tach_uv[1]),
         ];
         (out, ev)
     }

@@ -96,8 +96,8 @@ pub struct ServoConfig {
     pub tick_hz: u32,
     /// Settled: |target − y| below this (inches, I2F30 bits) ...
     pub settle_err_bits: i32,
-    /// ... and |tach| below this (mV) ...
-    pub settle_tach_mv: i32,
+    /// ... and |tach| below this (µV) ...
+    pub settle_tach_uv: i32,
     /// ... for this many ticks in a row.
     pub settle_ticks: u32,
 }
@@ -109,7 +109,7 @@ impl ServoConfig {
             tick_hz,
             // 1 µin; 20 mV is 0.32 rad/s at the motor, 2.6 µin/s at the slide.
             settle_err_bits: 1074,
-            settle_tach_mv: 20,
+            settle_tach_uv: 20_000,
             settle_ticks: tick_hz / 20,
         }
     }
@@ -119,8 +119,8 @@ impl ServoConfig {
 #[derive(Clone, Debug)]
 pub struct SlideServo {
     cfg: ServoConfig,
-    /// Slide inches (Q62) per millivolt-tick of tachometer.
-    in_per_mv_tick_q62: i64,
+    /// Slide inches (Q80) per microvolt-tick of tachometer.
+    in_per_uv_tick_q80: i64,
     amp_gain: i64,
     /// K₁ in Q30.
     k1_q30: i64,
@@ -141,7 +141,7 @@ impl SlideServo {
         }
         let hz = f64::from(cfg.tick_hz);
         let rad_per_in = GEAR_RATIO * core::f64::consts::TAU / LEAD_IN;
-        let in_per_mv_tick = 1e-3 / TACH_V_PER_RAD_S / hz / rad_per_in;
+        let in_per_uv_tick = 1e-6 / TACH_V_PER_RAD_S / hz / rad_per_in;
         let (amp_gain, k1, outer, tach_net) = match cfg.design {
             LoopDesign::Critical => (700, 0.01, None, None),
             LoopDesign::Compensated => (
@@ -153,7 +153,7 @@ impl SlideServo {
         };
         Some(Self {
             cfg,
-            in_per_mv_tick_q62: (in_per_mv_tick * (1u64 << 62) as f64) as i64,
+            in_per_uv_tick_q80: (in_per_uv_tick * (1u128 << 80) as f64) as i64,
             amp_gain,
             k1_q30: (k1 * Q30) as i64,
             outer,
@@ -194,7 +194,7 @@ impl SlideServo {
     /// Travel since [`start`](Self::start) from the integrated tachometer,
     /// inches I2F30 bits.
     pub fn travel_q30(&self) -> i64 {
-        ((i128::from(self.tach_sum) * i128::from(self.in_per_mv_tick_q62)) >> 32) as i64
+        ((i128::from(self.tach_sum) * i128::from(self.in_per_uv_tick_q80)) >> 50) as i64
     }
 
     /// Whether the slide has come to rest at its target.
@@ -202,16 +202,16 @@ impl SlideServo {
         self.quiet >= self.cfg.settle_ticks
     }
 
-    /// One loop tick: the tachometer reading (mV, positive when the slide
+    /// One loop tick: the tachometer reading (µV, positive when the slide
     /// moves positive); returns the motor voltage command (mV).
-    pub fn tick(&mut self, tach_mv: i32) -> i32 {
+    pub fn tick(&mut self, tach_uv: i32) -> i32 {
         if !self.active {
             return 0;
         }
-        self.tach_sum = self.tach_sum.saturating_add(i64::from(tach_mv));
+        self.tach_sum = self.tach_sum.saturating_add(i64::from(tach_uv));
         self.err_q30 = self.target_q30.saturating_sub(self.travel_q30());
         if self.err_q30.abs() < i64::from(self.cfg.settle_err_bits)
-            && tach_mv.saturating_abs() < self.cfg.settle_tach_mv
+            && tach_uv.saturating_abs() < self.cfg.settle_tach_uv
         {
             self.quiet = self.quiet.saturating_add(1);
         } else {
@@ -223,8 +223,8 @@ impl SlideServo {
             Some(s) => s.step(e_e),
             None => e_e,
         };
-        // Tach volts Q32 = mV × 2³²/1000.
-        let v_t = i64::from(tach_mv).saturating_mul(4_294_967);
+        // Tach volts Q32 = µV × 2³²/10⁶ (the constant is that in Q20).
+        let v_t = (i64::from(tach_uv) * 4_503_599_627) >> 20;
         let shaped = match self.tach_net.as_mut() {
             Some(s) => s.step(v_t),
             None => v_t,
@@ -252,11 +252,12 @@ mod tests {
         let mut s = SlideServo::new(ServoConfig::new(LoopDesign::Critical, 10_000)).unwrap();
         s.start(crate::units::TableInches::from_f64(0.1));
         for _ in 0..10_000 {
-            s.tick(1000);
+            s.tick(1_000_000);
         }
         let expect = 1.0 / 0.062 / (400.0 * core::f64::consts::TAU / 0.2);
         let got = s.travel_q30() as f64 / (1u64 << 30) as f64;
-        assert!((got - expect).abs() < 1e-9, "{got} vs {expect}");
+        // Within one I2F30 LSB (0.93 nin).
+        assert!((got - expect).abs() < 2f64.powi(-30), "{got} vs {expect}");
     }
 
     #[test]

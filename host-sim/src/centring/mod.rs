@@ -73,7 +73,9 @@ impl Setup {
             },
             mechanics: Mechanics::default(),
             gauge_noise_in: 0.0,
-            tach_noise_v: 0.0,
+            // Ripple and noise of a small DC tachometer; it also dithers the
+            // converter's 0.76 mV step, which the position integral needs.
+            tach_noise_v: 0.002,
             table_stop_at_s: None,
             seed: 1,
             max_time_s: 900.0,
@@ -210,7 +212,7 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
                 tbl.index_between(tick_time(n - 1), t)
             },
             reading: TableInches::from_f64(reading),
-            tach_mv: [slides[0].tach_mv(&mut rng), slides[1].tach_mv(&mut rng)],
+            tach_uv: [slides[0].tach_uv(&mut rng), slides[1].tach_uv(&mut rng)],
         };
         let (out, ev) = fw.tick(&inp);
         match ev {

@@ -137,11 +137,11 @@ impl Slide {
         self.slide_in
     }
 
-    /// The tachometer through its converter, mV.
-    pub fn tach_mv(&self, rng: &mut ChaCha8Rng) -> i32 {
+    /// The tachometer through its converter, µV.
+    pub fn tach_uv(&self, rng: &mut ChaCha8Rng) -> i32 {
         let v = TACH_V_PER_RAD_S * self.x[1] + self.tach_noise_v * gaussian(rng);
         let lsb = 2.0 * TACH_FULL_V / 65536.0;
         let v = ((v / lsb).round() * lsb).clamp(-TACH_FULL_V, TACH_FULL_V);
-        (v * 1000.0).round() as i32
+        (v * 1e6).round() as i32
     }
 }
