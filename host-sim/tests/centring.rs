@@ -39,7 +39,10 @@ fn first_correction_runs_at_the_motor_speed_limit_for_about_eight_seconds() {
     let v_max = 365.0 * 0.2 / (400.0 * std::f64::consts::TAU);
     let floor = 0.95 * 0.25 / v_max;
     let t = o.cycles[0].correction_s;
-    assert!(t > floor && t < floor + 0.5, "{t} s, saturated floor {floor} s");
+    assert!(
+        t > floor && t < floor + 0.5,
+        "{t} s, saturated floor {floor} s"
+    );
 }
 
 /// Seed ch. VII (Figs. 23-25): 0.250 → 0.010 → 0.00025 → 0.000010 in. The
@@ -71,7 +74,11 @@ fn lsq_compensated_ends_within_10_uin_in_4_cycles_in_any_direction() {
         let o = seed_run([0.25 * c, 0.25 * s], Method::Lsq, LoopDesign::Compensated);
         assert!(o.centred, "{deg}°: {:?}", o.refusal);
         assert!(o.cycles.len() <= 4, "{deg}°: {} cycles", o.cycles.len());
-        assert!(o.final_residual_in <= 10e-6, "{deg}°: {} in", o.final_residual_in);
+        assert!(
+            o.final_residual_in <= 10e-6,
+            "{deg}°: {} in",
+            o.final_residual_in
+        );
     }
 }
 
@@ -102,7 +109,12 @@ fn lsq_beats_quadrant_with_noise_and_out_of_round_part() {
             q.final_residual_in,
             l.final_residual_in
         );
-        assert!(l.time_s < q.time_s, "lsq {} s vs quadrant {} s", l.time_s, q.time_s);
+        assert!(
+            l.time_s < q.time_s,
+            "lsq {} s vs quadrant {} s",
+            l.time_s,
+            q.time_s
+        );
     }
 }
 
@@ -121,9 +133,17 @@ fn table_not_turning_is_refused() {
         let mut s = Setup::seed([0.1, 0.0], Method::Quadrant, LoopDesign::Compensated);
         s.table_stop_at_s = Some(stop);
         let o = run(&s).expect("run");
-        assert_eq!(o.fault, Some(Fault::CentringTableStopped), "stop at {stop} s");
+        assert_eq!(
+            o.fault,
+            Some(Fault::CentringTableStopped),
+            "stop at {stop} s"
+        );
         // Four counts' time at 1 rpm is 6.7 ms: refused within 10 ms.
-        assert!(o.time_s < stop + 0.01, "stop at {stop} s, refused at {}", o.time_s);
+        assert!(
+            o.time_s < stop + 0.01,
+            "stop at {stop} s, refused at {}",
+            o.time_s
+        );
     }
 }
 
@@ -135,7 +155,11 @@ fn cycle_that_makes_it_worse_is_refused_and_slides_stop() {
     assert_eq!(o.fault, Some(Fault::CentringWorse));
     // One correction went the wrong way (0.01 + 0.966·0.01) and no more.
     assert_eq!(o.cycles.len(), 1);
-    assert!(within(o.final_residual_in, 0.01 * 1.966, 0.01), "{}", o.final_residual_in);
+    assert!(
+        within(o.final_residual_in, 0.01 * 1.966, 0.01),
+        "{}",
+        o.final_residual_in
+    );
 }
 
 #[test]
@@ -166,7 +190,11 @@ fn free_play_and_deflection_limit_the_result() {
         let o = run(&s).expect("run");
         assert!(o.centred, "seed {seed}: {:?}", o.refusal);
         let bound = 2f64.sqrt() * (0.0002 + 0.0003) + 0.034 * 0.0005 * 2f64.sqrt();
-        assert!(o.final_residual_in <= bound, "seed {seed}: {}", o.final_residual_in);
+        assert!(
+            o.final_residual_in <= bound,
+            "seed {seed}: {}",
+            o.final_residual_in
+        );
         worst = worst.max(o.final_residual_in);
     }
     assert!(worst > 100e-6, "worst {worst}: the mechanics had no effect");
@@ -186,4 +214,3 @@ fn same_seed_same_run() {
     assert_eq!(a.final_residual_in.to_bits(), b.final_residual_in.to_bits());
     assert_eq!(a.time_s.to_bits(), b.time_s.to_bits());
 }
-

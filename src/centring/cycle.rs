@@ -86,6 +86,9 @@ pub enum Event {
     Refused(Fault),
 }
 
+// No allocation in the core: the 5 KB of the harmonic fit's bins are
+// reserved in place whichever method is configured.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 enum Estimator {
     Quadrant(Quadrant),
@@ -121,7 +124,8 @@ impl Centring {
         let servo = [SlideServo::new(sc)?, SlideServo::new(sc)?];
         let e = cfg.encoder;
         let rev_ticks = u64::from(e.ticks_per_s) * 60 / u64::from(e.min_rpm);
-        let stall_ticks = (rev_ticks / u64::from(e.counts_per_rev) * 4).clamp(1, u64::from(u32::MAX / 2)) as u32;
+        let stall_ticks =
+            (rev_ticks / u64::from(e.counts_per_rev) * 4).clamp(1, u64::from(u32::MAX / 2)) as u32;
         Some(Self {
             est: Self::estimator(cfg.method),
             cfg,
@@ -244,7 +248,9 @@ impl Centring {
     /// End of a sampled revolution: level detector, worse-check, correction.
     fn measured(&mut self, d: OffCentre) -> Option<Event> {
         self.cycle = self.cycle.saturating_add(1);
-        let worse = self.last.is_some_and(|p| d.max_abs_bits() > p.max_abs_bits());
+        let worse = self
+            .last
+            .is_some_and(|p| d.max_abs_bits() > p.max_abs_bits());
         self.last = Some(d);
         let level = i64::from(self.cfg.level.to_bits());
         if d.max_abs_bits() < level {
@@ -261,7 +267,9 @@ impl Centring {
             return Some(Event::Measured(self.cycle, d));
         }
         let k = i64::from(self.cfg.k_q30);
-        let travel = |v: TableInches| TableInches::from_bits(((i64::from(v.to_bits()) * k) >> 30).saturating_neg() as i32);
+        let travel = |v: TableInches| {
+            TableInches::from_bits(((i64::from(v.to_bits()) * k) >> 30).saturating_neg() as i32)
+        };
         self.servo[0].start(travel(d.x));
         self.servo[1].start(travel(d.y));
         self.correcting_ticks = 0;

@@ -144,8 +144,16 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
         "table speed {} rpm is outside the table's 1-25 rpm",
         s.rpm
     );
-    anyhow::ensure!(s.k > 0.0 && s.k <= 1.0, "correction ratio K = {} is not in (0, 1]", s.k);
-    anyhow::ensure!(s.level_in > 0.0 && s.level_in < 0.5, "level {} in is not in (0, 0.5)", s.level_in);
+    anyhow::ensure!(
+        s.k > 0.0 && s.k <= 1.0,
+        "correction ratio K = {} is not in (0, 1]",
+        s.k
+    );
+    anyhow::ensure!(
+        s.level_in > 0.0 && s.level_in < 0.5,
+        "level {} in is not in (0, 0.5)",
+        s.level_in
+    );
     anyhow::ensure!(
         s.mechanics.free_play_in >= 0.0 && s.mechanics.deflection_in >= 0.0,
         "free play and deflection must not be negative"
@@ -168,7 +176,8 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
             index_angle: SpindleAngle(0),
         },
     };
-    let mut fw = Centring::new(cfg).ok_or_else(|| anyhow::anyhow!("centring configuration refused by the firmware"))?;
+    let mut fw = Centring::new(cfg)
+        .ok_or_else(|| anyhow::anyhow!("centring configuration refused by the firmware"))?;
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
     let tbl = table::Table {
         rpm: s.rpm,

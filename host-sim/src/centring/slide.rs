@@ -68,7 +68,8 @@ pub fn in_per_rad() -> f64 {
 impl Slide {
     /// A slide stepped at `tick_hz` with `sub_steps` plant steps per tick.
     pub fn new(tick_hz: u32, sub_steps: u32, mech: Mechanics, tach_noise_v: f64) -> Self {
-        let a = DMatrix::from_row_slice(3, 3, &[-417.0, 0.0, 0.0, 150.0, -53.0, 0.0, 0.0, 1.0, 0.0]);
+        let a =
+            DMatrix::from_row_slice(3, 3, &[-417.0, 0.0, 0.0, 150.0, -53.0, 0.0, 0.0, 1.0, 0.0]);
         let b = DMatrix::from_row_slice(3, 1, &[417.0, 0.0, 0.0]);
         let c = DMatrix::from_row_slice(1, 3, &[0.0, 0.0, 1.0]);
         let d = DMatrix::zeros(1, 1);

@@ -25,7 +25,10 @@ impl Transducer {
         let volts = (d + self.noise_in * gaussian(rng)) * VOLTS_PER_IN;
         let full = TRAVEL_IN * VOLTS_PER_IN;
         let lsb = 2.0 * full / f64::from(1 << ADC_BITS);
-        let code = (volts / lsb).round().clamp(-f64::from(1 << (ADC_BITS - 1)), f64::from((1 << (ADC_BITS - 1)) - 1));
+        let code = (volts / lsb).round().clamp(
+            -f64::from(1 << (ADC_BITS - 1)),
+            f64::from((1 << (ADC_BITS - 1)) - 1),
+        );
         code * lsb / VOLTS_PER_IN
     }
 }

@@ -142,7 +142,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         for c in &o.cycles {
             println!(
                 "{:5}  {:13.9}  {:13.9}  {:18.9}  {:17.9}  {:12.3}  {:8.3}",
-                c.cycle, c.measured_x_in, c.measured_y_in, c.residual_before_in, c.residual_in, c.correction_s, c.corrected_at_s
+                c.cycle,
+                c.measured_x_in,
+                c.measured_y_in,
+                c.residual_before_in,
+                c.residual_in,
+                c.correction_s,
+                c.corrected_at_s
             );
         }
         match &o.refusal {
@@ -165,7 +171,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 fn write_plots(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
     use std::fmt::Write as _;
     std::fs::create_dir_all(dir)?;
-    let mut csv = String::from("cycle,residual_before_in,residual_in,measured_at_s,corrected_at_s\n");
+    let mut csv =
+        String::from("cycle,residual_before_in,residual_in,measured_at_s,corrected_at_s\n");
     for c in &o.cycles {
         writeln!(
             csv,
@@ -183,10 +190,15 @@ fn write_plots(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
         )?;
     }
     std::fs::write(dir.join("center_slides.csv"), csv)?;
-    let residual: Vec<(f64, f64)> = std::iter::once((0.0, o.cycles.first().map_or(o.final_residual_in, |c| c.residual_before_in)))
-        .chain(o.cycles.iter().map(|c| (f64::from(c.cycle), c.residual_in)))
-        .map(|(n, r)| (n, r.max(1e-9)))
-        .collect();
+    let residual: Vec<(f64, f64)> = std::iter::once((
+        0.0,
+        o.cycles
+            .first()
+            .map_or(o.final_residual_in, |c| c.residual_before_in),
+    ))
+    .chain(o.cycles.iter().map(|c| (f64::from(c.cycle), c.residual_in)))
+    .map(|(n, r)| (n, r.max(1e-9)))
+    .collect();
     {
         use plotters::prelude::*;
         let path = dir.join("center_residual.svg");
@@ -223,17 +235,28 @@ where
     let mut b = ChartBuilder::on(root);
     b.margin(10);
     if text {
-        b.caption("residual off-centre after each correction cycle (in)", ("sans-serif", 18))
-            .x_label_area_size(30)
-            .y_label_area_size(70);
+        b.caption(
+            "residual off-centre after each correction cycle (in)",
+            ("sans-serif", 18),
+        )
+        .x_label_area_size(30)
+        .y_label_area_size(70);
     }
     let mut ch = b
         .build_cartesian_2d(0.0..n - 1.0, (lo..hi).log_scale())
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     if text {
-        ch.configure_mesh().x_desc("cycle").draw().map_err(|e| anyhow::anyhow!("{e}"))?;
+        ch.configure_mesh()
+            .x_desc("cycle")
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
     } else {
-        ch.configure_mesh().disable_axes().x_labels(0).y_labels(0).draw().map_err(|e| anyhow::anyhow!("{e}"))?;
+        ch.configure_mesh()
+            .disable_axes()
+            .x_labels(0)
+            .y_labels(0)
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
     }
     ch.draw_series(LineSeries::new(residual.iter().copied(), &BLUE))
         .map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -254,8 +277,16 @@ where
     use plotters::prelude::*;
     root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
     let t1 = o.trace.last().map_or(1.0, |p| p.t_s).max(1e-3);
-    let lo = o.trace.iter().flat_map(|p| [p.slide_x_in, p.slide_y_in]).fold(0.0, f64::min);
-    let hi = o.trace.iter().flat_map(|p| [p.slide_x_in, p.slide_y_in]).fold(0.0, f64::max);
+    let lo = o
+        .trace
+        .iter()
+        .flat_map(|p| [p.slide_x_in, p.slide_y_in])
+        .fold(0.0, f64::min);
+    let hi = o
+        .trace
+        .iter()
+        .flat_map(|p| [p.slide_x_in, p.slide_y_in])
+        .fold(0.0, f64::max);
     let pad = ((hi - lo) * 0.05).max(1e-6);
     let mut b = ChartBuilder::on(root);
     b.margin(10);
@@ -268,20 +299,37 @@ where
         .build_cartesian_2d(0.0..t1, lo - pad..hi + pad)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     if text {
-        ch.configure_mesh().x_desc("t (s)").draw().map_err(|e| anyhow::anyhow!("{e}"))?;
+        ch.configure_mesh()
+            .x_desc("t (s)")
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
     } else {
-        ch.configure_mesh().disable_axes().x_labels(0).y_labels(0).draw().map_err(|e| anyhow::anyhow!("{e}"))?;
+        ch.configure_mesh()
+            .disable_axes()
+            .x_labels(0)
+            .y_labels(0)
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
     }
-    ch.draw_series(LineSeries::new(o.trace.iter().map(|p| (p.t_s, p.slide_x_in)), &BLUE))
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .label("X'")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    ch.draw_series(LineSeries::new(o.trace.iter().map(|p| (p.t_s, p.slide_y_in)), &RED))
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .label("Y'")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+    ch.draw_series(LineSeries::new(
+        o.trace.iter().map(|p| (p.t_s, p.slide_x_in)),
+        &BLUE,
+    ))
+    .map_err(|e| anyhow::anyhow!("{e}"))?
+    .label("X'")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    ch.draw_series(LineSeries::new(
+        o.trace.iter().map(|p| (p.t_s, p.slide_y_in)),
+        &RED,
+    ))
+    .map_err(|e| anyhow::anyhow!("{e}"))?
+    .label("Y'")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
     if text {
-        ch.configure_series_labels().border_style(BLACK).draw().map_err(|e| anyhow::anyhow!("{e}"))?;
+        ch.configure_series_labels()
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
     }
     root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
