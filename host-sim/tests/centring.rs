@@ -163,6 +163,19 @@ fn cycle_that_makes_it_worse_is_refused_and_slides_stop() {
 }
 
 #[test]
+fn jammed_slide_is_refused_after_the_correction_time_limit() {
+    let mut s = Setup::seed([0.01, 0.0], Method::Lsq, LoopDesign::Compensated);
+    s.mechanics.jammed = true;
+    let o = run(&s).expect("run");
+    assert_eq!(o.fault, Some(Fault::CentringSlideTimeout));
+    // Measured after one revolution (≈ 2.4 s plus the wait for the index),
+    // then 60 s of trying.
+    let started = o.cycles[0].measured_at_s;
+    assert!((o.time_s - started - 60.0).abs() < 0.01, "{} s", o.time_s);
+    assert!((o.final_residual_in - 0.01).abs() < 1e-12);
+}
+
+#[test]
 fn too_many_cycles_is_refused() {
     let mut s = Setup::seed([0.25, 0.0], Method::Lsq, LoopDesign::Compensated);
     s.max_cycles = 1;
@@ -183,7 +196,7 @@ fn free_play_and_deflection_limit_the_result() {
         s.mechanics = Mechanics {
             free_play_in: 0.0006,
             deflection_in: 0.0002,
-            reversed: false,
+            ..Mechanics::default()
         };
         s.level_in = 0.0005;
         s.seed = seed;

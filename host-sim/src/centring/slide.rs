@@ -41,6 +41,8 @@ pub struct Mechanics {
     /// A left-hand leadscrew fitted: the slide runs opposite to the motor
     /// (a wiring or assembly error the sequence must refuse, not chase).
     pub reversed: bool,
+    /// The slide is jammed: the motor stalls whatever its voltage.
+    pub jammed: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -94,7 +96,9 @@ impl Slide {
         let u = f64::from(motor_mv) / 1000.0;
         for _ in 0..self.sub_steps {
             self.amp_v = (u + (self.amp_v - u) * self.amp_decay).clamp(-rail, rail);
-            self.x = &self.motor.phi * &self.x + &self.motor.gamma * self.amp_v;
+            if !self.mech.jammed {
+                self.x = &self.motor.phi * &self.x + &self.motor.gamma * self.amp_v;
+            }
             self.play(rng);
         }
     }

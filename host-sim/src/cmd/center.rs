@@ -102,6 +102,7 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
         free_play_in: a.free_play_in,
         deflection_in: a.deflection_in,
         reversed: false,
+        jammed: false,
     };
     if a.lobes3_uin != 0.0 {
         s.part.lobes.push(Lobe {
