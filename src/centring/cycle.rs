@@ -22,6 +22,7 @@ use super::estimate::{Harmonic, OffCentre, Progress, Quadrant};
 use super::servo::{LoopDesign, ServoConfig, SlideServo};
 use crate::safety::Fault;
 use crate::spindle::{EncoderAngle, EncoderConfig};
+use crate::trig;
 use crate::units::{SpindleAngle, TableInches};
 
 /// Off-centre estimator.
@@ -31,6 +32,12 @@ pub enum Method {
     Quadrant,
     /// Least-squares first harmonic of every tick of a revolution.
     Lsq,
+    /// The same fit, revolution after revolution without waiting for the
+    /// slides: each reading is corrected by the slides' travel since the
+    /// revolution began (integrated tachometers, rotated to the table
+    /// angle), so the fit is the off-centre at the revolution's start while
+    /// the slides move; the target is renewed after every revolution.
+    LsqMoving,
 }
 
 /// Sequence configuration.
@@ -110,6 +117,11 @@ pub struct Centring {
     stall_ticks: u32,
     correcting_ticks: u32,
     table_angle: SpindleAngle,
+    /// Slide positions (integrated tachometers, I2F30 bits) when the
+    /// revolution being sampled began (`LsqMoving`).
+    rev_start: [i64; 2],
+    /// Both slides stayed settled through the revolution being sampled.
+    quiet_rev: bool,
 }
 
 impl Centring {
@@ -139,13 +151,15 @@ impl Centring {
             stall_ticks,
             correcting_ticks: 0,
             table_angle: SpindleAngle(0),
+            rev_start: [0; 2],
+            quiet_rev: true,
         })
     }
 
     fn estimator(m: Method) -> Estimator {
         match m {
             Method::Quadrant => Estimator::Quadrant(Quadrant::new()),
-            Method::Lsq => Estimator::Lsq(Harmonic::new()),
+            Method::Lsq | Method::LsqMoving => Estimator::Lsq(Harmonic::new()),
         }
     }
 
@@ -209,19 +223,41 @@ impl Centring {
         match self.state {
             State::WaitTable => {
                 if self.angle.referenced() {
-                    self.state = State::Sampling;
-                    self.est = Self::estimator(self.cfg.method);
+                    self.new_revolution();
                 }
                 None
             }
             State::Sampling => {
+                self.quiet_rev &= self.servo.iter().all(|s| s.settled());
+                let moved = self.moved_since_rev_start();
+                let reading = if self.cfg.method == Method::LsqMoving {
+                    // Take out what the slides did to the reading: x cos θ − y sin θ.
+                    let t = trig::sin_cos(est.angle);
+                    let seen = (moved[0] * i64::from(t.cos) - moved[1] * i64::from(t.sin))
+                        >> trig::FRAC_BITS;
+                    let r = i64::from(inp.reading.to_bits()).saturating_sub(seen);
+                    TableInches::from_bits(r.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
+                } else {
+                    inp.reading
+                };
                 let p = match &mut self.est {
-                    Estimator::Quadrant(q) => q.sample(est.angle, inp.reading),
-                    Estimator::Lsq(h) => h.sample(est.angle, inp.reading),
+                    Estimator::Quadrant(q) => q.sample(est.angle, reading),
+                    Estimator::Lsq(h) => h.sample(est.angle, reading),
                 };
                 match p {
                     Err(f) => self.refuse(f),
                     Ok(Progress::Sampling) => None,
+                    Ok(Progress::Done(d)) if self.cfg.method == Method::LsqMoving => {
+                        // Off-centre now = at the revolution's start + travel since.
+                        let now = |v: TableInches, m: i64| {
+                            let b = i64::from(v.to_bits()).saturating_add(m);
+                            TableInches::from_bits(b.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
+                        };
+                        self.measured(OffCentre {
+                            x: now(d.x, moved[0]),
+                            y: now(d.y, moved[1]),
+                        })
+                    }
                     Ok(Progress::Done(d)) => self.measured(d),
                 }
             }
@@ -234,8 +270,7 @@ impl Centring {
                     for s in &mut self.servo {
                         s.stop();
                     }
-                    self.state = State::Sampling;
-                    self.est = Self::estimator(self.cfg.method);
+                    self.new_revolution();
                     Some(Event::Corrected(self.cycle))
                 } else {
                     None
@@ -243,6 +278,20 @@ impl Centring {
             }
             State::Centred(_) | State::Refused(_) => None,
         }
+    }
+
+    fn new_revolution(&mut self) {
+        self.state = State::Sampling;
+        self.est = Self::estimator(self.cfg.method);
+        self.rev_start = [self.servo[0].position_q30(), self.servo[1].position_q30()];
+        self.quiet_rev = true;
+    }
+
+    fn moved_since_rev_start(&self) -> [i64; 2] {
+        [
+            self.servo[0].position_q30().saturating_sub(self.rev_start[0]),
+            self.servo[1].position_q30().saturating_sub(self.rev_start[1]),
+        ]
     }
 
     /// End of a sampled revolution: level detector, worse-check, correction.
@@ -253,12 +302,20 @@ impl Centring {
             .is_some_and(|p| d.max_abs_bits() > p.max_abs_bits());
         self.last = Some(d);
         let level = i64::from(self.cfg.level.to_bits());
-        if d.max_abs_bits() < level {
+        // Centred only on a revolution with the slides at rest throughout:
+        // nothing moved under the measurement, and nothing moves after it.
+        // (A fit during motion is good to a few % of the motion: the
+        // transducer's second-order geometry, c²/2R, changes with it.)
+        let below = d.max_abs_bits() < level;
+        if below && self.quiet_rev {
+            for s in &mut self.servo {
+                s.stop();
+            }
             self.state = State::Centred(d);
             // The measurement is reported with the verdict.
             return Some(Event::Measured(self.cycle, d));
         }
-        if worse {
+        if worse && !below {
             self.refuse(Fault::CentringWorse);
             return Some(Event::Measured(self.cycle, d));
         }
@@ -270,10 +327,21 @@ impl Centring {
         let travel = |v: TableInches| {
             TableInches::from_bits(((i64::from(v.to_bits()) * k) >> 30).saturating_neg() as i32)
         };
-        self.servo[0].start(travel(d.x));
-        self.servo[1].start(travel(d.y));
-        self.correcting_ticks = 0;
-        self.state = State::Correcting;
+        if self.cfg.method == Method::LsqMoving {
+            // Keep going: renew the targets (unless the part is already
+            // within the level, measured in motion: then let the slides
+            // finish) and sample the next revolution.
+            if !below {
+                self.servo[0].retarget(travel(d.x));
+                self.servo[1].retarget(travel(d.y));
+            }
+            self.new_revolution();
+        } else {
+            self.servo[0].start(travel(d.x));
+            self.servo[1].start(travel(d.y));
+            self.correcting_ticks = 0;
+            self.state = State::Correcting;
+        }
         Some(Event::Measured(self.cycle, d))
     }
 }

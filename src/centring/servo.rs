@@ -169,16 +169,32 @@ impl SlideServo {
     /// Starts a correction: move the slide by `travel` from where it is
     /// (the capacitor charged with a new `E`, switch S-A closed).
     pub fn start(&mut self, travel: crate::units::TableInches) {
-        self.target_q30 = i64::from(travel.to_bits());
-        self.tach_sum = 0;
-        self.quiet = 0;
-        self.err_q30 = self.target_q30;
         if let Some(s) = self.outer.as_mut() {
             s.reset();
         }
         if let Some(s) = self.tach_net.as_mut() {
             s.reset();
         }
+        self.active = false;
+        self.retarget(travel);
+    }
+
+    /// Moves the target to `travel` from where the slide is now, without
+    /// disturbing a correction in progress (its filter states are kept).
+    pub fn retarget(&mut self, travel: crate::units::TableInches) {
+        if !self.active {
+            if let Some(s) = self.outer.as_mut() {
+                s.reset();
+            }
+            if let Some(s) = self.tach_net.as_mut() {
+                s.reset();
+            }
+        }
+        self.target_q30 = self
+            .position_q30()
+            .saturating_add(i64::from(travel.to_bits()));
+        self.err_q30 = i64::from(travel.to_bits());
+        self.quiet = 0;
         self.active = true;
     }
 
@@ -191,25 +207,26 @@ impl SlideServo {
         self.active
     }
 
-    /// Travel since [`start`](Self::start) from the integrated tachometer,
-    /// inches I2F30 bits.
-    pub fn travel_q30(&self) -> i64 {
+    /// Slide position from the integrated tachometer since the servo was
+    /// built (the only position the firmware has), inches I2F30 bits.
+    pub fn position_q30(&self) -> i64 {
         ((i128::from(self.tach_sum) * i128::from(self.in_per_uv_tick_q80)) >> 50) as i64
     }
 
-    /// Whether the slide has come to rest at its target.
+    /// Whether the slide has come to rest at its target (or was never sent).
     pub fn settled(&self) -> bool {
-        self.quiet >= self.cfg.settle_ticks
+        !self.active || self.quiet >= self.cfg.settle_ticks
     }
 
     /// One loop tick: the tachometer reading (µV, positive when the slide
     /// moves positive); returns the motor voltage command (mV).
     pub fn tick(&mut self, tach_uv: i32) -> i32 {
+        // Integrated always: a slide coasting with the loop open still moves.
+        self.tach_sum = self.tach_sum.saturating_add(i64::from(tach_uv));
         if !self.active {
             return 0;
         }
-        self.tach_sum = self.tach_sum.saturating_add(i64::from(tach_uv));
-        self.err_q30 = self.target_q30.saturating_sub(self.travel_q30());
+        self.err_q30 = self.target_q30.saturating_sub(self.position_q30());
         if self.err_q30.abs() < i64::from(self.cfg.settle_err_bits)
             && tach_uv.saturating_abs() < self.cfg.settle_tach_uv
         {
@@ -256,7 +273,7 @@ mod tests {
             s.tick(1_000_000);
         }
         let expect = 1.0 / 0.062 / (400.0 * core::f64::consts::TAU / 0.2);
-        let got = s.travel_q30() as f64 / (1u64 << 30) as f64;
+        let got = s.position_q30() as f64 / (1u64 << 30) as f64;
         // Within one I2F30 LSB (0.93 nin).
         assert!((got - expect).abs() < 2f64.powi(-30), "{got} vs {expect}");
     }

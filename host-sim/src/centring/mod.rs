@@ -84,7 +84,9 @@ impl Setup {
     }
 }
 
-/// One correction cycle.
+/// One correction cycle (with `LsqMoving`, one revolution: measured at its
+/// end, "corrected" at the end of the next one, the slides possibly still
+/// moving).
 #[derive(Clone, Debug, Serialize)]
 pub struct Cycle {
     pub cycle: u32,
@@ -227,7 +229,14 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
         match ev {
             Some(Event::Measured(k, d)) => {
                 last_measured = [d.x.to_f64(), d.y.to_f64()];
-                if matches!(fw.state(), State::Correcting) {
+                // `LsqMoving` corrects while it samples: a cycle is one
+                // revolution, and it ends at the next measurement.
+                if let Some(cy) = cycles.last_mut().filter(|cy| cy.residual_in.is_nan()) {
+                    cy.residual_in = mag(c);
+                    cy.corrected_at_s = t;
+                    cy.correction_s = t - cy.measured_at_s;
+                }
+                if matches!(fw.state(), State::Correcting | State::Sampling) {
                     cycles.push(Cycle {
                         cycle: k,
                         measured_x_in: last_measured[0],

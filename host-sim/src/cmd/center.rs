@@ -12,6 +12,9 @@ pub enum MethodArg {
     Quadrant,
     /// Least-squares first harmonic of every sample of the revolution.
     Lsq,
+    /// The same, correcting during the revolution: revolutions back to back,
+    /// readings compensated for the slides' motion.
+    LsqMoving,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -84,6 +87,7 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
     let method = match a.method {
         MethodArg::Quadrant => Method::Quadrant,
         MethodArg::Lsq => Method::Lsq,
+        MethodArg::LsqMoving => Method::LsqMoving,
     };
     let design = match a.design {
         DesignArg::Critical => LoopDesign::Critical,
