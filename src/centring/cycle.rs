@@ -54,6 +54,11 @@ pub struct Config {
     /// A correction longer than this is a stuck slide.
     pub max_correction_ticks: u32,
     pub encoder: EncoderConfig,
+    /// Nominal radius of the part where the transducer touches it: the
+    /// reading is `x cos θ − y sin θ − (x sin θ + y cos θ)²/2R`, and with
+    /// `LsqMoving` the second term changes as the slides move. Zero: no
+    /// second-order correction.
+    pub part_radius: TableInches,
 }
 
 /// What the sequence is doing.
@@ -122,6 +127,10 @@ pub struct Centring {
     rev_start: [i64; 2],
     /// Both slides stayed settled through the revolution being sampled.
     quiet_rev: bool,
+    /// Estimated off-centre when the revolution began (`LsqMoving`).
+    centre_at_rev_start: [i64; 2],
+    /// 1/(2R) in Q30 per inch (0: no second-order term).
+    inv_2r_q30: i64,
 }
 
 impl Centring {
@@ -153,6 +162,12 @@ impl Centring {
             table_angle: SpindleAngle(0),
             rev_start: [0; 2],
             quiet_rev: true,
+            centre_at_rev_start: [0; 2],
+            inv_2r_q30: if cfg.part_radius.to_bits() > 0 {
+                (1i64 << 59) / i64::from(cfg.part_radius.to_bits())
+            } else {
+                0
+            },
         })
     }
 
@@ -231,10 +246,13 @@ impl Centring {
                 self.quiet_rev &= self.servo.iter().all(|s| s.settled());
                 let moved = self.moved_since_rev_start();
                 let reading = if self.cfg.method == Method::LsqMoving {
-                    // Take out what the slides did to the reading: x cos θ − y sin θ.
+                    // Take out what the slides did to the reading.
                     let t = trig::sin_cos(est.angle);
-                    let seen = (moved[0] * i64::from(t.cos) - moved[1] * i64::from(t.sin))
-                        >> trig::FRAC_BITS;
+                    let c0 = self.centre_at_rev_start;
+                    let c1 = [c0[0] + moved[0], c0[1] + moved[1]];
+                    let seen = self
+                        .reading_model(c1, t)
+                        .saturating_sub(self.reading_model(c0, t));
                     let r = i64::from(inp.reading.to_bits()).saturating_sub(seen);
                     TableInches::from_bits(r.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
                 } else {
@@ -251,7 +269,9 @@ impl Centring {
                         // Off-centre now = at the revolution's start + travel since.
                         let now = |v: TableInches, m: i64| {
                             let b = i64::from(v.to_bits()).saturating_add(m);
-                            TableInches::from_bits(b.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
+                            TableInches::from_bits(
+                                b.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32,
+                            )
                         };
                         self.measured(OffCentre {
                             x: now(d.x, moved[0]),
@@ -287,10 +307,25 @@ impl Centring {
         self.quiet_rev = true;
     }
 
+    /// The reading's dependence on the part centre `c` (I2F30 bits):
+    /// `cx cos θ − cy sin θ − (cx sin θ + cy cos θ)²/2R`.
+    fn reading_model(&self, c: [i64; 2], t: trig::SinCos) -> i64 {
+        let (s, co) = (i64::from(t.sin), i64::from(t.cos));
+        let along = (c[0] * co - c[1] * s) >> trig::FRAC_BITS;
+        let across = (c[0] * s + c[1] * co) >> trig::FRAC_BITS;
+        // across² is ≤ 0.25 in² (2⁵⁸ in Q60); times 1/2R in Q30 fits i128.
+        let sq = ((i128::from(across) * i128::from(across)) >> 30) * i128::from(self.inv_2r_q30);
+        along.saturating_sub((sq >> 30) as i64)
+    }
+
     fn moved_since_rev_start(&self) -> [i64; 2] {
         [
-            self.servo[0].position_q30().saturating_sub(self.rev_start[0]),
-            self.servo[1].position_q30().saturating_sub(self.rev_start[1]),
+            self.servo[0]
+                .position_q30()
+                .saturating_sub(self.rev_start[0]),
+            self.servo[1]
+                .position_q30()
+                .saturating_sub(self.rev_start[1]),
         ]
     }
 
@@ -336,6 +371,7 @@ impl Centring {
                 self.servo[1].retarget(travel(d.y));
             }
             self.new_revolution();
+            self.centre_at_rev_start = [i64::from(d.x.to_bits()), i64::from(d.y.to_bits())];
         } else {
             self.servo[0].start(travel(d.x));
             self.servo[1].start(travel(d.y));

@@ -37,7 +37,7 @@ pub struct Args {
     pub method: MethodArg,
     #[arg(long, value_enum, default_value_t = DesignArg::Compensated)]
     pub design: DesignArg,
-    /// Correction ratio K (default: 0.95 critical, 0.966 compensated).
+    /// Correction ratio K (default: quadrant 0.95 critical, 0.966 compensated; LSQ 1.0).
     #[arg(long)]
     pub k: Option<f64>,
     /// Level detector: centred when both axes measure below this, inches.
