@@ -33,6 +33,8 @@ pub mod looptick;
 pub mod drivers;
 // The bundle the boards and host-sim use.
 pub mod firmware;
+// The second system on the same core (Feezell 1967).
+pub mod centring;
 
 /// The default coefficient table, embedded in the firmware: the dissertation's
 /// part (c = 316.7 in, S_y = 28 in, r_t = 0.125 in), 5-term sin-power series on

@@ -45,6 +45,22 @@ pub enum Fault {
     SignCheck,
     Watchdog,
     Panic,
+    /// Centring: the rotary table is not turning (no encoder edge or no
+    /// index within the time the slowest table speed allows), or it turns
+    /// too fast to sample every angle bin.
+    CentringTableStopped,
+    /// Centring: the transducer reached the end of its ±0.5 in travel; the
+    /// part is too far off centre to measure. Place it closer by hand.
+    CentringOutOfRange,
+    /// Centring: a correction cycle left the part further off centre than
+    /// before (reversed slide wiring, a slipping part, or a residual already
+    /// at the machine's mechanical limit: raise the level detector).
+    CentringWorse,
+    /// Centring: the level was not reached in the allowed number of cycles.
+    CentringNoConvergence,
+    /// Centring: a slide did not settle in the allowed time (jammed slide,
+    /// open motor or tachometer).
+    CentringSlideTimeout,
 }
 
 /// What the machine does about a fault.
@@ -80,6 +96,13 @@ impl Fault {
             | Fault::SignCheck
             | Fault::Watchdog
             | Fault::Panic => Reaction::DisableAmplifier,
+            // The centring slides have no null to ramp to: they stop where
+            // they are (motor voltage zero), which is safe for the part.
+            Fault::CentringTableStopped
+            | Fault::CentringOutOfRange
+            | Fault::CentringWorse
+            | Fault::CentringNoConvergence
+            | Fault::CentringSlideTimeout => Reaction::DisableAmplifier,
         }
     }
 
@@ -104,6 +127,17 @@ impl Fault {
             Fault::SignCheck => "sign check failed: the slide did not move as commanded (reversed sign, dead amplifier or stuck slide)",
             Fault::Watchdog => "watchdog: a handler stopped making progress",
             Fault::Panic => "firmware panic",
+            Fault::CentringTableStopped => {
+                "centring: the rotary table is not turning (or not within 1-25 rpm): no encoder edge or index when one was due"
+            }
+            Fault::CentringOutOfRange => {
+                "centring: the transducer is at the end of its +/-0.5 in travel: the part is too far off centre to measure"
+            }
+            Fault::CentringWorse => {
+                "centring: a correction cycle left the part further off centre than before (mechanical limit reached, or a slide or its wiring is reversed)"
+            }
+            Fault::CentringNoConvergence => "centring: the level was not reached in the allowed number of cycles",
+            Fault::CentringSlideTimeout => "centring: a slide did not come to rest in the allowed time",
         }
     }
 }

@@ -20,6 +20,14 @@
 //! | [`XInches`] | `I8F24` | ±128 in | 5.96e-8 in (0.06 µin) |
 //! | [`ZInches`] | `I2F30` | ±2 in | 9.31e-10 in (0.00093 µin) |
 //! | [`SpindleAngle`] | `u32` | one turn, wrapping | 1.46e-9 rad |
+//! | [`TableInches`] | `I2F30` | ±2 in | 9.31e-10 in |
+//!
+//! * **Centring lengths** ([`TableInches`], `crate::centring`) are in the
+//!   rotary table's frame: X′ and Y′ along the two cross slides, positive
+//!   where the slide moves the part when driven positive; the table angle
+//!   θ (a [`SpindleAngle`]) is zero when X′ points at the transducer and
+//!   grows counter-clockwise seen from above. A part centred at (x, y)
+//!   reads `x cos θ − y sin θ` (plus its radius) at the transducer.
 //!
 //! The Z LSB is three orders of magnitude below the 0.1 µin command-accuracy
 //! goal, so quantisation of a sum of a few terms stays negligible in the error
@@ -42,6 +50,36 @@ pub struct ZInches(pub I2F30);
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct SpindleAngle(pub u32);
+
+/// A length in the rotary table's frame (centring: off-centre, slide
+/// displacement, transducer reading), inches, `I2F30`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct TableInches(pub I2F30);
+
+impl TableInches {
+    pub const ZERO: Self = Self(I2F30::ZERO);
+
+    pub const fn from_bits(bits: i32) -> Self {
+        Self(I2F30::from_bits(bits))
+    }
+    pub const fn to_bits(self) -> i32 {
+        self.0.to_bits()
+    }
+    /// Host-side convenience; saturates outside ±2 in.
+    pub fn from_f64(inches: f64) -> Self {
+        Self(I2F30::saturating_from_num(inches))
+    }
+    pub fn to_f64(self) -> f64 {
+        self.0.to_num()
+    }
+}
+
+#[cfg(target_os = "none")]
+impl defmt::Format for TableInches {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "{=i32}/2^30in", self.to_bits())
+    }
+}
 
 // `fixed` has no defmt support; log the raw bits with their scale so a trace
 // reader can convert without floats on the target.

@@ -1,6 +1,7 @@
 //! Host simulator of the Z-slide machine.
 pub mod analog1983;
 pub mod analyser;
+pub mod centring;
 pub mod chips;
 pub mod cmd;
 pub mod coeffgen;
