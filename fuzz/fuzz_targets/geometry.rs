@@ -62,7 +62,10 @@ fuzz_target!(|data: &[u8]| {
         Ok(g) => g,
         Err(e) => {
             let msg = e.to_string();
-            assert!(names_a_field(&msg), "generator refusal names no field: {msg:?}");
+            assert!(
+                names_a_field(&msg),
+                "generator refusal names no field: {msg:?}"
+            );
             return;
         }
     };
@@ -72,9 +75,16 @@ fuzz_target!(|data: &[u8]| {
     assert_eq!(h.node_count as usize, spec.node_count());
     assert_eq!(usize::from(h.terms), spec.columns());
     assert_eq!(h.representation, spec.representation);
-    assert_eq!((h.coeff_frac_bits, h.x_frac_bits), (spec.coeff_frac_bits, spec.x_frac_bits));
+    assert_eq!(
+        (h.coeff_frac_bits, h.x_frac_bits),
+        (spec.coeff_frac_bits, spec.x_frac_bits)
+    );
     for n in 1..t.node_count() {
-        assert!(t.node_x(n) > t.node_x(n - 1), "nodes {} and {n} coincide", n - 1);
+        assert!(
+            t.node_x(n) > t.node_x(n - 1),
+            "nodes {} and {n} coincide",
+            n - 1
+        );
     }
     let gen = CommandGen::new(t);
     for n in 0..t.node_count() {
@@ -82,7 +92,9 @@ fuzz_target!(|data: &[u8]| {
         if x > gen.x_null() {
             break;
         }
-        let c = gen.coefficients(x).expect("a node inside the table has coefficients");
+        let c = gen
+            .coefficients(x)
+            .expect("a node inside the table has coefficients");
         for k in 0..16u32 {
             let phi = SpindleAngle(k << 28);
             let z = gen.evaluate_phi(&c, phi).z;

@@ -77,9 +77,16 @@ fn first_defect(b: &[u8]) -> Option<&'static str> {
     if b[8] == 1 && terms % 2 == 0 {
         return Some("HarmonicColumnsNotOdd");
     }
-    let (x0, dx, xn) = (i64::from(i32_at(b, 20)), i64::from(i32_at(b, 24)), i64::from(i32_at(b, 28)));
+    let (x0, dx, xn) = (
+        i64::from(i32_at(b, 20)),
+        i64::from(i32_at(b, 24)),
+        i64::from(i32_at(b, 28)),
+    );
     if dx <= 0 {
         return Some("NonMonotonicGrid");
+    }
+    if fx > 24 && dx < 1 << (fx - 24) {
+        return Some("GridStepBelowResolution");
     }
     let last = x0 + dx * i64::from(nodes - 1);
     if i32::try_from(last).is_err() || !x_fits(x0, fx) || !x_fits(last, fx) {
@@ -119,6 +126,7 @@ fn name(e: &TableError) -> &'static str {
         TableError::AbsurdSize => "AbsurdSize",
         TableError::HarmonicColumnsNotOdd(_) => "HarmonicColumnsNotOdd",
         TableError::NonMonotonicGrid => "NonMonotonicGrid",
+        TableError::GridStepBelowResolution => "GridStepBelowResolution",
         TableError::GridOverflow => "GridOverflow",
         TableError::NullZoneOutsideGrid => "NullZoneOutsideGrid",
         TableError::BadGeometry => "BadGeometry",
@@ -152,7 +160,11 @@ fuzz_target!(|data: &[u8]| {
             assert_eq!(h.encode(&payload, &mut out), Ok(img.len()));
             assert_eq!(out, img, "re-encoding differs from the accepted image");
             for n in 1..t.node_count() {
-                assert!(t.node_x(n) > t.node_x(n - 1), "nodes {} and {n} coincide or decrease in the core X format", n - 1);
+                assert!(
+                    t.node_x(n) > t.node_x(n - 1),
+                    "nodes {} and {n} coincide or decrease in the core X format",
+                    n - 1
+                );
             }
             let last = t.node_x(t.node_count() - 1);
             assert!(t.node_x(0) <= t.x_null() && t.x_null() <= last);

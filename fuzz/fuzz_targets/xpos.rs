@@ -14,8 +14,8 @@ use libfuzzer_sys::fuzz_target;
 use zslide::hw::XLatchWord;
 use zslide::safety::Fault;
 use zslide::xpos::{
-    decode, half_mils_to_x, latch_word, CountConfig, CountX, LegacyConfig, LegacyX, XEvent,
-    ALL, C00, C01, C02, C03, DISPLAY_HALF_MILS,
+    decode, half_mils_to_x, latch_word, CountConfig, CountX, LegacyConfig, LegacyX, XEvent, ALL,
+    C00, C01, C02, C03, DISPLAY_HALF_MILS,
 };
 
 /// Digit-by-digit decimal reading of a latch word: half-mils, or `None`.
@@ -69,7 +69,11 @@ fn legacy(cfg_bytes: &[u8], events: &[u8]) {
     let mut now = 0u32;
     for ev in events.chunks_exact(7) {
         let raw = u32::from_le_bytes([ev[0], ev[1], ev[2], ev[3]]);
-        let word = if ev[6] & 0x80 != 0 { raw } else { raw & 0x3_FFFF };
+        let word = if ev[6] & 0x80 != 0 {
+            raw
+        } else {
+            raw & 0x3_FFFF
+        };
         now = now.wrapping_add(u32::from(u16::from_le_bytes([ev[4], ev[5]])));
         // The decoder against the decimal model, and the latch-word builder
         // inverting it for every legal position.
@@ -85,7 +89,11 @@ fn legacy(cfg_bytes: &[u8], events: &[u8]) {
         let got = x.on_interrupt(XLatchWord(word), now);
         if last_flags == Some(flags) {
             // Debounced: the same half-mil state again is an anomaly only.
-            let want = if storm.hit(now) { Err(Fault::XGlitchStorm) } else { Ok(XEvent::Ignored) };
+            let want = if storm.hit(now) {
+                Err(Fault::XGlitchStorm)
+            } else {
+                Ok(XEvent::Ignored)
+            };
             assert_eq!(got, want, "repeat of flags {flags:#x}");
             continue;
         }
@@ -96,7 +104,11 @@ fn legacy(cfg_bytes: &[u8], events: &[u8]) {
         last_flags = Some(flags);
         let thousandths = word & 0xF;
         if (word & XLatchWord::MIL_ZERO != 0) != (thousandths == 0) && storm.hit(now) {
-            assert_eq!(got, Err(Fault::XGlitchStorm), "mil-zero flag contradicts digit");
+            assert_eq!(
+                got,
+                Err(Fault::XGlitchStorm),
+                "mil-zero flag contradicts digit"
+            );
             continue;
         }
         if let Some(prev) = last_hm {
@@ -138,7 +150,12 @@ fn legacy(cfg_bytes: &[u8], events: &[u8]) {
 
 fn count(cfg_bytes: &[u8], events: &[u8]) {
     let cfg = CountConfig {
-        counts_per_inch: i32::from_le_bytes([cfg_bytes[0], cfg_bytes[1], cfg_bytes[2], cfg_bytes[3]]),
+        counts_per_inch: i32::from_le_bytes([
+            cfg_bytes[0],
+            cfg_bytes[1],
+            cfg_bytes[2],
+            cfg_bytes[3],
+        ]),
         zero_count: u32::from_le_bytes([cfg_bytes[4], cfg_bytes[5], cfg_bytes[6], 0]),
         max_step_counts: u32::from(cfg_bytes[7]) << 8,
     };
@@ -150,7 +167,8 @@ fn count(cfg_bytes: &[u8], events: &[u8]) {
     for ev in events.chunks_exact(4) {
         let n = u32::from_le_bytes([ev[0], ev[1], ev[2], ev[3]]);
         let got = c.on_tick(n);
-        let jump = last.is_some_and(|p| (n.wrapping_sub(p) as i32).unsigned_abs() > cfg.max_step_counts);
+        let jump =
+            last.is_some_and(|p| (n.wrapping_sub(p) as i32).unsigned_abs() > cfg.max_step_counts);
         last = Some(n);
         if jump {
             assert_eq!(got, Err(Fault::XGlitchStorm));
@@ -162,7 +180,11 @@ fn count(cfg_bytes: &[u8], events: &[u8]) {
         let d = f64::from(n.wrapping_sub(cfg.zero_count) as i32);
         let exact = (d / f64::from(cfg.counts_per_inch)).clamp(-128.0, 128.0 - 1.0 / 16_777_216.0);
         let tol = exact.abs() * 2f64.powi(-29) + 1.0 / 16_777_216.0;
-        assert!((x.to_f64() - exact).abs() <= tol, "count {n}: {} vs {exact}", x.to_f64());
+        assert!(
+            (x.to_f64() - exact).abs() <= tol,
+            "count {n}: {} vs {exact}",
+            x.to_f64()
+        );
         assert_eq!(x, c.x(n));
     }
 }

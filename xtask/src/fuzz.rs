@@ -65,11 +65,9 @@ pub fn fuzz_dir() -> PathBuf {
 /// toolchain itself (`.ci/run` does that on CI).
 pub fn missing_tools() -> Vec<String> {
     if !crate::works("rustup", &["run", "nightly", "rustc", "--version"]) {
-        return vec![
-            "the nightly toolchain (cargo-fuzz needs it): run \
+        return vec!["the nightly toolchain (cargo-fuzz needs it): run \
              `rustup toolchain install nightly --profile minimal`"
-                .into(),
-        ];
+            .into()];
     }
     let fuzz_runs = || {
         nightly_cargo()
@@ -89,9 +87,11 @@ pub fn missing_tools() -> Vec<String> {
     );
     match installed {
         Ok(()) if fuzz_runs() => Vec::new(),
-        Ok(()) => vec!["cargo-fuzz: installed but `cargo +nightly fuzz` does not run; \
+        Ok(()) => vec![
+            "cargo-fuzz: installed but `cargo +nightly fuzz` does not run; \
                         add ~/.cargo/bin to PATH"
-            .into()],
+                .into(),
+        ],
         Err(e) => vec![format!(
             "cargo-fuzz ({e}); run `cargo install cargo-fuzz --locked`"
         )],
@@ -114,7 +114,9 @@ pub fn run(args: &Args) -> Result<Vec<(String, RunStats)>> {
 pub fn run_targets(targets: &[&str], seconds: u32) -> Result<Vec<(String, RunStats)>> {
     step("fuzz targets: cargo +nightly fuzz build (fuzz/)");
     crate::run(
-        nightly_cargo().current_dir(fuzz_dir()).args(["fuzz", "build"]),
+        nightly_cargo()
+            .current_dir(fuzz_dir())
+            .args(["fuzz", "build"]),
         "cargo fuzz build",
     )?;
     let target_dir = crate::target_dir();
@@ -127,8 +129,12 @@ pub fn run_targets(targets: &[&str], seconds: u32) -> Result<Vec<(String, RunSta
         fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
         let seeds = fuzz_dir().join("corpus").join(t);
         let log_path = logs.join(format!("{t}.log"));
-        let log = fs::File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
-        eprintln!("fuzz: {t}: running {seconds} s (log: {})", log_path.display());
+        let log =
+            fs::File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
+        eprintln!(
+            "fuzz: {t}: running {seconds} s (log: {})",
+            log_path.display()
+        );
         let started = Instant::now();
         let status = nightly_cargo()
             .current_dir(fuzz_dir())
@@ -165,9 +171,19 @@ pub fn run_targets(targets: &[&str], seconds: u32) -> Result<Vec<(String, RunSta
                 .filter_map(|l| l.split_once("Test unit written to "))
                 .map(|(_, p)| p.trim().to_string())
                 .last();
-            let tail: Vec<&str> = text.lines().rev().take(30).collect();
-            eprintln!("fuzz: {t}: FINDING ({status}); last lines of its log:");
-            for l in tail.iter().rev() {
+            // The failed property or the sanitizer's report, not the
+            // backtrace of cargo-fuzz itself.
+            let lines: Vec<&str> = text.lines().collect();
+            let at = lines
+                .iter()
+                .position(|l| {
+                    l.contains("panicked at")
+                        || l.starts_with("==")
+                        || l.contains("ERROR: libFuzzer")
+                })
+                .unwrap_or(lines.len().saturating_sub(30));
+            eprintln!("fuzz: {t}: FINDING ({status}):");
+            for l in lines.iter().skip(at).take(12) {
                 eprintln!("  {l}");
             }
             failures.push(match artifact {

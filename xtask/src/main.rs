@@ -38,7 +38,11 @@ const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
 type Result<T> = std::result::Result<T, String>;
 
 #[derive(Parser)]
-#[command(name = "cargo xtask", bin_name = "cargo xtask", about = "Build, test, QEMU, ISR-cost and fuzz automation")]
+#[command(
+    name = "cargo xtask",
+    bin_name = "cargo xtask",
+    about = "Build, test, QEMU, ISR-cost and fuzz automation"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
