@@ -577,4 +577,118 @@ mod tests {
             est.angle.to_degrees()
         );
     }
+
+    mod prop {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// Circular difference b − a of two binary angles, in degrees.
+        fn ahead_deg(a: SpindleAngle, b: SpindleAngle) -> f64 {
+            f64::from(b.0.wrapping_sub(a.0) as i32) * 360.0 / 4_294_967_296.0
+        }
+
+        proptest! {
+            /// Constant speed, irregular tick times: between two index
+            /// pulses the encoder angle never goes backwards, and it stays
+            /// within one count of the true angle (counts and edge times
+            /// generated from the exact rotation, not by the estimator).
+            #[test]
+            fn encoder_angle_is_monotonic_and_within_a_count(
+                cpr in 64u32..20_000,
+                rpm in 60u32..1_000,
+                index_deg in 0.0f64..360.0,
+                steps in proptest::collection::vec(1u32..400, 200..600),
+            ) {
+                let ticks_per_s = 1_000_000u32;
+                let mut e = EncoderAngle::new(EncoderConfig {
+                    counts_per_rev: cpr,
+                    ticks_per_s,
+                    min_rpm: 30,
+                    max_rpm: 2_000,
+                    index_tolerance_counts: 2,
+                    index_angle: SpindleAngle::from_degrees(index_deg),
+                })
+                .unwrap();
+                // Counts per tick; the index at t = 0, count 0.
+                let rate = f64::from(cpr) * f64::from(rpm) / 60.0 / f64::from(ticks_per_s);
+                let count_at = |t: u32| (f64::from(t) * rate).floor() as u32;
+                let edge_of = |c: u32| (f64::from(c) / rate).ceil() as u32;
+                e.on_index(0, 0).unwrap();
+                let per_rev = f64::from(cpr);
+                let mut t = 0u32;
+                let mut prev: Option<SpindleAngle> = None;
+                let mut next_index = cpr;
+                for dt in steps {
+                    t += dt;
+                    let c = count_at(t);
+                    if c >= next_index {
+                        prop_assert_eq!(e.on_index(next_index, edge_of(next_index)), Ok(()));
+                        next_index += cpr;
+                        prev = None;
+                    }
+                    let est = e.tick(c, edge_of(c), t);
+                    prop_assert_eq!(est.fault, None);
+                    let truth = SpindleAngle::from_degrees(
+                        index_deg + f64::from(t) * rate / per_rev * 360.0,
+                    );
+                    let count_deg = 360.0 / per_rev;
+                    let err = ahead_deg(truth, est.angle);
+                    prop_assert!(err.abs() <= count_deg, "{}° off at t = {}", err, t);
+                    if let Some(p) = prev {
+                        prop_assert!(ahead_deg(p, est.angle) >= 0.0, "went back at t = {}", t);
+                    }
+                    prev = Some(est.angle);
+                }
+            }
+
+            /// A tachometer with a gain error up to ±20 % at constant speed:
+            /// after two indices calibrate the gain, the angle during the
+            /// next revolution is within 0.5° of the truth, and at each
+            /// accepted index the re-phasing moves the angle by at most the
+            /// rate times the edge's distance from the last tick.
+            #[test]
+            fn tach_calibrates_and_rephases_within_bounds(
+                rpm in 100u32..600,
+                gain_error in -0.2f64..0.2,
+                tick_us in 20u32..200,
+                latency_us in 0u32..20,
+            ) {
+                let mut t = TachAngle::new(TachConfig {
+                    ticks_per_s: 1_000_000,
+                    mv_at_300_rpm: 5000,
+                    min_rpm: 50,
+                    max_rpm: 1_000,
+                    index_tolerance_permille: 20,
+                    index_angle: SpindleAngle(0),
+                })
+                .unwrap();
+                let mv = (f64::from(rpm) * 5000.0 / 300.0 * (1.0 + gain_error)).round() as i32;
+                let rev_us = 60_000_000 / rpm;
+                let mut now = 0u32;
+                let mut next_index = 0u32;
+                let mut revs = 0u32;
+                while revs < 4 {
+                    now += tick_us;
+                    t.tick(mv, now);
+                    if now >= next_index + latency_us {
+                        // The index edge happened `now − next_index` ago.
+                        let r = t.on_index(next_index);
+                        if revs > 0 {
+                            prop_assert_eq!(r, Ok(()), "index {}", revs);
+                        }
+                        let back = f64::from(now - next_index);
+                        let moved = f64::from(t.angle().0.min(t.angle().0.wrapping_neg()));
+                        let bound = t.rate_q48().unsigned_abs() as f64 * back / 65_536.0 + 2.0;
+                        prop_assert!(moved <= bound, "re-phased by {} > {}", moved, bound);
+                        next_index += rev_us;
+                        revs += 1;
+                    } else if revs >= 3 {
+                        let truth = f64::from(now - (next_index - rev_us)) / f64::from(rev_us) * 360.0;
+                        let err = ahead_deg(SpindleAngle::from_degrees(truth), t.angle());
+                        prop_assert!(err.abs() < 0.5, "{}° off", err);
+                    }
+                }
+            }
+        }
+    }
 }
