@@ -288,3 +288,20 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
     }
     Ok(stats)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn profile_reports_are_every_target_in_every_variant() {
+        let mut want: Vec<String> = VARIANTS
+            .iter()
+            .flat_map(|(_, suffix)| TARGETS.iter().map(move |(r, _)| format!("{r}{suffix}")))
+            .collect();
+        let mut got: Vec<String> = REPORTS.iter().map(|r| r.to_string()).collect();
+        want.sort();
+        got.sort();
+        assert_eq!(got, want);
+    }
+}

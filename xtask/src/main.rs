@@ -706,6 +706,72 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::error::ErrorKind;
+    use clap::CommandFactory;
+
+    fn parse(args: &[&str]) -> std::result::Result<Cli, ErrorKind> {
+        Cli::try_parse_from(std::iter::once("cargo xtask").chain(args.iter().copied()))
+            .map_err(|e| e.kind())
+    }
+
+    #[test]
+    fn every_command_refuses_unknown_flags_and_has_help() {
+        Cli::command().debug_assert();
+        for cmd in [
+            &["test"][..],
+            &["qemu"],
+            &["size"],
+            &["isr-cost"],
+            &["no-panic"],
+            &["fuzz", "--seconds", "1"],
+        ] {
+            assert!(parse(cmd).is_ok(), "{cmd:?}");
+            let mut bogus = cmd.to_vec();
+            bogus.push("--bogus");
+            assert_eq!(
+                parse(&bogus).err(),
+                Some(ErrorKind::UnknownArgument),
+                "{bogus:?}"
+            );
+            let mut help = cmd.to_vec();
+            help.push("--help");
+            assert_eq!(parse(&help).err(), Some(ErrorKind::DisplayHelp), "{help:?}");
+        }
+        assert_eq!(parse(&["sise"]).err(), Some(ErrorKind::InvalidSubcommand));
+    }
+
+    #[test]
+    fn mistyped_values_are_refused() {
+        assert_eq!(
+            parse(&["fuzz"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
+        );
+        assert_eq!(
+            parse(&["fuzz", "--seconds", "0"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["fuzz", "--seconds", "ten"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["fuzz", "--seconds", "1", "--target", "tabel_parse"]).err(),
+            Some(ErrorKind::InvalidValue)
+        );
+        assert_eq!(
+            parse(&["isr-cost", "--variant", "moden"]).err(),
+            Some(ErrorKind::InvalidValue)
+        );
+        assert_eq!(
+            parse(&["isr-cost", "--call", "3"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
+        );
+        assert!(parse(&["isr-cost", "--profile", "x_event_modern", "--call", "3"]).is_ok());
+        assert_eq!(
+            parse(&["test", "--fuzz-seconds", "-1"]).err(),
+            Some(ErrorKind::UnknownArgument)
+        );
+    }
 
     #[test]
     fn test_result_lines_are_summed_by_field() {
