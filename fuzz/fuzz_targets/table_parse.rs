@@ -71,7 +71,7 @@ fn first_defect(b: &[u8]) -> Option<&'static str> {
         return Some("ReservedNotZero");
     }
     let (terms, fc, fx, nodes) = (b[9], b[10], b[11], u32_at(b, 16));
-    if terms == 0 || terms > MAX_TERMS || fc > 31 || fx > 31 || nodes < 2 || nodes > MAX_NODES {
+    if terms == 0 || terms > MAX_TERMS || fc > 31 || fx > 31 || !(2..=MAX_NODES).contains(&nodes) {
         return Some("AbsurdSize");
     }
     if b[8] == 1 && terms % 2 == 0 {

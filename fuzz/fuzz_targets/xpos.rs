@@ -130,9 +130,8 @@ fn legacy(cfg_bytes: &[u8], events: &[u8]) {
         assert_eq!(u.x, half_mils_to_x(hm));
         let null = hm >= cfg.null_from_half_mils;
         assert_eq!(u.null, null);
-        let want_update = if null {
-            ALL
-        } else if cfg.refresh_all_on_entry && (last_hm.is_none() || in_null) {
+        let resync = cfg.refresh_all_on_entry && (last_hm.is_none() || in_null);
+        let want_update = if null || resync {
             ALL
         } else if hm % 2 == 1 {
             C02

@@ -168,9 +168,9 @@ pub fn run_targets(targets: &[&str], seconds: u32) -> Result<Vec<(String, RunSta
         } else {
             let artifact = text
                 .lines()
-                .filter_map(|l| l.split_once("Test unit written to "))
-                .map(|(_, p)| p.trim().to_string())
-                .last();
+                .rev()
+                .find_map(|l| l.split_once("Test unit written to "))
+                .map(|(_, p)| p.trim().to_string());
             // The failed property or the sanitizer's report, not the
             // backtrace of cargo-fuzz itself.
             let lines: Vec<&str> = text.lines().collect();
