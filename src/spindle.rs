@@ -29,7 +29,7 @@
 //! The same index checks apply in turns instead of counts.
 //!
 //! Speed band: a revolution period outside `[min_rpm, max_rpm]`, or no
-//! encoder edge for longer than a count takes at `min_rpm`, is
+//! encoder edge for longer than four counts take at `min_rpm`, is
 //! [`Fault::SpindleSpeed`].
 
 use crate::safety::Fault;
