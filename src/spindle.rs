@@ -29,7 +29,7 @@
 //! The same index checks apply in turns instead of counts.
 //!
 //! Speed band: a revolution period outside `[min_rpm, max_rpm]`, or no
-//! encoder edge for longer than a count takes at `min_rpm`, is
+//! encoder edge for longer than four counts take at `min_rpm`, is
 //! [`Fault::SpindleSpeed`].
 
 use crate::safety::Fault;
@@ -84,14 +84,23 @@ fn period_ticks(ticks_per_s: u32, rpm: u32) -> u32 {
     p.min(u64::from(u32::MAX)) as u32
 }
 
+/// Whether a revolution at `min_rpm` fits the 32-bit clock: a longer one
+/// cannot be timed before the clock wraps (at 480 MHz, 8.9 s: 6.7 rpm), and
+/// clamping it would silently raise the configured lowest speed.
+fn slowest_revolution_fits(ticks_per_s: u32, min_rpm: u32) -> bool {
+    u64::from(ticks_per_s) * 60 / u64::from(min_rpm.max(1)) <= u64::from(u32::MAX)
+}
+
 impl EncoderAngle {
     /// `None` for a configuration that cannot work (CPR < 4, rates of 0,
-    /// an empty speed band).
+    /// an empty speed band, a revolution at `min_rpm` longer than the
+    /// 32-bit clock can time).
     pub fn new(cfg: EncoderConfig) -> Option<Self> {
         if cfg.counts_per_rev < 4
             || cfg.ticks_per_s == 0
             || cfg.min_rpm == 0
             || cfg.max_rpm < cfg.min_rpm
+            || !slowest_revolution_fits(cfg.ticks_per_s, cfg.min_rpm)
         {
             return None;
         }
@@ -160,7 +169,11 @@ impl EncoderAngle {
             fault = Some(Fault::SpindleSpeed);
         }
         // Fraction of a count since the edge, Q32, capped just below one count.
-        let frac = (i64::from(since_edge) * self.recip.clamp(-(1 << 40), 1 << 40))
+        // Saturating: a stall (since_edge up to 2³²) times a glitch's rate
+        // (up to 2⁴⁰) overflows i64, and a wrapped product would turn the
+        // capped extrapolation into an arbitrary angle.
+        let frac = i64::from(since_edge)
+            .saturating_mul(self.recip.clamp(-(1 << 40), 1 << 40))
             .clamp(-(1 << 32) + 1, (1 << 32) - 1);
         let extra = ((frac as i128 * i128::from(self.per_count_q32)) >> 32) as i64;
         let q32 = self.angle_of(delta).wrapping_add(extra);
@@ -247,12 +260,28 @@ pub struct TachAngle {
 
 const TURN_Q48: i64 = 1 << 48;
 
+/// Smallest `mv_at_300_rpm · ticks_per_s` a [`TachAngle`] accepts: the
+/// per-(mV·tick) increment k = 5·2⁶⁴/(mv300·ticks) must stay ≤ 2⁴⁵, so
+/// that a full-scale reading (2¹⁶ mV) times k times the largest gain (4)
+/// fits an i64. Real tachometers are far above it (5000 mV at 1 MHz:
+/// 5·10⁹).
+pub const TACH_MIN_MV_TICKS: u64 = 5 << 19;
+
 impl TachAngle {
+    /// `None` for a configuration that cannot work: rates of 0, an empty
+    /// speed band, a revolution at `min_rpm` longer than the 32-bit clock
+    /// can time, an index tolerance above a quarter turn (250 ‰: an extra
+    /// index could no longer be told from a real one), or a tachometer and
+    /// clock so coarse (`mv_at_300_rpm · ticks_per_s` < [`TACH_MIN_MV_TICKS`])
+    /// that the rate of a full-scale reading does not fit the Q48 state.
     pub fn new(cfg: TachConfig) -> Option<Self> {
         if cfg.ticks_per_s == 0
             || cfg.mv_at_300_rpm == 0
             || cfg.min_rpm == 0
             || cfg.max_rpm < cfg.min_rpm
+            || !slowest_revolution_fits(cfg.ticks_per_s, cfg.min_rpm)
+            || cfg.index_tolerance_permille > 250
+            || u64::from(cfg.mv_at_300_rpm) * u64::from(cfg.ticks_per_s) < TACH_MIN_MV_TICKS
         {
             return None;
         }
@@ -270,7 +299,8 @@ impl TachAngle {
             last_tick: None,
             last_index_edge: None,
             calibrated: false,
-            mv_stall: i64::from(cfg.mv_at_300_rpm) * i64::from(cfg.min_rpm) / 600,
+            // u32·u32 fits u64 (not i64), and /600 fits i64.
+            mv_stall: (u64::from(cfg.mv_at_300_rpm) * u64::from(cfg.min_rpm) / 600) as i64,
             min_period: period_ticks(cfg.ticks_per_s, cfg.max_rpm),
             max_period: period_ticks(cfg.ticks_per_s, cfg.min_rpm),
         })
@@ -331,7 +361,7 @@ impl TachAngle {
         };
         let at_edge = self.acc.saturating_add(self.w.saturating_mul(back));
         let Some(prev_edge) = self.last_index_edge else {
-            self.acc -= at_edge;
+            self.acc = self.acc.saturating_sub(at_edge);
             self.last_index_edge = Some(edge_ticks);
             return Ok(());
         };
@@ -340,8 +370,8 @@ impl TachAngle {
             // Too early: noise on the index line. Keep the phase.
             return Err(Fault::IndexExtra);
         }
-        // Re-phase to the edge.
-        self.acc -= at_edge;
+        // Re-phase to the edge (saturating: both terms may be saturated).
+        self.acc = self.acc.saturating_sub(at_edge);
         self.last_index_edge = Some(edge_ticks);
         if at_edge > TURN_Q48 + tol {
             return Err(Fault::IndexMissing);
@@ -349,7 +379,10 @@ impl TachAngle {
         // One turn was integrated as `at_edge`: scale the gain by
         // turn/at_edge (once per revolution: the division is here).
         if at_edge > 0 {
-            let measured = ((i128::from(self.gain_q30) << 48) / i128::from(at_edge)) as i64;
+            // Clamped before the cast: a tiny integral (a tolerance near a
+            // quarter turn) gives a ratio beyond i64.
+            let measured = ((i128::from(self.gain_q30) << 48) / i128::from(at_edge))
+                .clamp(1 << 28, 1 << 32) as i64;
             // First revolution: take it; then average to smooth tach noise.
             self.gain_q30 = if self.calibrated {
                 (self.gain_q30 + measured) / 2
@@ -433,5 +466,229 @@ mod tests {
         assert_eq!(est.fault, Some(Fault::IndexMissing));
         assert!((est.angle.to_degrees() - 180.0).abs() < 0.01);
         assert_eq!(e.on_index(2000, 400_000), Ok(()));
+    }
+
+    #[test]
+    fn tach_refuses_configurations_it_cannot_represent() {
+        let ok = TachConfig {
+            ticks_per_s: 1_000_000,
+            mv_at_300_rpm: 5000,
+            min_rpm: 50,
+            max_rpm: 500,
+            index_tolerance_permille: 20,
+            index_angle: SpindleAngle(0),
+        };
+        assert!(TachAngle::new(ok).is_some());
+        // Found by the spindle fuzz target: the tolerance product overflowed
+        // (index_tolerance_permille = 2^31), and a coarse tach and clock
+        // (mV·ticks < 5·2^19) made the rate's product overflow.
+        for bad in [
+            TachConfig {
+                index_tolerance_permille: 1 << 31,
+                ..ok
+            },
+            TachConfig {
+                index_tolerance_permille: 251,
+                ..ok
+            },
+            TachConfig {
+                ticks_per_s: 100,
+                ..ok
+            },
+        ] {
+            assert!(TachAngle::new(bad).is_none(), "{bad:?}");
+        }
+        let edge = TachConfig {
+            ticks_per_s: 5 << 19,
+            mv_at_300_rpm: 1,
+            ..ok
+        };
+        let mut t = TachAngle::new(edge).unwrap();
+        // Full scale at the largest gain stays inside i64: no overflow.
+        t.tick(i32::MAX, 0);
+        t.tick(i32::MAX, 1 << 24);
+        // An edge far before the last tick on a saturated integral: the
+        // re-phasing saturates instead of overflowing.
+        assert_eq!(t.on_index((1u32 << 24).wrapping_sub(1 << 31)), Ok(()));
+        assert!(t.rate_q48() > 0);
+        // Found next: the stall threshold's mV·rpm product overflowed i64.
+        let huge = TachConfig {
+            mv_at_300_rpm: u32::MAX,
+            min_rpm: u32::MAX,
+            max_rpm: u32::MAX,
+            ..ok
+        };
+        let mut t = TachAngle::new(huge).unwrap();
+        assert_eq!(t.tick(5000, 0).fault, Some(Fault::SpindleSpeed));
+    }
+
+    /// Found by the spindle fuzz target: a count jump with a one-tick edge
+    /// interval (rate clamped at 2⁴⁰) followed by a long stall overflowed
+    /// the extrapolation's product. The angle must stay within one count
+    /// of the count's angle, and the stall must be reported.
+    /// Found by the spindle fuzz target: at 480 MHz a revolution at 6 rpm
+    /// (4.8·10⁹ ticks) outlasts the 32-bit clock; the period was clamped,
+    /// and the stall check fired at a higher speed than configured.
+    #[test]
+    fn a_slowest_revolution_beyond_the_clock_is_refused() {
+        let enc = EncoderConfig {
+            counts_per_rev: 1000,
+            ticks_per_s: 480_000_000,
+            min_rpm: 7,
+            max_rpm: 500,
+            index_tolerance_counts: 2,
+            index_angle: SpindleAngle(0),
+        };
+        assert!(EncoderAngle::new(enc).is_some());
+        assert!(EncoderAngle::new(EncoderConfig { min_rpm: 6, ..enc }).is_none());
+        let tach = TachConfig {
+            ticks_per_s: 480_000_000,
+            mv_at_300_rpm: 5000,
+            min_rpm: 7,
+            max_rpm: 500,
+            index_tolerance_permille: 20,
+            index_angle: SpindleAngle(0),
+        };
+        assert!(TachAngle::new(tach).is_some());
+        assert!(TachAngle::new(TachConfig { min_rpm: 6, ..tach }).is_none());
+    }
+
+    #[test]
+    fn encoder_glitch_then_stall_keeps_the_angle_within_a_count() {
+        let mut e = EncoderAngle::new(EncoderConfig {
+            counts_per_rev: 1000,
+            ticks_per_s: 1_000_000,
+            min_rpm: 50,
+            max_rpm: 500,
+            index_tolerance_counts: 2,
+            index_angle: SpindleAngle(0),
+        })
+        .unwrap();
+        e.on_index(0, 0).unwrap();
+        e.tick(0, 0, 0);
+        // 300 counts in one tick: a glitch, the rate saturates.
+        e.tick(300, 1, 1);
+        let est = e.tick(300, 1, 1 << 30);
+        assert_eq!(est.fault, Some(Fault::SpindleSpeed));
+        let count_deg = 300.0 * 0.36;
+        assert!(
+            (est.angle.to_degrees() - count_deg).abs() <= 0.36 + 1e-6,
+            "{}° vs {count_deg}°",
+            est.angle.to_degrees()
+        );
+    }
+
+    mod prop {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// Circular difference b − a of two binary angles, in degrees.
+        fn ahead_deg(a: SpindleAngle, b: SpindleAngle) -> f64 {
+            f64::from(b.0.wrapping_sub(a.0) as i32) * 360.0 / 4_294_967_296.0
+        }
+
+        proptest! {
+            /// Constant speed, irregular tick times: between two index
+            /// pulses the encoder angle never goes backwards, and it stays
+            /// within one count of the true angle (counts and edge times
+            /// generated from the exact rotation, not by the estimator).
+            #[test]
+            fn encoder_angle_is_monotonic_and_within_a_count(
+                cpr in 64u32..20_000,
+                rpm in 60u32..1_000,
+                index_deg in 0.0f64..360.0,
+                steps in proptest::collection::vec(1u32..400, 200..600),
+            ) {
+                let ticks_per_s = 1_000_000u32;
+                let mut e = EncoderAngle::new(EncoderConfig {
+                    counts_per_rev: cpr,
+                    ticks_per_s,
+                    min_rpm: 30,
+                    max_rpm: 2_000,
+                    index_tolerance_counts: 2,
+                    index_angle: SpindleAngle::from_degrees(index_deg),
+                })
+                .unwrap();
+                // Counts per tick; the index at t = 0, count 0.
+                let rate = f64::from(cpr) * f64::from(rpm) / 60.0 / f64::from(ticks_per_s);
+                let count_at = |t: u32| (f64::from(t) * rate).floor() as u32;
+                let edge_of = |c: u32| (f64::from(c) / rate).ceil() as u32;
+                e.on_index(0, 0).unwrap();
+                let per_rev = f64::from(cpr);
+                let mut t = 0u32;
+                let mut prev: Option<SpindleAngle> = None;
+                let mut next_index = cpr;
+                for dt in steps {
+                    t += dt;
+                    let c = count_at(t);
+                    if c >= next_index {
+                        prop_assert_eq!(e.on_index(next_index, edge_of(next_index)), Ok(()));
+                        next_index += cpr;
+                        prev = None;
+                    }
+                    let est = e.tick(c, edge_of(c), t);
+                    prop_assert_eq!(est.fault, None);
+                    let truth = SpindleAngle::from_degrees(
+                        index_deg + f64::from(t) * rate / per_rev * 360.0,
+                    );
+                    let count_deg = 360.0 / per_rev;
+                    let err = ahead_deg(truth, est.angle);
+                    prop_assert!(err.abs() <= count_deg, "{}° off at t = {}", err, t);
+                    if let Some(p) = prev {
+                        prop_assert!(ahead_deg(p, est.angle) >= 0.0, "went back at t = {}", t);
+                    }
+                    prev = Some(est.angle);
+                }
+            }
+
+            /// A tachometer with a gain error up to ±20 % at constant speed:
+            /// after two indices calibrate the gain, the angle during the
+            /// next revolution is within 0.5° of the truth, and at each
+            /// accepted index the re-phasing moves the angle by at most the
+            /// rate times the edge's distance from the last tick.
+            #[test]
+            fn tach_calibrates_and_rephases_within_bounds(
+                rpm in 100u32..600,
+                gain_error in -0.2f64..0.2,
+                tick_us in 20u32..200,
+                latency_us in 0u32..20,
+            ) {
+                let mut t = TachAngle::new(TachConfig {
+                    ticks_per_s: 1_000_000,
+                    mv_at_300_rpm: 5000,
+                    min_rpm: 50,
+                    max_rpm: 1_000,
+                    index_tolerance_permille: 20,
+                    index_angle: SpindleAngle(0),
+                })
+                .unwrap();
+                let mv = (f64::from(rpm) * 5000.0 / 300.0 * (1.0 + gain_error)).round() as i32;
+                let rev_us = 60_000_000 / rpm;
+                let mut now = 0u32;
+                let mut next_index = 0u32;
+                let mut revs = 0u32;
+                while revs < 4 {
+                    now += tick_us;
+                    t.tick(mv, now);
+                    if now >= next_index + latency_us {
+                        // The index edge happened `now − next_index` ago.
+                        let r = t.on_index(next_index);
+                        if revs > 0 {
+                            prop_assert_eq!(r, Ok(()), "index {}", revs);
+                        }
+                        let back = f64::from(now - next_index);
+                        let moved = f64::from(t.angle().0.min(t.angle().0.wrapping_neg()));
+                        let bound = t.rate_q48().unsigned_abs() as f64 * back / 65_536.0 + 2.0;
+                        prop_assert!(moved <= bound, "re-phased by {} > {}", moved, bound);
+                        next_index += rev_us;
+                        revs += 1;
+                    } else if revs >= 3 {
+                        let truth = f64::from(now - (next_index - rev_us)) / f64::from(rev_us) * 360.0;
+                        let err = ahead_deg(SpindleAngle::from_degrees(truth), t.angle());
+                        prop_assert!(err.abs() < 0.5, "{}° off", err);
+                    }
+                }
+            }
+        }
     }
 }

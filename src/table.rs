@@ -101,6 +101,10 @@ pub enum TableError {
     HarmonicColumnsNotOdd(u8),
     /// ΔX ≤ 0: the grid must increase strictly.
     NonMonotonicGrid,
+    /// ΔX below one LSB of the core's X format (`x_frac_bits` > 24): nodes
+    /// would coincide once X is in `I8F24`, and an interval of zero width
+    /// has no interpolation.
+    GridStepBelowResolution,
     /// The last node's X does not fit the X format.
     GridOverflow,
     /// The null-zone start lies outside the grid.
@@ -240,6 +244,11 @@ impl<'a> CoeffTable<'a> {
         let x_null_raw = i32_at(bytes, 28);
         if dx_raw <= 0 {
             return Err(TableError::NonMonotonicGrid);
+        }
+        // Node X values rounded to I8F24 from raw values ≥ 2^(fx−24) apart
+        // differ by at least one LSB; closer ones can round together.
+        if x_frac_bits > 24 && dx_raw < 1 << (x_frac_bits - 24) {
+            return Err(TableError::GridStepBelowResolution);
         }
         let last = i64::from(x0_raw) + i64::from(dx_raw) * i64::from(node_count - 1);
         let last_raw = i32::try_from(last).map_err(|_| TableError::GridOverflow)?;
@@ -555,6 +564,23 @@ mod tests {
             patch(&mut m, 24, &dx.to_le_bytes());
             assert_eq!(CoeffTable::parse(&m), Err(TableError::NonMonotonicGrid));
         }
+
+        // Found by the table_parse fuzz target: with 31 X fraction bits a
+        // step of 2^6 raw is 0.5 LSB of I8F24, and node 0 and 1 coincided.
+        let mut m = good.clone();
+        patch(&mut m, 11, &[31]);
+        patch(&mut m, 24, &(1i32 << 6).to_le_bytes());
+        patch(&mut m, 28, &0i32.to_le_bytes());
+        assert_eq!(
+            CoeffTable::parse(&m),
+            Err(TableError::GridStepBelowResolution)
+        );
+        let mut m = good.clone();
+        patch(&mut m, 11, &[31]);
+        patch(&mut m, 24, &(1i32 << 7).to_le_bytes());
+        patch(&mut m, 28, &0i32.to_le_bytes());
+        let t = CoeffTable::parse(&m).unwrap();
+        assert_eq!(t.node_x(1).to_bits() - t.node_x(0).to_bits(), 1);
 
         let mut m = good.clone();
         patch(&mut m, 24, &(i32::MAX / 4).to_le_bytes());

@@ -198,4 +198,39 @@ mod tests {
             a = a.wrapping_mul(1_103_515_245).wrapping_add(12345);
         }
     }
+
+    mod prop {
+        use super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            /// Any angle of the turn: both functions within the 3 LSB budget
+            /// of the host's libm (the sweeps above are fixed grids).
+            #[test]
+            fn within_budget_at_any_angle(a in any::<u32>()) {
+                let (es, ec) = err_lsb(SpindleAngle(a));
+                prop_assert!(es < 3.0 && ec < 3.0, "{a}: {es} / {ec} LSB");
+            }
+
+            /// sin is odd and cos even, and a half turn negates both, within
+            /// the rounding of two evaluations (2 × 3 LSB).
+            #[test]
+            fn odd_even_and_half_turn_symmetry(a in any::<u32>()) {
+                let p = sin_cos(SpindleAngle(a));
+                let m = sin_cos(SpindleAngle(a.wrapping_neg()));
+                let h = sin_cos(SpindleAngle(a.wrapping_add(1 << 31)));
+                prop_assert!((p.sin + m.sin).abs() <= 6 && (p.cos - m.cos).abs() <= 6);
+                prop_assert!((p.sin + h.sin).abs() <= 6 && (p.cos + h.cos).abs() <= 6);
+            }
+
+            /// sin² + cos² = 1 to the budget: 2·3 LSB relative to 2³⁰.
+            #[test]
+            fn pythagorean_identity(a in any::<u32>()) {
+                let p = sin_cos(SpindleAngle(a));
+                let one = f64::from(ONE);
+                let r = (f64::from(p.sin).powi(2) + f64::from(p.cos).powi(2)) / one - one;
+                prop_assert!(r.abs() <= 6.0, "{a}: {r} LSB");
+            }
+        }
+    }
 }

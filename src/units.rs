@@ -213,4 +213,51 @@ mod tests {
         // One microinch is about 1074 Z LSBs: far below the 0.1 µin goal.
         assert_eq!(ZInches::from_f64(1e-6).to_bits(), 1074);
     }
+
+    mod prop {
+        use super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            /// Every X and Z value survives the trip through f64 exactly
+            /// (both formats have fewer than 53 significant bits).
+            #[test]
+            fn fixed_to_f64_and_back_is_exact(bits in any::<i32>()) {
+                prop_assert_eq!(XInches::from_f64(XInches::from_bits(bits).to_f64()).to_bits(), bits);
+                prop_assert_eq!(ZInches::from_f64(ZInches::from_bits(bits).to_f64()).to_bits(), bits);
+            }
+
+            /// Conversion from inches is monotonic, nearest (within half an
+            /// LSB inside the range) and saturating outside it.
+            #[test]
+            fn from_f64_is_monotonic_nearest_and_saturating(a in -300.0f64..300.0, b in -300.0f64..300.0) {
+                let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+                prop_assert!(XInches::from_f64(lo) <= XInches::from_f64(hi));
+                prop_assert!(ZInches::from_f64(lo / 100.0) <= ZInches::from_f64(hi / 100.0));
+                let x = XInches::from_f64(a).to_f64();
+                if a.abs() < 127.999 {
+                    prop_assert!((x - a).abs() <= 0.5 / 16_777_216.0);
+                } else if a.abs() >= 128.0 {
+                    prop_assert!((x.abs() - 128.0).abs() <= 1.0 / 16_777_216.0);
+                }
+                let z = ZInches::from_f64(a / 100.0).to_f64();
+                if a.abs() < 199.999 {
+                    prop_assert!((z - a / 100.0).abs() <= 0.5 / 1_073_741_824.0);
+                } else if a.abs() >= 200.0 {
+                    prop_assert!((z.abs() - 2.0).abs() <= 1.0 / 1_073_741_824.0);
+                }
+            }
+
+            /// A binary angle survives degrees and back; whole turns added
+            /// in degrees change nothing (the format wraps like an angle).
+            #[test]
+            fn angle_degrees_round_trip_and_turns(a in any::<u32>(), turns in -5i32..5) {
+                let deg = SpindleAngle(a).to_degrees();
+                prop_assert_eq!(SpindleAngle::from_degrees(deg), SpindleAngle(a));
+                let d = SpindleAngle::from_degrees(deg + 360.0 * f64::from(turns)).0.wrapping_sub(a);
+                prop_assert!(d.min(d.wrapping_neg()) <= 1, "{} counts", d);
+                prop_assert!((SpindleAngle(a).to_radians() - deg.to_radians()).abs() < 1e-12);
+            }
+        }
+    }
 }

@@ -535,4 +535,57 @@ mod tests {
         })
         .is_none());
     }
+
+    mod prop {
+        use super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            /// The half-mil to X conversion is exact to half an LSB of
+            /// `I8F24` and strictly increasing over the whole display.
+            #[test]
+            fn half_mils_to_x_is_nearest_and_increasing(hm in 0u32..DISPLAY_HALF_MILS) {
+                let x = half_mils_to_x(hm).to_bits();
+                let exact = f64::from(hm) * 0.0005 * 16_777_216.0;
+                prop_assert!((f64::from(x) - exact).abs() <= 0.5, "{}: {} vs {}", hm, x, exact);
+                prop_assert!(half_mils_to_x(hm + 1).to_bits() > x);
+            }
+
+            /// A slide dithering by single half-mils, with repeated latches
+            /// (fast reversals: the same state again) spaced slower than a
+            /// storm, never faults: every repeat is debounced, every move
+            /// is accepted at the position the digits say (a decimal reading
+            /// of the word, not `decode`), and C02 is in every update.
+            #[test]
+            fn dither_with_repeats_is_debounced_not_a_fault(
+                start in 300u32..14_000,
+                moves in proptest::collection::vec((-1i32..=1, 1u32..4), 1..300),
+            ) {
+                let mut x = LegacyX::new(cfg());
+                let mut hm = start;
+                let mut now = 0u32;
+                x.on_interrupt(latch_word(hm), now).unwrap();
+                for (step, repeats) in moves {
+                    if step == 0 {
+                        continue;
+                    }
+                    hm = hm.saturating_add_signed(step);
+                    // 1 ms apart: far slower than 16 anomalies in 2 ms.
+                    now += 1000;
+                    let w = latch_word(hm);
+                    let digits = [w.0 >> 12 & 0xF, w.0 >> 8 & 0xF, w.0 >> 4 & 0xF, w.0 & 0xF];
+                    let mils = digits.iter().fold(0, |m, d| m * 10 + d);
+                    let XEvent::Update(u) = x.on_interrupt(w, now).unwrap() else {
+                        panic!("a move to {hm} was ignored");
+                    };
+                    prop_assert_eq!(u.half_mils, mils * 2 + (w.0 >> 16 & 1));
+                    prop_assert!(u.update & C02 != 0);
+                    for _ in 1..repeats {
+                        now += 1000;
+                        prop_assert_eq!(x.on_interrupt(w, now), Ok(XEvent::Ignored));
+                    }
+                }
+            }
+        }
+    }
 }

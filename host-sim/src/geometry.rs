@@ -217,4 +217,34 @@ mod tests {
         // Misspelt keys are refused, not defaulted.
         assert!(err("[grid]\nstep = 0.1").contains("unknown field"));
     }
+
+    /// Found by the geometry fuzz target: a deep paraboloid (f = 5 in) needs
+    /// coefficients beyond the firmware's ±1/8 in; clamped, the command
+    /// was +331 µin at X = 6.9 in, and the firmware's load check refused
+    /// the table. The generator refuses it instead, naming the field;
+    /// likewise a quantisation too coarse for a command that is never
+    /// positive.
+    #[test]
+    fn tables_the_firmware_would_refuse_are_refused_by_name() {
+        let gen = |text: &str| {
+            crate::coeffgen::generate(&Config::from_toml(text).unwrap().to_spec().unwrap())
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        };
+        let e = gen("[surface]\nfocal_length_in = 5\n").unwrap_err();
+        assert!(
+            e.starts_with("grid.x_max_in = 8: at X = ")
+                && e.contains("beyond the firmware's ±0.125 in"),
+            "{e}"
+        );
+        gen("[surface]\nfocal_length_in = 5\n[grid]\nx_max_in = 2.0\nx_null_in = 2.0\n").unwrap();
+        let e = gen("[format]\ncoeff_frac_bits = 10\n[series]\nrepresentation = \"harmonic\"\n")
+            .unwrap_err();
+        assert!(
+            e.starts_with("format.coeff_frac_bits = 10: quantised coefficients give Z = +"),
+            "{e}"
+        );
+        gen("").unwrap();
+        gen("[format]\ncoeff_frac_bits = 28\n").unwrap();
+    }
 }

@@ -396,6 +396,17 @@ impl ScenarioFile {
             f64::from(s.min_rpm),
             f64::from(s.max_rpm),
         )?;
+        // The firmware times a revolution with its 32-bit clock and refuses a
+        // band whose slowest revolution does not fit (zslide::spindle).
+        if self.loop_.clock_hz * 60 / u64::from(s.min_rpm) > u64::from(u32::MAX) {
+            bail!(
+                "spindle.min_rpm = {} is too slow for loop.clock_hz = {}: a revolution must \
+                 fit the firmware's 32-bit clock (min_rpm >= {})",
+                s.min_rpm,
+                self.loop_.clock_hz,
+                (self.loop_.clock_hz * 60).div_ceil(u64::from(u32::MAX) + 1)
+            );
+        }
         check("spindle.accel_rpm_per_s", s.accel_rpm_per_s, 0.0, 1.0e6)?;
         check("spindle.sag_rpm", s.sag_rpm, 0.0, s.rpm)?;
         check("spindle.ripple_rpm", s.ripple_rpm, 0.0, s.rpm)?;

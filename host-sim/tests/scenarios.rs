@@ -200,3 +200,23 @@ fn every_servo_field_reaches_the_design() {
         assert_eq!(*want, got, "{k}");
     }
 }
+
+/// Follows from the spindle fuzz finding (a revolution at `min_rpm` longer
+/// than the 32-bit clock is now a refused estimator configuration): the
+/// loader must refuse such a file naming the field, not let the rig's
+/// estimator construction panic.
+#[test]
+fn a_band_too_slow_for_the_clock_is_refused_by_name() {
+    let t = legacy_text()
+        .replacen("clock_hz = 100000000", "clock_hz = 4000000000", 1)
+        .replacen("min_rpm = 100", "min_rpm = 55", 1);
+    let e = format!("{:#}", parse(&t, "test").unwrap_err());
+    assert!(
+        e.contains("spindle.min_rpm = 55") && e.contains("min_rpm >= 56"),
+        "{e}"
+    );
+    let t = legacy_text()
+        .replacen("clock_hz = 100000000", "clock_hz = 4000000000", 1)
+        .replacen("min_rpm = 100", "min_rpm = 56", 1);
+    parse(&t, "test").unwrap();
+}

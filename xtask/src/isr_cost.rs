@@ -1,4 +1,4 @@
-//! `cargo xtask isr-cost [--json]`: instructions per interrupt handler of the
+//! `cargo xtask isr-cost [--json] [--variant V] [--profile R [--call N]]`: instructions per interrupt handler of the
 //! QEMU image (Cortex-M4F), counted from an execution trace.
 //!
 //! DWT CYCCNT reads 0 under QEMU, so the count comes from QEMU itself:
@@ -14,6 +14,7 @@
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
 use std::process::Stdio;
+use std::time::Instant;
 
 use crate::elf::{self, Symbol};
 
@@ -62,29 +63,58 @@ fn qemu_major() -> u32 {
 /// loop tick) first, so the plain (legacy X) image is the one left built.
 const VARIANTS: [(Option<&str>, &str); 2] = [(Some("modern-x"), "_modern"), (None, "")];
 
-pub fn run(json: bool) -> Result<u8, String> {
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// One JSON object on stdout instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Trace one image only: `legacy` (legacy X) or `modern` (modern X).
+    #[arg(long, value_name = "V", value_parser = ["legacy", "modern"])]
+    variant: Option<String>,
+    /// Also print this report's count per call and its executions per
+    /// instruction address (stderr), e.g. `x_event`.
+    #[arg(long, value_name = "REPORT", value_parser = clap::builder::PossibleValuesParser::new(REPORTS))]
+    profile: Option<String>,
+    /// With --profile: the per-address histogram of call N only (from 0).
+    #[arg(long, value_name = "N", requires = "profile")]
+    call: Option<u64>,
+}
+
+/// Report names `--profile` accepts: each target in each variant.
+const REPORTS: [&str; 10] = [
+    "loop_tick",
+    "x_event",
+    "index_event",
+    "TIMER0_handler_with_plant",
+    "TIMER1_handler_with_machine",
+    "loop_tick_modern",
+    "x_event_modern",
+    "index_event_modern",
+    "TIMER0_handler_with_plant_modern",
+    "TIMER1_handler_with_machine_modern",
+];
+
+pub fn run(args: &Args) -> Result<u8, String> {
     crate::require_for_qemu()?;
     let mut stats: BTreeMap<String, Stats> = BTreeMap::new();
-    // `ISR_COST_VARIANT=modern` (or `legacy`): trace that image only.
-    let only = std::env::var("ISR_COST_VARIANT").ok();
     for (features, suffix) in VARIANTS {
         let name = if suffix.is_empty() {
             "legacy"
         } else {
             "modern"
         };
-        if only.as_deref().is_some_and(|o| o != name) {
+        if args.variant.as_deref().is_some_and(|o| o != name) {
             continue;
         }
         match features {
             Some(f) => crate::build_qemu_image_with(f)?,
             None => crate::build_qemu_image()?,
         }
-        stats.extend(measure(suffix)?);
+        stats.extend(measure(name, suffix, args)?);
     }
     let sizes = elf::sizes(&crate::qemu_elf())?;
 
-    if json {
+    if args.json {
         let mut out = String::from("{");
         for (i, (name, s)) in stats.iter().enumerate() {
             let mean = s.total.checked_div(s.calls).unwrap_or(0);
@@ -123,7 +153,7 @@ pub fn run(json: bool) -> Result<u8, String> {
 
 /// Runs the image built last under an execution trace; reports named with
 /// `suffix` appended.
-fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
+fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, Stats>, String> {
     let elf_path = crate::qemu_elf();
     let mut funcs: Vec<Symbol> = elf::functions(&elf_path)?
         .into_iter()
@@ -156,7 +186,13 @@ fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
-    eprintln!("isr-cost: running the QEMU image with an execution trace");
+    eprintln!(
+        "isr-cost: {variant} image: running under QEMU with an instruction trace \
+         (about a minute; progress every 10 s)"
+    );
+    let started = Instant::now();
+    let mut last_report = started;
+    let mut traced: u64 = 0;
     let mut child = cmd
         .spawn()
         .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
@@ -166,11 +202,10 @@ fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
     // Open measurements: (report, caller range start, caller range end, count).
     let mut open: Vec<(&str, u32, u32, u64)> = Vec::new();
     let mut prev_pc: Option<u32> = None;
-    // `ISR_COST_PROFILE=<report>`: that report's count per call and its
+    // `--profile <report>`: that report's count per call and its
     // executions per instruction address (to stderr), for finding where a
-    // handler's budget goes; `ISR_COST_CALL=<n>` limits the histogram to
-    // call n (numbered from 0).
-    let profile = std::env::var("ISR_COST_PROFILE").ok();
+    // handler's budget goes; `--call <n>` limits the histogram to call n.
+    let profile = args.profile.clone();
     let mut histogram: BTreeMap<u32, u64> = BTreeMap::new();
     for line in BufReader::new(trace).lines().map_while(Result::ok) {
         // "Trace 0: 0x7f.. [00800408/000024ae/00000110/ff020201] name"
@@ -181,6 +216,16 @@ fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
         else {
             continue;
         };
+        traced += 1;
+        if traced % (1 << 20) == 0 && last_report.elapsed().as_secs() >= 10 {
+            last_report = Instant::now();
+            let calls: u64 = stats.values().map(|s| s.calls).sum();
+            eprintln!(
+                "isr-cost: {variant} image: {:.0} M instructions traced, {calls} handler calls measured, {:.0} s",
+                traced as f64 / 1e6,
+                started.elapsed().as_secs_f64()
+            );
+        }
         // Close measurements whose caller is running again (innermost first).
         while let Some(&(report, lo, hi, n)) = open.last() {
             if pc >= lo && pc < hi {
@@ -204,7 +249,7 @@ fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
             m.3 += 1;
             if profile.as_deref() == Some(m.0) {
                 let call = stats.get(m.0).map_or(0, |s| s.calls);
-                if std::env::var("ISR_COST_CALL").map_or(true, |c| c == call.to_string()) {
+                if args.call.is_none_or(|c| c == call) {
                     *histogram.entry(pc).or_default() += 1;
                 }
             }
@@ -223,6 +268,11 @@ fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
         prev_pc = Some(pc);
     }
     let status = child.wait().map_err(|e| format!("qemu: {e}"))?;
+    eprintln!(
+        "isr-cost: {variant} image: done, {:.0} M instructions traced in {:.0} s",
+        traced as f64 / 1e6,
+        started.elapsed().as_secs_f64()
+    );
     if !status.success() {
         return Err(format!("the QEMU image failed under tracing ({status})"));
     }
@@ -237,4 +287,21 @@ fn measure(suffix: &str) -> Result<BTreeMap<String, Stats>, String> {
         }
     }
     Ok(stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn profile_reports_are_every_target_in_every_variant() {
+        let mut want: Vec<String> = VARIANTS
+            .iter()
+            .flat_map(|(_, suffix)| TARGETS.iter().map(move |(r, _)| format!("{r}{suffix}")))
+            .collect();
+        let mut got: Vec<String> = REPORTS.iter().map(|r| r.to_string()).collect();
+        want.sort();
+        got.sort();
+        assert_eq!(got, want);
+    }
 }

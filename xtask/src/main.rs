@@ -1,21 +1,30 @@
-//! Project automation (std only): `cargo xtask <command>`.
+//! Project automation: `cargo xtask <command>` (`--help` on each).
 //!
 //! * `test`    – everything: host tests, the board firmware, the QEMU image
-//!   built, run and its log checked; image sizes. Installs what is missing
-//!   when it can (Rust target, flip-link, defmt-print, QEMU) and otherwise
-//!   says exactly what is missing.
+//!   built, run and its log checked; image sizes; a short fuzz run of every
+//!   target. Installs what is missing when it can (Rust target, flip-link,
+//!   defmt-print, QEMU, cargo-fuzz) and otherwise says exactly what is
+//!   missing.
 //! * `qemu [--bless]` – builds and runs the QEMU image, decodes its defmt
 //!   log, compares it (timestamps stripped) with `boards/qemu/expected.log`
 //!   (`--bless` rewrites that file), and exits with the image's status.
 //! * `size`    – flash and RAM use of both images (builds them first).
-//! * `isr-cost [--json]` – instructions per interrupt handler under QEMU.
+//! * `isr-cost [--json] [--variant V] [--profile R [--call N]]` –
+//!   instructions per interrupt handler under QEMU.
 //! * `no-panic` – builds both images and proves that no panic path is
 //!   reachable from their interrupt handlers (`nopanic.rs`); part of `test`.
+//! * `fuzz --seconds N [--target T]` – builds and runs the cargo-fuzz
+//!   targets of `fuzz/` (`fuzz.rs`).
+//!
+//! Arguments are parsed strictly (clap): an unknown or mistyped flag is an
+//! error with exit status 2, never ignored.
 
 mod elf;
+mod fuzz;
 mod isr_cost;
 mod nopanic;
 
+use clap::{Parser, Subcommand};
 use std::env;
 use std::fs;
 use std::io::{BufRead, BufReader};
@@ -28,27 +37,52 @@ const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
 
 type Result<T> = std::result::Result<T, String>;
 
+#[derive(Parser)]
+#[command(
+    name = "cargo xtask",
+    bin_name = "cargo xtask",
+    about = "Build, test, QEMU, ISR-cost and fuzz automation"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Host tests, board firmware, QEMU image run, no-panic check, sizes and
+    /// a short fuzz run (installs what it can, names what is missing).
+    Test {
+        /// Seconds each fuzz target runs (0 skips the fuzz step).
+        #[arg(long, default_value_t = fuzz::TEST_SECONDS, value_name = "N")]
+        fuzz_seconds: u32,
+    },
+    /// Build and run the QEMU image; exit status passed through.
+    Qemu {
+        /// Rewrite boards/qemu/expected.log with this run's log.
+        #[arg(long)]
+        bless: bool,
+    },
+    /// Flash and RAM use of both images.
+    Size,
+    /// Instructions per interrupt handler under QEMU (takes minutes: the
+    /// image runs under an instruction trace).
+    IsrCost(isr_cost::Args),
+    /// Prove no panic path is reachable from the images' interrupt handlers.
+    NoPanic,
+    /// Build and run the cargo-fuzz targets (nightly toolchain, cargo-fuzz).
+    Fuzz(fuzz::Args),
+}
+
 fn main() -> ExitCode {
-    let args: Vec<String> = env::args().skip(1).collect();
-    let cmd = args.first().map(String::as_str).unwrap_or("help");
-    let flags = &args[args.len().min(1)..];
-    let result = match cmd {
-        "test" => cmd_test(),
-        "qemu" => cmd_qemu(flags.iter().any(|a| a == "--bless")),
-        "size" => cmd_size(),
-        "isr-cost" => isr_cost::run(flags.iter().any(|a| a == "--json")),
-        "no-panic" => cmd_no_panic(),
-        _ => {
-            eprintln!(
-                "usage: cargo xtask <test | qemu [--bless] | size | isr-cost [--json] | no-panic>\n\
-                 \n  test      host tests, board firmware, QEMU image run (installs what it can)\
-                 \n  qemu      build and run the QEMU image; exit status passed through\
-                 \n  size      flash and RAM use of both images\
-                 \n  isr-cost  instructions per interrupt handler under QEMU\
-                 \n  no-panic  prove no panic path is reachable from the images' interrupt handlers"
-            );
-            return ExitCode::from(if cmd == "help" { 0 } else { 2 });
-        }
+    let cli = Cli::parse();
+    let result = match cli.cmd {
+        Cmd::Test { fuzz_seconds } => cmd_test(fuzz_seconds),
+        Cmd::Qemu { bless } => cmd_qemu(bless),
+        Cmd::Size => cmd_size(),
+        Cmd::IsrCost(args) => isr_cost::run(&args),
+        Cmd::NoPanic => cmd_no_panic(),
+        Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -88,11 +122,11 @@ pub fn qemu_elf() -> PathBuf {
     target_dir().join(TARGET).join("release/zslide-qemu")
 }
 
-fn cargo() -> Command {
+pub fn cargo() -> Command {
     Command::new(env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
 }
 
-fn step(title: &str) {
+pub fn step(title: &str) {
     eprintln!("\n==> {title}");
 }
 
@@ -568,9 +602,9 @@ fn host_tests() -> Result<(u64, u64, u64)> {
     Ok((passed, failed, ignored))
 }
 
-fn cmd_test() -> Result<u8> {
+fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     let started = Instant::now();
-    let missing = ensure(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint]);
+    let mut missing = ensure(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint]);
     let firmware_possible = !missing.iter().any(|m| {
         m.starts_with("Rust target") || m.starts_with("rustup") || m.starts_with("flip-link")
     });
@@ -598,6 +632,34 @@ fn cmd_test() -> Result<u8> {
         qemu_code = Some(code);
     }
 
+    // A short fuzz run of every target: a finding fails the run (after the
+    // summary), each clean target counts as one passed test.
+    let mut fuzz_line = String::from("NOT RUN (--fuzz-seconds 0)");
+    let (mut fuzz_passed, mut fuzz_failed) = (0u64, 0u64);
+    if fuzz_seconds > 0 {
+        let fuzz_missing = fuzz::missing_tools();
+        if fuzz_missing.is_empty() {
+            match fuzz::run_targets(&fuzz::TARGETS, fuzz_seconds) {
+                Ok(runs) => {
+                    fuzz_passed = runs.len() as u64;
+                    let execs: u64 = runs.iter().map(|(_, s)| s.execs).sum();
+                    fuzz_line = format!(
+                        "{} targets × {fuzz_seconds} s, {execs} executions, no finding",
+                        runs.len()
+                    );
+                }
+                Err(e) => {
+                    fuzz_failed = e.lines().skip(1).count().max(1) as u64;
+                    fuzz_passed = (fuzz::TARGETS.len() as u64).saturating_sub(fuzz_failed);
+                    fuzz_line = format!("FAILED: {e}");
+                }
+            }
+        } else {
+            fuzz_line = "NOT RUN (tools missing, below)".into();
+            missing.extend(fuzz_missing);
+        }
+    }
+
     eprintln!("\n==> summary ({:.0} s)", started.elapsed().as_secs_f64());
     let (passed, failed, ignored) = results;
     eprintln!("host tests: passed ({passed} passed, {failed} failed, {ignored} ignored)");
@@ -619,7 +681,10 @@ fn cmd_test() -> Result<u8> {
             None => "NOT RUN",
         }
     );
-    let code = if missing.is_empty() {
+    eprintln!("fuzz: {fuzz_line}");
+    let code = if fuzz_failed > 0 {
+        1
+    } else if missing.is_empty() {
         0
     } else {
         eprintln!("incomplete: missing, and could not be installed:");
@@ -630,13 +695,83 @@ fn cmd_test() -> Result<u8> {
     };
     // The last line is the plain "N passed, N failed" tally CI reads; the
     // last libtest line above is a doc-test run that may count zero.
-    eprintln!("tests: {passed} passed, {failed} failed, {ignored} skipped");
+    eprintln!(
+        "tests: {} passed, {} failed, {ignored} skipped",
+        passed + fuzz_passed,
+        failed + fuzz_failed
+    );
     Ok(code)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::error::ErrorKind;
+    use clap::CommandFactory;
+
+    fn parse(args: &[&str]) -> std::result::Result<Cli, ErrorKind> {
+        Cli::try_parse_from(std::iter::once("cargo xtask").chain(args.iter().copied()))
+            .map_err(|e| e.kind())
+    }
+
+    #[test]
+    fn every_command_refuses_unknown_flags_and_has_help() {
+        Cli::command().debug_assert();
+        for cmd in [
+            &["test"][..],
+            &["qemu"],
+            &["size"],
+            &["isr-cost"],
+            &["no-panic"],
+            &["fuzz", "--seconds", "1"],
+        ] {
+            assert!(parse(cmd).is_ok(), "{cmd:?}");
+            let mut bogus = cmd.to_vec();
+            bogus.push("--bogus");
+            assert_eq!(
+                parse(&bogus).err(),
+                Some(ErrorKind::UnknownArgument),
+                "{bogus:?}"
+            );
+            let mut help = cmd.to_vec();
+            help.push("--help");
+            assert_eq!(parse(&help).err(), Some(ErrorKind::DisplayHelp), "{help:?}");
+        }
+        assert_eq!(parse(&["sise"]).err(), Some(ErrorKind::InvalidSubcommand));
+    }
+
+    #[test]
+    fn mistyped_values_are_refused() {
+        assert_eq!(
+            parse(&["fuzz"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
+        );
+        assert_eq!(
+            parse(&["fuzz", "--seconds", "0"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["fuzz", "--seconds", "ten"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["fuzz", "--seconds", "1", "--target", "tabel_parse"]).err(),
+            Some(ErrorKind::InvalidValue)
+        );
+        assert_eq!(
+            parse(&["isr-cost", "--variant", "moden"]).err(),
+            Some(ErrorKind::InvalidValue)
+        );
+        assert_eq!(
+            parse(&["isr-cost", "--call", "3"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
+        );
+        assert!(parse(&["isr-cost", "--profile", "x_event_modern", "--call", "3"]).is_ok());
+        assert_eq!(
+            parse(&["test", "--fuzz-seconds", "-1"]).err(),
+            Some(ErrorKind::UnknownArgument)
+        );
+    }
 
     #[test]
     fn test_result_lines_are_summed_by_field() {
