@@ -138,6 +138,16 @@ pub struct MachineStats {
     pub last_fault: Option<Fault>,
 }
 
+impl Machine {
+    /// True X at `t_s` (feed profile, without vibration and jitter), in.
+    pub fn x_true_in(&self, t_s: f64) -> f64 {
+        match &self.x {
+            XState::Legacy { link, .. } => link.borrow().model().nominal_x(t_s),
+            XState::Count { enc, .. } => enc.model().nominal_x(t_s),
+        }
+    }
+}
+
 enum XState {
     Legacy {
         link: Rc<RefCell<XHalfMilLink>>,
@@ -160,6 +170,13 @@ enum AngleState {
     },
 }
 
+/// Called at every loop tick, after the plant has reached the tick's instant
+/// and before the firmware's `loop_tick` runs: what the machine's physics
+/// (the cutting force of `cut`) reads from the truth and applies to the rig.
+pub trait TickHook {
+    fn before_tick(&mut self, rig: &mut Rig, machine: &Machine, fw: &Firmware);
+}
+
 /// X slide and spindle as the firmware sees them.
 pub struct Machine {
     x: XState,
@@ -169,7 +186,8 @@ pub struct Machine {
 }
 
 /// Which loop drives the amplifier.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Controller {
     /// The firmware's digital loop (`zslide::servo`) writes the amplifier
     /// DAC.
@@ -185,6 +203,32 @@ pub enum Controller {
     LegacyAnalog,
 }
 
+impl Controller {
+    pub fn name(self) -> &'static str {
+        match self {
+            Controller::Digital => "digital",
+            Controller::LegacyAnalog => "legacy-analog",
+        }
+    }
+
+    /// Puts this controller in charge of the amplifier of a freshly built
+    /// world: the digital loop is armed (sign check, then bumpless
+    /// engagement), the 1983 loop is attached with its analog substep.
+    pub fn attach(self, w: &mut FirmwareWorld, s: &mut Scheduler<FirmwareWorld>) {
+        match self {
+            Controller::Digital => w.request(Request::Arm),
+            Controller::LegacyAnalog => {
+                w.use_legacy_analog();
+                s.add(WorldTick::analog_substep(ANALOG_SUBSTEP_NS));
+            }
+        }
+    }
+}
+
+/// Integration step of the 1983 analog loop, ns (200 kHz: its fastest pole
+/// is the lag's 0.5 ms zero; well resolved).
+pub const ANALOG_SUBSTEP_NS: Nanos = 5_000;
+
 /// Rig + the firmware with the core's drivers on the simulated chips.
 pub struct FirmwareWorld {
     pub rig: Rig,
@@ -196,6 +240,8 @@ pub struct FirmwareWorld {
     /// The coefficient DAC through the core driver (legacy output mode).
     pub quad: Ad5686<SimAd5686, SimLdacPin>,
     pub machine: Option<Machine>,
+    /// Machine physics run at each loop tick (none: no cutting).
+    pub hook: Option<Box<dyn TickHook>>,
     init_fault: Option<Fault>,
     /// The 1983 loop when it drives the amplifier ([`Controller::LegacyAnalog`]).
     pub analog: Option<crate::analog1983::AnalogController>,
@@ -262,6 +308,7 @@ impl FirmwareWorld {
             clock: dev.clock,
             quad,
             machine: None,
+            hook: None,
             init_fault,
             analog: None,
         }
@@ -389,6 +436,9 @@ impl FirmwareWorld {
     /// enable line.
     #[inline]
     pub fn tick(&mut self) {
+        if let (Some(h), Some(m)) = (self.hook.as_mut(), self.machine.as_ref()) {
+            h.before_tick(&mut self.rig, m, &self.fw);
+        }
         self.rig.cnv();
         let mut input = TickInput::NONE;
         // The amplifier's fault line, as the board reads it.
@@ -482,11 +532,7 @@ impl FirmwareWorld {
     /// without a machine.
     pub fn x_true_in(&self) -> f64 {
         let t_s = self.rig.time.get() as f64 * 1e-9;
-        match self.machine.as_ref().map(|m| &m.x) {
-            Some(XState::Legacy { link, .. }) => link.borrow().model().nominal_x(t_s),
-            Some(XState::Count { enc, .. }) => enc.model().nominal_x(t_s),
-            None => f64::NAN,
-        }
+        self.machine.as_ref().map_or(f64::NAN, |m| m.x_true_in(t_s))
     }
 
     /// Hands the amplifier to the 1983 analog loop (from now on; the
@@ -647,7 +693,7 @@ pub mod src {
 /// [`src::LOOP_TICK`]).
 pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
     let loop_cfg = ServoConfig::at_rate(loop_hz)
-        .expect("the default loop design holds at any rate 1 kHz..200 kHz");
+        .expect("the default loop design holds at the rig rates (8 kHz..200 kHz)");
     firmware_with(cfg, loop_hz, loop_cfg)
 }
 
@@ -672,7 +718,7 @@ pub fn machine_demo(
     loop_hz: u32,
 ) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
     let loop_cfg = ServoConfig::at_rate(loop_hz)
-        .expect("the default loop design holds at any rate 1 kHz..200 kHz");
+        .expect("the default loop design holds at the rig rates (8 kHz..200 kHz)");
     machine_with(cfg, machine, loop_hz, loop_cfg)
 }
 

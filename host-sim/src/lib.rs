@@ -12,6 +12,7 @@ pub mod fwrig;
 pub mod geometry;
 pub mod machine;
 pub mod plant;
+pub mod plot;
 pub mod scenario;
 pub mod sched;
 pub mod surface;

@@ -16,10 +16,9 @@
 //! firmware's estimate): what the part would see. The gauge error is what
 //! the gauge reads minus the same command.
 
-use crate::fwrig::{Controller, WorldTick};
+use crate::fwrig::Controller;
 use crate::scenario::Scenario;
 use serde::Serialize;
-use zslide::firmware::Request;
 use zslide::servo::Phase;
 use zslide::table::{Representation, TableHeader};
 
@@ -118,13 +117,7 @@ pub fn run(sc: &Scenario, spec: &TrackSpec) -> anyhow::Result<TrackReport> {
     let (mut w, mut s) = crate::fwrig::firmware_with(sc.rig.clone(), sc.loop_hz, sc.servo);
     w.attach_machine_with_table(&machine, table);
     crate::fwrig::add_machine_sources(&w, &mut s);
-    match spec.controller {
-        Controller::Digital => w.request(Request::Arm),
-        Controller::LegacyAnalog => {
-            w.use_legacy_analog();
-            s.add(WorldTick::analog_substep(5_000));
-        }
-    }
+    spec.controller.attach(&mut w, &mut s);
     let tick_ns = 1_000_000_000 / u64::from(sc.loop_hz);
     let rev_ns = (60.0e9 / rpm) as u64;
     let index_phase = sc.machine.spindle.index_phase_turns;
@@ -192,11 +185,7 @@ pub fn run(sc: &Scenario, spec: &TrackSpec) -> anyhow::Result<TrackReport> {
         settle_s: settle_ns as f64 * 1e-9,
         learning_revs,
         faults,
-        controller: match spec.controller {
-            Controller::Digital => "digital",
-            Controller::LegacyAnalog => "legacy-analog",
-        }
-        .into(),
+        controller: spec.controller.name().into(),
         scenario: sc.file.name.clone(),
         freq_hz: spec.freq_hz,
         amplitude_in: spec.amplitude_in,

@@ -222,10 +222,16 @@ fn cutting_force_and_bolt_holes() {
     // finishing 300 µin at 100 µin/rev: about half an amp
     let f_fin = c.thrust_lbf(300e-6, 100e-6);
     assert!(f_fin > 0.5 && f_fin < 2.0, "{f_fin}");
-    // force along −Z with the stock on the +Z side
+    // the default stock side is −Z (the concave part, see cut::check_part_side):
+    // force along +Z
     let r = c.bolt_holes.circle_radius_in;
     let between = c.force_on_slide_lbf(r, 0.0, 300e-6, 100e-6);
-    assert!((between + f_fin).abs() < 1e-12);
+    assert!((between - f_fin).abs() < 1e-12);
+    let stock_above = CuttingParams {
+        part_side: 1.0,
+        ..c.clone()
+    };
+    assert!((stock_above.force_on_slide_lbf(r, 0.0, 300e-6, 100e-6) + f_fin).abs() < 1e-12);
     // centred over the first hole: no force
     let over = c.force_on_slide_lbf(r, 22.5f64.to_radians(), 300e-6, 100e-6);
     assert_eq!(over, 0.0);

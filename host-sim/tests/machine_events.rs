@@ -173,16 +173,17 @@ fn tachometer_angle_is_phased_by_the_index() {
 
 #[test]
 fn bench_vcd_records_the_whole_machine_and_parses_back() {
-    use host_sim::cmd::bench::{write_vcd, VCD_SIGNALS};
+    use host_sim::cmd::bench::write_vcd;
+    use host_sim::vcd::machine::SIGNALS;
     let sc = host_sim::scenario::load("legacy-hw").unwrap();
     let path = std::env::temp_dir().join(format!("zslide-vcd-{}.vcd", std::process::id()));
-    write_vcd(&path, 20_000, &sc).unwrap();
+    let stats = write_vcd(&path, 20_000, &sc).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let _ = std::fs::remove_file(&path);
     let mut parser = vcd::Parser::new(&bytes[..]);
     let header = parser.parse_header().expect("VCD header parses");
     let mut code = std::collections::HashMap::new();
-    for name in VCD_SIGNALS {
+    for (name, _) in SIGNALS {
         let v = header
             .find_var(&["zslide", name])
             .unwrap_or_else(|| panic!("{name} missing"));
@@ -200,9 +201,19 @@ fn bench_vcd_records_the_whole_machine_and_parses_back() {
     }
     // 250 ms at 20 kHz: one toggle per loop tick (plus the initial value)
     assert!((5000..=5001).contains(&changes["loop_tick"]), "{changes:?}");
-    // the index at 200 ms; X events from the counter dithering at 7.2500
+    // the index at 200 ms; X events from the counter dithering at 7.2500.
+    // One toggle per handler run (plus the initial value), none for the
+    // models' look-ahead wake-ups (every 5 ms).
     assert!(changes["index"] >= 2, "{changes:?}");
     assert!(changes["x_event"] >= 2, "{changes:?}");
+    assert!(
+        (stats.index_events..=stats.index_events + 1).contains(&(changes["index"] as u64)),
+        "{changes:?} vs {stats:?}"
+    );
+    assert!(
+        (stats.x_events..=stats.x_events + 1).contains(&(changes["x_event"] as u64)),
+        "{changes:?} vs {stats:?}"
+    );
     for name in [
         "slide_z_uin",
         "command_uin",

@@ -104,7 +104,7 @@ fn out_of_range_values_are_refused_by_name() {
             "interface = \"bcd\"",
             "x.interface",
         ),
-        ("part_side = 1.0", "part_side = 0.5", "cutting.part_side"),
+        ("part_side = -1.0", "part_side = 0.5", "cutting.part_side"),
     ] {
         let t = legacy_text().replacen(from, to, 1);
         assert_ne!(t, legacy_text(), "{from}");
@@ -118,15 +118,15 @@ fn servo_section_sets_the_loop_and_refuses_a_bad_field_by_name() {
     use host_sim::scenario::parse;
     let text = include_str!("../../scenarios/legacy-hw.toml");
     let sc = parse(text, "legacy-hw").unwrap();
-    assert_eq!(sc.servo_design.bandwidth_hz, 16.0);
+    assert_eq!(sc.servo_design.bandwidth_hz, 45.0);
     assert_eq!(sc.servo, sc.servo_design.config().unwrap());
-    let faster = text.replace("bandwidth_hz = 16.0", "bandwidth_hz = 30.0");
+    let faster = text.replace("bandwidth_hz = 45.0", "bandwidth_hz = 60.0");
     let sc30 = parse(&faster, "x").unwrap();
     assert!(sc30.servo.kp_q24 > sc.servo.kp_q24);
-    let bad = text.replace("bandwidth_hz = 16.0", "bandwidth_hz = 5000.0");
+    let bad = text.replace("bandwidth_hz = 45.0", "bandwidth_hz = 5000.0");
     let e = format!("{:#}", parse(&bad, "bad").unwrap_err());
     assert!(e.contains("servo.bandwidth_hz"), "{e}");
-    let unknown = text.replace("damping = 0.8", "dampng = 0.8");
+    let unknown = text.replace("damping = 0.9", "dampng = 0.9");
     let e = format!("{:#}", parse(&unknown, "typo").unwrap_err());
     assert!(e.contains("dampng"), "{e}");
 }
@@ -140,7 +140,7 @@ fn every_servo_field_reaches_the_design() {
     let head = &text[..text.find("[servo]").unwrap()];
     let fields: [(&str, f64); 22] = [
         ("bandwidth_hz", 17.0),
-        ("damping", 0.9),
+        ("damping", 0.85),
         ("bandwidth_fast_hz", 90.0),
         ("observer_hz", 45.0),
         ("observer_fast_hz", 410.0),

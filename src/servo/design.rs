@@ -90,7 +90,8 @@ impl SlideModel {
 /// `[servo]` section of a scenario file sets them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ServoDesign {
-    /// Loop tick rate, Hz (≥ 20 kHz in the brief; any 1 kHz..200 kHz works).
+    /// Loop tick rate, Hz (≥ 20 kHz in the brief; the default design needs
+    /// ≥ 8 kHz: fast observer below rate / 10).
     pub rate_hz: u32,
     pub slide: SlideModel,
     /// Natural frequency of the tracking-error dynamics, Hz.
@@ -144,19 +145,30 @@ pub struct ServoDesign {
 
 impl ServoDesign {
     /// The default loop for the brief's slide at `rate_hz`.
+    ///
+    /// Bandwidth and observer are set by the cut, not by the slide alone:
+    /// while cutting, the tool's engagement is a spring to the part (the
+    /// edge force on the nose's contact chord, ≈ 2200 lbf/in at 0.0003 in
+    /// depth, a 58 Hz spring-mass with the slide). A disturbance observer
+    /// at 40 Hz treats that spring as a slow disturbance and leaves a
+    /// lightly damped mode near 60 Hz (ζ 0.3; `docs/TUNING.md`); at 250 Hz
+    /// it cancels the spring across the band and the 45 Hz error dynamics
+    /// stay damped. The price is more gauge noise passed to the slide, and
+    /// a narrow hum notch (Q 20) so that its phase lag stays out of the
+    /// ≈ 95 Hz crossover (`docs/TUNING.md` has the figures).
     pub const fn brief(rate_hz: u32) -> Self {
         Self {
             rate_hz,
             slide: SlideModel::BRIEF,
-            bandwidth_hz: 16.0,
-            damping: 0.8,
-            bandwidth_fast_hz: 100.0,
-            observer_hz: 40.0,
-            observer_fast_hz: 400.0,
+            bandwidth_hz: 45.0,
+            damping: 0.9,
+            bandwidth_fast_hz: 150.0,
+            observer_hz: 250.0,
+            observer_fast_hz: 800.0,
             observer_switch_uin: 150.0,
             observer_hold_ms: 20.0,
             hum_notch_hz: 120.0,
-            hum_notch_q: 2.0,
+            hum_notch_q: 20.0,
             mode_notch_hz: 3150.0,
             mode_notch_q: 0.7,
             learning_gain: 0.4,

@@ -217,7 +217,7 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
             continue;
         };
         traced += 1;
-        if traced % (1 << 20) == 0 && last_report.elapsed().as_secs() >= 10 {
+        if traced.is_multiple_of(1 << 20) && last_report.elapsed().as_secs() >= 10 {
             last_report = Instant::now();
             let calls: u64 = stats.values().map(|s| s.calls).sum();
             eprintln!(

@@ -75,15 +75,15 @@ const TICKS: u32 = 4_000;
 const INJECT_AT: u32 = 3_600;
 /// Tracking is checked from this tick to [`INJECT_AT`].
 const TRACK_FROM: u32 = 1_001;
-/// Tracking bound: 2000 gauge codes = 38 µin (measured: 1196). The servo
-/// follows the table here on its plant-inverse feedforward and 16 Hz
-/// feedback alone: its learning waits out the settling time (124 ms) and
+/// Tracking bound: 500 gauge codes = 9.5 µin (measured: 112). The servo
+/// follows the table here on its plant-inverse feedforward and 45 Hz
+/// feedback alone: its learning waits out the settling time and
 /// the 200 ms run leaves it no revolution to learn, at 1200 rpm the part's
 /// harmonics are at 40-80 Hz, and this emulated plant (Euler, no coil
 /// inductance, 5 mV amplifier offset) is not the model the feedforward
 /// inverts. The host-sim tests hold the servo to its real figures; this
 /// run proves the same loop closes on the target.
-const TRACK_BOUND: u32 = 2000;
+const TRACK_BOUND: u32 = 500;
 /// The command must swing at least this much (codes; 1 µin = 52.4 codes).
 const MIN_SWING: i32 = 5_000;
 /// The slide rests here at power-up, gauge codes (−0.001 in).

@@ -286,50 +286,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Names of the signals [`write_vcd`] records, in order.
-pub const VCD_SIGNALS: [&str; 17] = [
-    "slide_z_uin",
-    "gauge_z_uin",
-    "command_uin",
-    "error_uin",
-    "current_a",
-    "force_lbf",
-    "adc_code",
-    "dac_code",
-    "amp_enabled",
-    "x_true_in",
-    "x_fw_in",
-    "spindle_phi_deg",
-    "spindle_phi_fw_deg",
-    "loop_tick",
-    "x_event",
-    "index",
-    "fault",
-];
-
-/// 250 ms of the whole machine as a VCD: the firmware's loop tick through
-/// the core drivers, the scenario's X interface and spindle, engagement
-/// from 2 mil off null, a 1.3 lbf cutting-force step at 120 ms (a finishing
-/// cut engaging), a 1 mil target step at 150 ms. Interrupt activity is one
-/// toggling bit per source (`loop_tick`, `x_event`, `index`: every edge is
-/// one handler run), so equal-time events stay visible.
+/// 250 ms of the whole machine as a VCD (the signal set of
+/// [`crate::vcd::machine`]): the firmware's loop tick through the core
+/// drivers, the scenario's X interface and spindle, engagement from 2 mil
+/// off null, a 1.3 lbf cutting-force step at 120 ms (a finishing cut
+/// engaging), a 1 mil target step at 150 ms. Returns what the X and spindle
+/// handlers saw (the activity bits toggle once per handler run).
 pub fn write_vcd(
     path: &std::path::Path,
     loop_hz: u64,
     sc: &crate::scenario::Scenario,
-) -> anyhow::Result<()> {
-    use crate::vcd::{SignalKind, VcdRecorder};
-    use std::cell::RefCell;
-    use std::rc::Rc;
+) -> anyhow::Result<crate::fwrig::MachineStats> {
     let (mut w, mut s) =
         crate::fwrig::machine_with(sc.rig.clone(), &sc.machine, loop_hz as u32, sc.servo);
     w.request(zslide::firmware::Request::Arm);
     w.rig.slide.x[crate::plant::zslide::st::Z] = 0.002;
-    let names: Vec<String> = (0..s.fired.len())
-        .map(|k| s.source_name(k).to_string())
-        .collect();
-    let idx = |n: &str| names.iter().position(|x| x == n);
-    let (i_tick, i_x, i_index) = (idx("loop_tick"), idx("x_event"), idx("index"));
     let mut o = crate::sched::OneShots::new("script", prio::PLANT_INPUT);
     o.at(120_000_000, |_, w: &mut FirmwareWorld| {
         w.rig.set_force_lbf(-1.3)
@@ -339,88 +310,10 @@ pub fn write_vcd(
     });
     s.add(o);
     let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let kinds = [
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Int(20),
-        SignalKind::Int(20),
-        SignalKind::Bit,
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Real,
-        SignalKind::Bit,
-        SignalKind::Bit,
-        SignalKind::Bit,
-        SignalKind::Bit,
-    ];
-    let signals: Vec<(&str, SignalKind)> = VCD_SIGNALS.iter().copied().zip(kinds).collect();
-    let rec = Rc::new(RefCell::new(VcdRecorder::new(file, "zslide", &signals)?));
-    let r2 = rec.clone();
-    let err: Rc<RefCell<Option<std::io::Error>>> = Rc::new(RefCell::new(None));
-    let e2 = err.clone();
-    let mut toggles = [false; 3];
-    // gauge codes to µin: 2^19 codes = 0.010 in
-    let uin = 0.010e6 / f64::from(1u32 << 19);
-    let turn_deg = 360.0 / 4_294_967_296.0;
-    s.on_event = Some(Box::new(move |t, k, w: &FirmwareWorld| {
-        for (j, src) in [i_tick, i_x, i_index].into_iter().enumerate() {
-            if src == Some(k) {
-                toggles[j] = !toggles[j];
-            }
-        }
-        let adc = w.rig.adc.state.borrow().code;
-        let (x_true, x_fw, phi, phi_fw) = match &w.machine {
-            Some(m) => {
-                let st = &m.stats;
-                let phi = m.spindle.borrow_mut().turns_at(t).rem_euclid(1.0) * 360.0;
-                (
-                    w.x_true_in(),
-                    st.x.map_or(f64::NAN, |x| x.to_f64()),
-                    phi,
-                    f64::from(st.angle.0) * turn_deg,
-                )
-            }
-            None => (f64::NAN, f64::NAN, f64::NAN, f64::NAN),
-        };
-        let bit = |b: bool| if b { 1.0 } else { 0.0 };
-        let v = [
-            w.rig.slide.position_in() * 1e6,
-            w.rig.slide.gauge_position_in() * 1e6,
-            f64::from(w.fw.command_code()) * uin,
-            f64::from(w.fw.command_code() - w.fw.position_code()) * uin,
-            w.rig.slide.current_a(),
-            w.rig.f_ext,
-            f64::from(adc),
-            f64::from(w.fw.output_code()),
-            bit(w.rig.amp.enabled()),
-            x_true,
-            x_fw,
-            phi,
-            phi_fw,
-            bit(toggles[0]),
-            bit(toggles[1]),
-            bit(toggles[2]),
-            bit(w.fw.fault().is_some()),
-        ];
-        if let Err(e) = r2.borrow_mut().sample(t, &v) {
-            e2.borrow_mut().get_or_insert(e);
-        }
-    }));
+    let tr = crate::vcd::machine::attach(&mut s, file, 0, u64::MAX)?;
     s.run_until(&mut w, 250_000_000);
-    s.on_event = None;
-    if let Some(e) = err.borrow_mut().take() {
-        return Err(e.into());
-    }
-    match Rc::try_unwrap(rec) {
-        Ok(r) => r.into_inner().finish()?,
-        Err(_) => anyhow::bail!("VCD recorder still shared"),
-    }
-    Ok(())
+    crate::vcd::machine::detach(&mut s, tr)?;
+    Ok(w.stats().cloned().unwrap_or_default())
 }
 
 pub use crate::fwrig::{firmware_demo, FirmwareWorld};

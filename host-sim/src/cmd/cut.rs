@@ -1,169 +1,370 @@
-//! `host-sim cut` (and `cargo sim`): the finishing cut by bands around the
-//! CMM radii, the part measured on the CMM grid (logic in `crate::cut`).
+//! `host-sim cut`: the finishing pass of chapter 5 on the simulated machine
+//! and the CMM measurement of the part (`cargo sim` runs the default).
+//!
+//! Prints the CMM table (φ rows, X columns, µin, positive = excess stock,
+//! like Table 5-2) and a summary; `--json` the fields of brief §5;
+//! `--out DIR` the plots (PNG, SVG, CSV) and a VCD. The model and its
+//! conventions: docs/CUT.md.
 
-use crate::cut::{run as run_cut, CutSpec, Holes};
-use crate::fwrig::Controller;
-use crate::scenario::ScenarioArg;
+use crate::cut::part::{cmm_phi_deg, CMM_X_IN};
+use crate::cut::plot::{column, error_map_series, write_plot, Series};
+use crate::cut::{run_pass, Controller, CutOutcome, CutSpec, Extras, Holes};
 use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
-    pub scenario: ScenarioArg,
-    /// Which loop drives the amplifier.
+    pub scenario: crate::scenario::ScenarioArg,
+    /// Loop driving the amplifier.
     #[arg(long, value_enum, default_value_t = Controller::Digital)]
     pub controller: Controller,
-    /// Spindle speed, rpm (default: the scenario's; the shop had to run 360).
+    /// Spindle speed, rpm (default: the scenario's; the 1983 shop had to
+    /// run 360).
     #[arg(long)]
     pub rpm: Option<f64>,
-    /// The part's bolt holes: open (first part) or filled (second part).
-    #[arg(long, value_enum, default_value_t = Holes::Filled)]
-    pub holes: Holes,
-    /// Simulate the whole pass instead of bands (not available yet).
+    /// Bolt holes of the part face (default: the scenario's).
+    #[arg(long, value_enum)]
+    pub holes: Option<Holes>,
+    /// Simulate the whole pass (7.25 in to the axis) instead of bands
+    /// around the measured radii.
     #[arg(long)]
     pub full: bool,
-    /// Print the JSON report.
+    /// Print JSON instead of the table and summary.
     #[arg(long)]
     pub json: bool,
-    /// Write the CMM grid, the X = 7 in error against φ and an SVG error plot here.
+    /// Write plots (PNG, SVG, CSV) and a VCD window into this directory.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Half width of each band, in of tool-centre X.
+    #[arg(long, default_value_t = 0.01)]
+    pub band_in: f64,
+    /// Revolutions simulated before each band's recording starts.
+    #[arg(long, default_value_t = 60.0)]
+    pub preroll_revs: f64,
+    /// Depth of cut, in.
+    #[arg(long, default_value_t = 0.0003)]
+    pub depth_in: f64,
+    /// Offset added to the firmware's Z command, µin (positive: the tool
+    /// stays off the part and leaves that much stock).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub z_offset_uin: f64,
+}
+
+/// The JSON summary (brief §5).
+#[derive(serde::Serialize, Debug)]
+pub struct Summary {
+    pub scenario: String,
+    pub controller: Controller,
+    pub rpm: f64,
+    pub holes: Holes,
+    pub full: bool,
+    pub contour_error_min_uin: Option<f64>,
+    pub contour_error_max_uin: Option<f64>,
+    pub following_error_rms_uin: f64,
+    pub following_error_peak_uin: f64,
+    pub finish_rms_uin: Option<f64>,
+    /// Finish by CMM radius, µin RMS.
+    pub finish_rms_by_x_uin: Vec<Option<f64>>,
+    pub simulated_s: f64,
+    pub wall_s: f64,
+    /// `simulated_s / wall_s`.
+    pub real_time_factor: f64,
+    /// Σ of the stretches' wall times: `simulated_s / cpu_s` is the
+    /// one-core real-time factor.
+    pub cpu_s: f64,
+    pub faults: Vec<String>,
+    pub phi_deg: Vec<f64>,
+    pub x_in: Vec<f64>,
+    /// 36 rows (φ) × 7 columns (X), µin, positive = excess stock; null
+    /// where the probe cannot measure (inside an open bolt hole).
+    pub cmm_grid_uin: Vec<Vec<Option<f64>>>,
+    pub depth_in: f64,
+    pub feed_per_rev_in: f64,
+    pub mean_force_lbf: f64,
+}
+
+fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
+    let band = o.grid.band();
+    Summary {
+        scenario: spec.scenario.file.name.clone(),
+        controller: spec.controller,
+        rpm: spec.rpm,
+        holes: spec.holes,
+        full: spec.full,
+        contour_error_min_uin: band.map(|b| b.0),
+        contour_error_max_uin: band.map(|b| b.1),
+        following_error_rms_uin: o.following_error_rms_uin,
+        following_error_peak_uin: o.following_error_peak_uin,
+        finish_rms_uin: o.grid.finish_rms_uin(),
+        finish_rms_by_x_uin: o.grid.finish_by_x_uin.clone(),
+        simulated_s: o.simulated_s,
+        wall_s: o.wall_s,
+        real_time_factor: o.simulated_s / o.wall_s,
+        cpu_s: o.cpu_s,
+        faults: o.faults.clone(),
+        phi_deg: cmm_phi_deg(),
+        x_in: CMM_X_IN.to_vec(),
+        cmm_grid_uin: o.grid.err_uin.clone(),
+        depth_in: spec.depth_in,
+        feed_per_rev_in: spec.feed_per_rev_in,
+        mean_force_lbf: o.mean_force_lbf,
+    }
+}
+
+fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
+    let sc = args.scenario.load()?;
+    let mut spec = CutSpec::chapter5(sc, controller, args.rpm, args.holes, args.full)?;
+    anyhow::ensure!(
+        args.band_in > 0.0 && args.band_in <= 0.5,
+        "--band-in {}: must be in (0, 0.5] in",
+        args.band_in
+    );
+    anyhow::ensure!(
+        args.preroll_revs >= 0.0 && args.preroll_revs <= 10_000.0,
+        "--preroll-revs {}: must be in 0..10000",
+        args.preroll_revs
+    );
+    anyhow::ensure!(
+        args.depth_in > 0.0 && args.depth_in <= 0.005,
+        "--depth-in {}: must be in (0, 0.005] in (a finishing pass)",
+        args.depth_in
+    );
+    spec.band_half_in = args.band_in;
+    spec.preroll_revs = args.preroll_revs;
+    spec.depth_in = args.depth_in;
+    anyhow::ensure!(
+        args.z_offset_uin.abs() <= 5000.0,
+        "--z-offset-uin {}: must be within ±5000 µin (half the gauge range)",
+        args.z_offset_uin
+    );
+    spec.z_offset_in = args.z_offset_uin * 1e-6;
+    Ok(spec)
+}
+
+fn progress_bar(spec: &CutSpec) -> anyhow::Result<ProgressBar> {
+    let (surf, _) = spec.surface()?;
+    let total: f64 = crate::cut::plan(spec, surf.contact_gain())
+        .iter()
+        .map(|s| s.seconds(spec))
+        .sum();
+    let pb = ProgressBar::new(total.ceil() as u64);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{msg} [{bar:40}] {pos}/{len} s simulated, {elapsed} ({eta} left)",
+        )?
+        .progress_chars("=> "),
+    );
+    pb.set_message(format!(
+        "cut {} {}",
+        spec.scenario.file.name,
+        spec.controller.name()
+    ));
+    Ok(pb)
+}
+
+fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
+    let pb = progress_bar(spec)?;
+    let acc = std::sync::Mutex::new(0.0f64);
+    let progress = |ds: f64| {
+        let mut a = acc.lock().unwrap_or_else(|p| p.into_inner());
+        *a += ds;
+        pb.set_position(*a as u64);
+    };
+    // The extras go to the outermost band (X = 7 in, where the slide moves
+    // most), or to the full pass.
+    let outer = CMM_X_IN.len() as u64;
+    let o = run_pass(
+        spec,
+        |st| {
+            if spec.full || st.index == outer {
+                extras.clone()
+            } else {
+                Extras::default()
+            }
+        },
+        &progress,
+    );
+    pb.finish_and_clear();
+    o
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        !args.full,
-        "--full (the whole 3.4 h pass) is not available yet: run the default bands"
-    );
-    let sc = args.scenario.load()?;
-    let spec = CutSpec::new(&sc, args.controller, args.rpm, args.holes);
-    anyhow::ensure!(
-        spec.rpm >= f64::from(sc.file.spindle.min_rpm)
-            && spec.rpm <= f64::from(sc.file.spindle.max_rpm),
-        "--rpm {}: outside the scenario's {}..{} rpm",
-        spec.rpm,
-        sc.file.spindle.min_rpm,
-        sc.file.spindle.max_rpm
-    );
-    let bar = indicatif::ProgressBar::new(crate::cut::CMM_X_IN.len() as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} bands, {elapsed}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    bar.set_message(format!("cutting ({:?}, {} rpm)", args.controller, spec.rpm));
-    let (r, bands) = run_cut(&sc, &spec, Some(&bar));
-    bar.finish_and_clear();
+    let spec = spec_of(&args, args.controller)?;
+    let mut extras = Extras::default();
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let mut csv = String::from("phi_deg");
-        for x in &r.x_in {
-            csv.push_str(&format!(",x{x}_uin"));
-        }
-        csv.push('\n');
-        for (j, row) in r.cmm_grid_uin.iter().enumerate() {
-            csv.push_str(&format!("{}", r.phi_deg[j]));
-            for v in row {
-                csv.push_str(&v.map_or(",".to_string(), |v| format!(",{v:.3}")));
-            }
-            csv.push('\n');
-        }
-        std::fs::write(dir.join("cmm_grid.csv"), csv)?;
-        let b7 = bands.last().context("no band")?;
-        let mut t = String::from("phi_deg,excess_uin\n");
-        for (p, e) in &b7.trace {
-            t.push_str(&format!("{p},{:.4}\n", e * 1e6));
-        }
-        std::fs::write(dir.join("x7_error.csv"), t)?;
-        plot_grid(&dir.join("cmm_error.svg"), &r)?;
-        std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&r)?)?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        extras.vcd = Some((dir.join("window.vcd"), 0.0, 0.25));
+        extras.trace_s = 0.5;
+    }
+    let o = simulate(&spec, &extras)?;
+    let s = summarise(&spec, &o);
+    if let Some(dir) = &args.out {
+        write_outputs(dir, &args, &spec, &o)?;
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
-        return Ok(());
+        println!("{}", serde_json::to_string_pretty(&s)?);
+    } else {
+        print_table(&s);
+        print_summary(&s, &o);
     }
+    Ok(())
+}
+
+fn print_table(s: &Summary) {
     println!(
-        "CMM error of the simulated part, µin, positive = excess stock ({}, {}, {} rpm, holes {:?})",
-        r.scenario, r.controller, r.rpm, r.holes
+        "CMM contour error, µin (positive = excess stock; φ rows, X columns; 'hole' = inside an open bolt hole)"
     );
-    print!("  phi\\X ");
-    for x in &r.x_in {
-        print!("{:>9}", format!("{x} in"));
+    print!("{:>6}", "φ\\X");
+    for x in &s.x_in {
+        print!("{:>8}", format!("{x} in"));
     }
     println!();
-    for (j, row) in r.cmm_grid_uin.iter().enumerate() {
-        print!("{:>6}° ", r.phi_deg[j]);
+    for (phi, row) in s.phi_deg.iter().zip(&s.cmm_grid_uin) {
+        print!("{:>6}", format!("{phi}°"));
         for v in row {
             match v {
-                Some(v) => print!("{v:>9.1}"),
-                None => print!("{:>9}", "hole"),
+                Some(e) => print!("{e:>8.0}"),
+                None => print!("{:>8}", "hole"),
             }
         }
         println!();
     }
-    println!(
-        "contour band {:.1} .. {:.1} µin (goal ±30 legacy-hw, ±5 modern-hw; 1983: -500 .. +900)",
-        r.contour_error_min_uin, r.contour_error_max_uin
-    );
-    println!(
-        "finish {:.2} µin RMS (by radius 1..7 in: {}); following error {:.2} µin RMS, {:.1} peak",
-        r.finish_rms_uin,
-        r.finish_rms_by_radius_uin
-            .iter()
-            .map(|v| format!("{v:.2}"))
-            .collect::<Vec<_>>()
-            .join(", "),
-        r.following_error_rms_uin,
-        r.following_error_peak_uin
-    );
-    println!(
-        "faults: {}; {:.1} s of machine time in {:.2} s ({:.0}× real time, 7 bands on {} threads)",
-        if r.faults.is_empty() {
-            "none".into()
-        } else {
-            r.faults.join("; ")
-        },
-        r.simulated_s,
-        r.wall_s,
-        r.simulated_s / r.wall_s.max(1e-9),
-        rayon::current_num_threads()
-    );
-    Ok(())
 }
 
-fn plot_grid(path: &std::path::Path, r: &crate::cut::CutReport) -> anyhow::Result<()> {
-    use plotters::prelude::*;
-    let root = SVGBackend::new(path, (900, 500)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let vals: Vec<f64> = r.cmm_grid_uin.iter().flatten().flatten().copied().collect();
-    let lo = vals.iter().copied().fold(0.0, f64::min).floor() - 1.0;
-    let hi = vals.iter().copied().fold(0.0, f64::max).ceil() + 1.0;
-    let mut ch = ChartBuilder::on(&root)
-        .caption(
-            format!(
-                "CMM error by radius against φ, µin, + = excess stock ({}, {})",
-                r.scenario, r.controller
-            ),
-            ("sans-serif", 18),
-        )
-        .margin(10)
-        .x_label_area_size(30)
-        .y_label_area_size(50)
-        .build_cartesian_2d(0.0..360.0, lo..hi)?;
-    ch.configure_mesh().x_desc("φ (deg)").y_desc("µin").draw()?;
-    for (i, x) in r.x_in.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        ch.draw_series(LineSeries::new(
-            r.cmm_grid_uin
-                .iter()
-                .enumerate()
-                .filter_map(|(j, row)| row[i].map(|v| (r.phi_deg[j], v))),
-            color,
-        ))?
-        .label(format!("X = {x} in"))
-        .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 20, b)], color));
+fn opt(v: Option<f64>) -> String {
+    v.map_or("-".to_string(), |v| format!("{v:.1}"))
+}
+
+fn print_summary(s: &Summary, o: &CutOutcome) {
+    println!();
+    println!(
+        "{} / {} / {} rpm / holes {:?} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
+        s.scenario,
+        s.controller.name(),
+        s.rpm,
+        s.holes,
+        if s.full { "full pass" } else { "bands" },
+        o.stretches,
+        if o.stretches == 1 { "" } else { "es" },
+        s.depth_in,
+        s.feed_per_rev_in * 1e6
+    );
+    // Brief §6: ±30 µin on the 1983 machine, ±5 µin with the modern gauge.
+    let goal = match s.scenario.as_str() {
+        "legacy-hw" => "; goal ±30",
+        "modern-hw" => "; goal ±5",
+        _ => "",
+    };
+    println!(
+        "contour error      {} .. {} µin (1983, second part: -500 .. +900{goal})",
+        opt(s.contour_error_min_uin),
+        opt(s.contour_error_max_uin)
+    );
+    let by_x: Vec<String> = s
+        .finish_rms_by_x_uin
+        .iter()
+        .zip(&s.x_in)
+        .map(|(f, x)| format!("{x}: {}", opt(*f)))
+        .collect();
+    println!(
+        "finish             {} µin RMS (by X in: {}) (1983: 7 centre .. 60 edge)",
+        opt(s.finish_rms_uin),
+        by_x.join(", ")
+    );
+    println!(
+        "following error    {:.1} µin RMS, {:.1} µin peak (tool minus the exact command)",
+        s.following_error_rms_uin, s.following_error_peak_uin
+    );
+    println!("cutting force      {:.2} lbf mean", s.mean_force_lbf);
+    println!(
+        "faults             {}",
+        if s.faults.is_empty() {
+            "none".to_string()
+        } else {
+            s.faults.join(", ")
+        }
+    );
+    println!(
+        "simulated          {:.1} s in {:.1} s wall: {:.0}x real time ({:.0}x per core)",
+        s.simulated_s,
+        s.wall_s,
+        s.real_time_factor,
+        s.simulated_s / s.cpu_s
+    );
+}
+
+fn write_outputs(
+    dir: &std::path::Path,
+    args: &Args,
+    spec: &CutSpec,
+    o: &CutOutcome,
+) -> anyhow::Result<()> {
+    let title = format!(
+        "{} {} {} rpm, holes {:?}: CMM error (µin, + = excess stock)",
+        spec.scenario.file.name,
+        spec.controller.name(),
+        spec.rpm,
+        spec.holes
+    );
+    write_plot(
+        dir,
+        "error_map",
+        &title,
+        "phi_deg",
+        "error_uin",
+        &error_map_series(&o.grid),
+    )?;
+    // X = 7 in for both controllers (the other one run the same way).
+    let j7 = CMM_X_IN.len() - 1;
+    let mut x7 = vec![Series {
+        label: spec.controller.name().to_string(),
+        points: column(&o.grid, j7),
+    }];
+    for other in [Controller::Digital, Controller::LegacyAnalog] {
+        if other == spec.controller {
+            continue;
+        }
+        let oo = spec_of(args, other)
+            .and_then(|sp| simulate(&sp, &Extras::default()))
+            .with_context(|| format!("error_x7: the {} run", other.name()))?;
+        x7.push(Series {
+            label: other.name().to_string(),
+            points: column(&oo.grid, j7),
+        });
     }
-    ch.configure_series_labels().border_style(BLACK).draw()?;
-    root.present()?;
-    Ok(())
+    write_plot(
+        dir,
+        "error_x7",
+        &format!(
+            "{} {} rpm: error at X = 7 in (µin)",
+            spec.scenario.file.name, spec.rpm
+        ),
+        "phi_deg",
+        "error_uin",
+        &x7,
+    )?;
+    let t0 = o.trace.first().map_or(0.0, |p| p.0);
+    let fe = Series {
+        label: "following_error_uin".into(),
+        points: o.trace.iter().map(|p| ((p.0 - t0) * 1e3, p.1)).collect(),
+    };
+    let force = Series {
+        label: "force_lbf_x100".into(),
+        points: o
+            .trace
+            .iter()
+            .map(|p| ((p.0 - t0) * 1e3, p.2 * 100.0))
+            .collect(),
+    };
+    write_plot(
+        dir,
+        "following_error",
+        "following error at X = 7 in (µin) and cutting force (lbf × 100)",
+        "t_ms",
+        "uin",
+        &[fe, force],
+    )
 }

@@ -24,7 +24,9 @@
 //!
 //! Direction: the part pushes the tool away from itself. `part_side` says
 //! on which side of the tool the stock is (+1: the stock is toward +Z, so
-//! the force on the slide is along −Z).
+//! the force on the slide is along −Z). The concave paraboloid's material
+//! lies toward −Z (its face looks toward +Y_t, eq 2-14), so the default and
+//! both scenarios are −1 (`cut::check_part_side`).
 
 use std::f64::consts::TAU;
 
@@ -47,7 +49,7 @@ impl Default for CuttingParams {
             k_t_psi: 2.0e5,
             k_e_lbf_per_in: 150.0,
             tool_radius_in: 0.125,
-            part_side: 1.0,
+            part_side: -1.0,
             bolt_holes: BoltHoles::default(),
         }
     }

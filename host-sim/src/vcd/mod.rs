@@ -103,3 +103,5 @@ impl<W: Write> VcdRecorder<W> {
         self.w.flush()
     }
 }
+
+pub mod machine;

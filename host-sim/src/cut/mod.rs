@@ -1,0 +1,425 @@
+//! `cut`: the finishing pass of chapter 5 (Figure 5-3) on the simulated
+//! machine, and the part it leaves, measured like Table 5-2.
+//!
+//! * [`engage`]: the tool's engagement with the stock and the cutting force
+//!   on the slide, every loop tick;
+//! * [`run`]: one stretch of the pass through the real firmware
+//!   (`fwrig`), recording the tool-centre path at the CMM angles;
+//! * [`part`]: the surface as the envelope of the tool nose, the CMM grid,
+//!   the finish;
+//! * [`plot`]: the plots, their CSV and the VCD of `--out`.
+//!
+//! A pass is planned as stretches ([`plan`]): by default one band per CMM
+//! radius (the revolutions whose nose arcs form the surface there, after a
+//! pre-roll that brings the firmware, the slide and the stock memory to
+//! the state they have at that radius in a whole pass), run in parallel;
+//! `--full` one stretch from the outer edge to the axis. Every stretch is
+//! seeded from the scenario seed and its index: a run is reproducible.
+//!
+//! Conventions and the model: docs/CUT.md.
+
+pub mod engage;
+pub mod part;
+pub mod plot;
+pub mod run;
+
+use crate::cut::part::{CmmGrid, PassLog, CMM_X_IN};
+use crate::cut::run::{Cutter, SharedCutter, StretchLog};
+use crate::fwrig::{machine_with, XInterface};
+use crate::scenario::Scenario;
+use crate::surface::Surface;
+use anyhow::{bail, Context};
+use rayon::prelude::*;
+use std::cell::RefCell;
+use std::rc::Rc;
+use std::time::Instant;
+
+pub use crate::fwrig::Controller;
+
+/// Bolt holes of the part face.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Holes {
+    /// Open countersunk holes: interrupted cut (the first part).
+    Open,
+    /// Filled with cast material (the second part).
+    Filled,
+}
+
+/// Everything a pass needs.
+#[derive(Clone, Debug)]
+pub struct CutSpec {
+    pub scenario: Scenario,
+    pub controller: Controller,
+    /// Spindle speed, rpm.
+    pub rpm: f64,
+    pub holes: Holes,
+    /// Depth of cut, in (chapter 5: 0.0003).
+    pub depth_in: f64,
+    /// Feed per revolution, in (positive; the pass feeds toward the axis).
+    pub feed_per_rev_in: f64,
+    /// Half width of a band (tool-centre X recorded around each CMM radius), in.
+    pub band_half_in: f64,
+    /// Revolutions simulated before a band's recording starts.
+    pub preroll_revs: f64,
+    pub full: bool,
+    /// Where the full pass starts (tool-centre X, in).
+    pub x_start_in: f64,
+    /// Offset added to the firmware's Z command (its target), in:
+    /// positive lifts the tool off the part and leaves stock.
+    pub z_offset_in: f64,
+}
+
+impl CutSpec {
+    /// The pass of chapter 5 on `scenario`: its spindle speed unless
+    /// `rpm` is given, its feed read as a feed per revolution at its own
+    /// speed (−0.03 in/min at 300 rpm = 100 µin/rev), its holes unless
+    /// `holes` is given, 0.0003 in depth of cut.
+    pub fn chapter5(
+        scenario: Scenario,
+        controller: Controller,
+        rpm: Option<f64>,
+        holes: Option<Holes>,
+        full: bool,
+    ) -> anyhow::Result<Self> {
+        let f = &scenario.file;
+        if f.x.feed_in_per_min >= 0.0 {
+            bail!(
+                "scenario {}: x.feed_in_per_min = {} — the finishing pass feeds toward the axis, it must be negative",
+                f.name,
+                f.x.feed_in_per_min
+            );
+        }
+        let feed_per_rev_in = -f.x.feed_in_per_min / f.spindle.rpm;
+        let rpm = rpm.unwrap_or(f.spindle.rpm);
+        let (lo, hi) = (f64::from(f.spindle.min_rpm), f64::from(f.spindle.max_rpm));
+        if !(rpm.is_finite() && rpm >= lo && rpm <= hi) {
+            bail!(
+                "--rpm {rpm}: outside the speed band the firmware of scenario {} accepts ({lo}..{hi} rpm, spindle.min_rpm/max_rpm)",
+                f.name
+            );
+        }
+        let holes = holes.unwrap_or(if scenario.cutting.bolt_holes.filled {
+            Holes::Filled
+        } else {
+            Holes::Open
+        });
+        check_part_side(scenario.cutting.part_side)
+            .with_context(|| format!("scenario {}", f.name))?;
+        Ok(Self {
+            x_start_in: f.x.x0_in,
+            scenario,
+            controller,
+            rpm,
+            holes,
+            depth_in: 0.0003,
+            feed_per_rev_in,
+            band_half_in: 0.01,
+            preroll_revs: 60.0,
+            full,
+            z_offset_in: 0.0,
+        })
+    }
+
+    /// Feed, in/min (negative: toward the axis).
+    pub fn feed_in_per_min(&self) -> f64 {
+        -self.feed_per_rev_in * self.rpm
+    }
+
+    /// The part's nominal surface: the geometry of the firmware's table.
+    pub fn surface(&self) -> anyhow::Result<(Surface, f64)> {
+        let t = zslide::table::CoeffTable::parse(zslide::DEFAULT_TABLE)
+            .map_err(|e| anyhow::anyhow!("default table refused: {e:?}"))?;
+        let mut s = Surface::from_table_geometry(&t.header().geometry)
+            .map_err(|e| anyhow::anyhow!("table geometry: {e}"))?;
+        let r_t = self.scenario.cutting.tool_radius_in;
+        if (r_t - s.tool_radius()).abs() > 1e-12 {
+            bail!(
+                "cutting.tool_radius_in = {r_t} but the firmware's table compensates for a {} in nose",
+                s.tool_radius()
+            );
+        }
+        s = s
+            .with_tool_radius(r_t)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        Ok((s, t.x_null().to_f64()))
+    }
+}
+
+/// The material of the concave paraboloid lies on the −Y_t side of the
+/// surface (`Y(X)` of eq 2-14 rises with X: the face looks toward +Y_t),
+/// so the stock pushes the tool toward +Z: `part_side` must be −1.
+pub fn check_part_side(part_side: f64) -> anyhow::Result<()> {
+    if part_side != -1.0 {
+        bail!(
+            "cutting.part_side = {part_side}: the part's material lies on the -Z side of the tool \
+             (the concave face looks toward +Y_t, eq 2-14), so the stock pushes the slide toward \
+             +Z: set part_side = -1"
+        );
+    }
+    Ok(())
+}
+
+/// One stretch of the pass.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stretch {
+    /// Tool-centre X where the simulation starts and ends, in.
+    pub x_start_in: f64,
+    pub x_end_in: f64,
+    /// Recording windows (tool-centre X), in.
+    pub windows: Vec<(f64, f64)>,
+    /// Stream index of its seeds.
+    pub index: u64,
+}
+
+impl Stretch {
+    pub fn seconds(&self, spec: &CutSpec) -> f64 {
+        (self.x_start_in - self.x_end_in) / (spec.feed_per_rev_in * spec.rpm / 60.0)
+    }
+}
+
+/// The stretches of the pass: one band per CMM radius, or the whole pass.
+pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
+    let f = spec.feed_per_rev_in;
+    let windows: Vec<(f64, f64)> = CMM_X_IN
+        .iter()
+        .map(|&x| {
+            let xc = x / contact_gain;
+            (xc - spec.band_half_in, xc + spec.band_half_in)
+        })
+        .collect();
+    if spec.full {
+        return vec![Stretch {
+            x_start_in: spec.x_start_in,
+            x_end_in: 0.0,
+            windows,
+            index: 0,
+        }];
+    }
+    windows
+        .into_iter()
+        .enumerate()
+        .map(|(k, (lo, hi))| Stretch {
+            x_start_in: hi + spec.preroll_revs * f,
+            x_end_in: lo - 2.0 * f,
+            windows: vec![(lo, hi)],
+            index: k as u64 + 1,
+        })
+        .collect()
+}
+
+/// What a stretch returns.
+#[derive(Debug, Default)]
+pub struct StretchResult {
+    pub log: StretchLog,
+    pub simulated_s: f64,
+    pub wall_s: f64,
+    pub faults: Vec<String>,
+}
+
+/// Extra outputs of one stretch.
+#[derive(Clone, Debug, Default)]
+pub struct Extras {
+    /// Write a VCD of `(from, to)` seconds after the recording starts.
+    pub vcd: Option<(std::path::PathBuf, f64, f64)>,
+    /// Keep a tick-by-tick trace of this many seconds of the recording.
+    pub trace_s: f64,
+}
+
+/// Seeds of stretch `index` (0 = the scenario's own).
+fn seeded(sc: &Scenario, index: u64) -> Scenario {
+    let mut sc = sc.clone();
+    if index == 0 {
+        return sc;
+    }
+    let mix = index.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    sc.rig.seed ^= mix;
+    match &mut sc.machine.x {
+        XInterface::LegacyBcd(c) | XInterface::Quadrature(c) => c.seed ^= mix,
+    }
+    sc.machine.spindle.seed ^= mix;
+    sc
+}
+
+/// Simulates one stretch; `progress(simulated_s)` after every chunk.
+pub fn run_stretch(
+    spec: &CutSpec,
+    st: &Stretch,
+    extras: &Extras,
+    progress: &(dyn Fn(f64) + Sync),
+) -> anyhow::Result<StretchResult> {
+    let wall0 = Instant::now();
+    let sc = seeded(&spec.scenario, st.index);
+    let mut machine = sc.machine.clone();
+    let feed = spec.feed_in_per_min();
+    match &mut machine.x {
+        XInterface::LegacyBcd(c) | XInterface::Quadrature(c) => {
+            c.x0_in = st.x_start_in;
+            c.feed = vec![crate::machine::xslide::FeedSegment {
+                t_start_s: 0.0,
+                feed_in_per_min: feed,
+            }];
+        }
+    }
+    machine.spindle.rpm0 = spec.rpm;
+    let mut cutting = sc.cutting.clone();
+    cutting.bolt_holes.filled = spec.holes == Holes::Filled;
+    let (surf, x_null) = spec.surface()?;
+    let eng = engage::Engagement::new(&cutting, spec.depth_in, spec.feed_per_rev_in);
+    let total_s = st.seconds(spec);
+    let v = feed / 60.0;
+    let rec_start_s = st
+        .windows
+        .iter()
+        .map(|&(_, hi)| (hi - st.x_start_in) / v)
+        .fold(f64::INFINITY, f64::min)
+        .max(0.0);
+    let cutter = Rc::new(RefCell::new(Cutter::new(
+        eng,
+        surf,
+        x_null,
+        machine.spindle.index_phase_turns,
+        st.windows.clone(),
+        (rec_start_s, rec_start_s + extras.trace_s),
+        // The slide starts at null, the firmware unreferenced: the stock
+        // memory starts after a third of the pre-roll (at least 5 revs).
+        (rec_start_s / 3.0).max(5.0 * 60.0 / spec.rpm),
+    )));
+    let (mut w, mut s) = machine_with(sc.rig.clone(), &machine, sc.loop_hz, sc.servo);
+    spec.controller.attach(&mut w, &mut s);
+    w.fw.set_target_code((spec.z_offset_in * run::CODES_PER_IN).round() as i32);
+    w.hook = Some(Box::new(SharedCutter(cutter.clone())));
+    let trace = match &extras.vcd {
+        Some((path, from, to)) => {
+            let file = std::io::BufWriter::new(
+                std::fs::File::create(path)
+                    .with_context(|| format!("cannot write {}", path.display()))?,
+            );
+            let t0 = ((rec_start_s + from) * 1e9) as u64;
+            let t1 = ((rec_start_s + to) * 1e9) as u64;
+            Some(crate::vcd::machine::attach(&mut s, file, t0, t1)?)
+        }
+        None => None,
+    };
+    let t_end = (total_s * 1e9) as u64;
+    let chunk = 500_000_000u64;
+    let mut t = 0;
+    while t < t_end {
+        t = (t + chunk).min(t_end);
+        s.run_until(&mut w, t);
+        progress(chunk.min(t_end) as f64 * 1e-9);
+    }
+    if let Some(tr) = trace {
+        crate::vcd::machine::detach(&mut s, tr)?;
+    }
+    let mut faults = Vec::new();
+    if let Some(f) = w.fw.fault() {
+        faults.push(format!("{f:?}"));
+    }
+    if let Some(f) = w.stats().and_then(|m| m.last_fault) {
+        let s = format!("{f:?}");
+        if !faults.contains(&s) {
+            faults.push(s);
+        }
+    }
+    if w.rig.amp.tripped() {
+        faults.push("AmplifierTrip".to_string());
+    }
+    w.hook = None;
+    let log = match Rc::try_unwrap(cutter) {
+        Ok(c) => c.into_inner().log,
+        Err(_) => bail!("cutter still shared after the run"),
+    };
+    Ok(StretchResult {
+        log,
+        simulated_s: total_s,
+        wall_s: wall0.elapsed().as_secs_f64(),
+        faults,
+    })
+}
+
+/// The measured pass.
+#[derive(Debug)]
+pub struct CutOutcome {
+    pub grid: CmmGrid,
+    pub passes: PassLog,
+    pub following_error_rms_uin: f64,
+    pub following_error_peak_uin: f64,
+    /// Mean cutting force while recording, lbf.
+    pub mean_force_lbf: f64,
+    /// Tick-by-tick (t s, following error µin, force lbf) of the trace
+    /// stretch.
+    pub trace: Vec<(f64, f64, f64)>,
+    pub simulated_s: f64,
+    pub wall_s: f64,
+    /// Σ of the stretches' own wall times (one core's work).
+    pub cpu_s: f64,
+    pub faults: Vec<String>,
+    pub stretches: usize,
+}
+
+/// Runs the plan (stretches in parallel), measures the part.
+/// `progress(simulated_s)` is called from the worker threads.
+pub fn run_pass(
+    spec: &CutSpec,
+    extras_for: impl Fn(&Stretch) -> Extras + Sync,
+    progress: &(dyn Fn(f64) + Sync),
+) -> anyhow::Result<CutOutcome> {
+    let (surf, _) = spec.surface()?;
+    let gain = surf.contact_gain();
+    let stretches = plan(spec, gain);
+    let wall0 = Instant::now();
+    let results: Vec<anyhow::Result<StretchResult>> = stretches
+        .par_iter()
+        .map(|st| run_stretch(spec, st, &extras_for(st), progress))
+        .collect();
+    let wall_s = wall0.elapsed().as_secs_f64();
+    let mut passes = PassLog::new();
+    let (mut sum_sq, mut n, mut peak, mut force) = (0.0, 0u64, 0.0f64, 0.0);
+    let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
+    let mut faults = Vec::new();
+    let mut trace = Vec::new();
+    for r in results {
+        let r = r?;
+        passes.merge(r.log.passes);
+        sum_sq += r.log.fe_sum_sq;
+        n += r.log.fe_n;
+        peak = peak.max(r.log.fe_peak);
+        force += r.log.force_sum;
+        simulated_s += r.simulated_s;
+        cpu_s += r.wall_s;
+        if trace.is_empty() {
+            trace = r.log.trace;
+        }
+        for f in r.faults {
+            if !faults.contains(&f) {
+                faults.push(f);
+            }
+        }
+    }
+    let holes = engage::HoleRing::new(&crate::plant::cutting::BoltHoles {
+        filled: spec.holes == Holes::Filled,
+        ..spec.scenario.cutting.bolt_holes.clone()
+    });
+    let grid = CmmGrid::measure(
+        &passes,
+        gain,
+        spec.scenario.cutting.tool_radius_in,
+        spec.feed_per_rev_in,
+        |x, phi_deg| holes.over_hole(x, phi_deg / 360.0),
+    );
+    let nf = n.max(1) as f64;
+    Ok(CutOutcome {
+        grid,
+        passes,
+        following_error_rms_uin: (sum_sq / nf).sqrt() * 1e6,
+        following_error_peak_uin: peak * 1e6,
+        mean_force_lbf: force / nf,
+        trace,
+        simulated_s,
+        wall_s,
+        cpu_s,
+        faults,
+        stretches: stretches.len(),
+    })
+}
