@@ -206,20 +206,19 @@ fn write_plots(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
     .collect();
     {
         use plotters::prelude::*;
+        crate::plot::register_font();
         let path = dir.join("center_residual.svg");
         let root = SVGBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_residual(&root, &residual, true)?;
+        plot_residual(&root, &residual)?;
         let path = dir.join("center_slides.svg");
         let root = SVGBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_slides(&root, o, true)?;
+        plot_slides(&root, o)?;
         let path = dir.join("center_residual.png");
-        // The PNGs carry no text: the machine has no font to render it
-        // with; the SVGs (same data) are labelled.
         let root = BitMapBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_residual(&root, &residual, false)?;
+        plot_residual(&root, &residual)?;
         let path = dir.join("center_slides.png");
         let root = BitMapBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_slides(&root, o, false)?;
+        plot_slides(&root, o)?;
     }
     Ok(())
 }
@@ -227,7 +226,6 @@ fn write_plots(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
 fn plot_residual<DB: plotters::prelude::DrawingBackend>(
     root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
     residual: &[(f64, f64)],
-    text: bool,
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
@@ -239,30 +237,19 @@ where
     let hi = residual.iter().map(|p| p.1).fold(0.0, f64::max) * 3.0;
     let mut b = ChartBuilder::on(root);
     b.margin(10);
-    if text {
-        b.caption(
-            "residual off-centre after each correction cycle (in)",
-            ("sans-serif", 18),
-        )
-        .x_label_area_size(30)
-        .y_label_area_size(70);
-    }
+    b.caption(
+        "residual off-centre after each correction cycle (in)",
+        ("sans-serif", 18),
+    )
+    .x_label_area_size(30)
+    .y_label_area_size(70);
     let mut ch = b
         .build_cartesian_2d(0.0..n - 1.0, (lo..hi).log_scale())
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    if text {
-        ch.configure_mesh()
-            .x_desc("cycle")
-            .draw()
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-    } else {
-        ch.configure_mesh()
-            .disable_axes()
-            .x_labels(0)
-            .y_labels(0)
-            .draw()
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-    }
+    ch.configure_mesh()
+        .x_desc("cycle")
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     ch.draw_series(LineSeries::new(residual.iter().copied(), &BLUE))
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     ch.draw_series(residual.iter().map(|&p| Circle::new(p, 4, BLUE.filled())))
@@ -274,7 +261,6 @@ where
 fn plot_slides<DB: plotters::prelude::DrawingBackend>(
     root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
     o: &Outcome,
-    text: bool,
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
@@ -295,27 +281,16 @@ where
     let pad = ((hi - lo) * 0.05).max(1e-6);
     let mut b = ChartBuilder::on(root);
     b.margin(10);
-    if text {
-        b.caption("slide positions (in)", ("sans-serif", 18))
-            .x_label_area_size(30)
-            .y_label_area_size(70);
-    }
+    b.caption("slide positions (in)", ("sans-serif", 18))
+        .x_label_area_size(30)
+        .y_label_area_size(70);
     let mut ch = b
         .build_cartesian_2d(0.0..t1, lo - pad..hi + pad)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    if text {
-        ch.configure_mesh()
-            .x_desc("t (s)")
-            .draw()
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-    } else {
-        ch.configure_mesh()
-            .disable_axes()
-            .x_labels(0)
-            .y_labels(0)
-            .draw()
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-    }
+    ch.configure_mesh()
+        .x_desc("t (s)")
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     ch.draw_series(LineSeries::new(
         o.trace.iter().map(|p| (p.t_s, p.slide_x_in)),
         &BLUE,
@@ -330,12 +305,10 @@ where
     .map_err(|e| anyhow::anyhow!("{e}"))?
     .label("Y'")
     .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-    if text {
-        ch.configure_series_labels()
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-    }
+    ch.configure_series_labels()
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
 }

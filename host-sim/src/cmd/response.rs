@@ -260,6 +260,7 @@ fn plot_bode(
     title: &str,
 ) -> anyhow::Result<()> {
     use plotters::prelude::*;
+    crate::plot::register_font();
     let root = SVGBackend::new(path, (900, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let (top, bottom) = root.split_vertically(350);
