@@ -611,14 +611,16 @@ mod tests {
 
     /// The velocity estimate's noise gain, against the raw difference it
     /// replaces: a difference of two samples of white noise σ has RMS
-    /// √2·σ·fs (0.28 in/s per µin at 20 kHz); the observer's estimate at
-    /// 40 Hz passes well under a hundredth of that.
+    /// √2·σ·fs (0.028 in/s per µin at 20 kHz); the observer's estimate at
+    /// 250 Hz passes under a fiftieth of that (measured 4.8e-4: the 40 Hz
+    /// observer of the first design passed 1.2e-5, but could not hold the
+    /// cut's process spring, `docs/TUNING.md`).
     #[test]
     fn velocity_estimate_noise_gain_is_far_below_a_raw_difference() {
         let g = ServoDesign::brief(20_000).velocity_noise_gain().unwrap();
         let raw = core::f64::consts::SQRT_2 * 20_000.0 * 1e-6;
         std::eprintln!("velocity noise gain {g:.3e} in/s per µin RMS (raw difference {raw:.3e})");
-        assert!(g < raw / 100.0, "{g} vs {raw}");
+        assert!(g < raw / 50.0, "{g} vs {raw}");
     }
 
     #[test]
