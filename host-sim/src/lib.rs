@@ -15,6 +15,7 @@ pub mod plant;
 pub mod plot;
 pub mod scenario;
 pub mod sched;
+pub mod soak;
 pub mod surface;
 pub mod track;
 pub mod vcd;

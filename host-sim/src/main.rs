@@ -33,6 +33,8 @@ enum Command {
     Center(cmd::center::Args),
     /// Fault injection campaign.
     Faults(cmd::faults::Args),
+    /// Hours of machine time with shop-floor disturbances, a summary per hour.
+    Soak(cmd::soak::Args),
     /// Cost of one plant step and of one simulated second at the loop rate.
     Bench(cmd::bench::Args),
 }
@@ -58,6 +60,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Cut(a) => cmd::cut::run(a),
         Command::Center(a) => cmd::center::run(a),
         Command::Faults(a) => cmd::faults::run(a),
+        Command::Soak(a) => cmd::soak::run(a),
         Command::Bench(a) => cmd::bench::run(a),
     }
 }

@@ -284,6 +284,13 @@ pub struct Spindle {
     pub tach_gain_error: f64,
     /// Tachometer noise, mV RMS.
     pub tach_noise_mv: f64,
+    /// Timing jitter of the index edge, µs RMS (0 when absent).
+    #[serde(default)]
+    pub index_jitter_us: f64,
+    /// Random speed drift, a new offset each revolution, rpm RMS (0 when
+    /// absent).
+    #[serde(default)]
+    pub speed_noise_rpm: f64,
     /// Speed band the firmware accepts, rpm.
     pub min_rpm: u32,
     pub max_rpm: u32,
@@ -422,6 +429,13 @@ impl ScenarioFile {
         check("spindle.tach_mv_per_rpm", s.tach_mv_per_rpm, 0.001, 1000.0)?;
         check("spindle.tach_gain_error", s.tach_gain_error, -0.5, 0.5)?;
         check("spindle.tach_noise_mv", s.tach_noise_mv, 0.0, 1000.0)?;
+        check("spindle.index_jitter_us", s.index_jitter_us, 0.0, 1000.0)?;
+        check(
+            "spindle.speed_noise_rpm",
+            s.speed_noise_rpm,
+            0.0,
+            s.rpm / 10.0,
+        )?;
         Ok(())
     }
 
@@ -498,6 +512,8 @@ impl ScenarioFile {
                 tach_mv_per_rpm: s.tach_mv_per_rpm,
                 tach_gain_error: s.tach_gain_error,
                 tach_noise_mv: s.tach_noise_mv,
+                index_jitter_us: s.index_jitter_us,
+                speed_noise_rpm: s.speed_noise_rpm,
                 ticks_per_s: self.loop_.clock_hz as f64,
                 seed: self.seed ^ 0x5350,
             },

@@ -7,5 +7,6 @@ pub mod csmp;
 pub mod cut;
 pub mod faults;
 pub mod response;
+pub mod soak;
 pub mod track;
 pub mod zcmd;

@@ -3,6 +3,7 @@
 //!
 //! * [`engage`]: the tool's engagement with the stock and the cutting force
 //!   on the slide, every loop tick;
+//! * [`nominal`]: the exact command at the true X and φ, exact and per tick;
 //! * [`run`]: one stretch of the pass through the real firmware
 //!   (`fwrig`), recording the tool-centre path at the CMM angles;
 //! * [`part`]: the surface as the envelope of the tool nose, the CMM grid,
@@ -19,6 +20,7 @@
 //! Conventions and the model: docs/CUT.md.
 
 pub mod engage;
+pub mod nominal;
 pub mod part;
 pub mod plot;
 pub mod run;
@@ -276,8 +278,7 @@ pub fn run_stretch(
         .max(0.0);
     let cutter = Rc::new(RefCell::new(Cutter::new(
         eng,
-        surf,
-        x_null,
+        nominal::Nominal::new(surf, x_null),
         machine.spindle.index_phase_turns,
         st.windows.clone(),
         (rec_start_s, rec_start_s + extras.trace_s),

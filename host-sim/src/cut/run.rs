@@ -5,27 +5,16 @@
 //! measures.
 
 use super::engage::Engagement;
+use super::nominal::Nominal;
 use super::part::{Pass, PassLog, CMM_PHI_COUNT};
-use crate::coeffgen::{eval_sin_power, harmonics};
 use crate::fwrig::{Machine, TickHook};
 use crate::plant::Rig;
-use crate::surface::Surface;
 use std::cell::RefCell;
-use std::f64::consts::TAU;
 use std::rc::Rc;
 use zslide::firmware::Firmware;
 
 /// Gauge codes per inch (2¹⁹ codes = 0.010 in).
 pub const CODES_PER_IN: f64 = (1u32 << 19) as f64 / 0.010;
-
-/// Sin-power terms of the per-tick nominal (harmonics 0..8: below 1e-4 µin
-/// truncation at 7.2 in, like the default table's five).
-const NOMINAL_TERMS: usize = 9;
-/// X travel after which the per-tick nominal is re-expanded, in. It only
-/// sets the depth of cut of the force law (the CMM uses the exact Z):
-/// |∂Z/∂X| < 0.002 makes it < 0.1 µin of a 300 µin depth. (At 5 µin the
-/// re-expansion was 15 % of a simulated second under callgrind.)
-const NOMINAL_REFRESH_IN: f64 = 50e-6;
 
 /// Cutting force that counts as full spindle load (a 0.010 in roughing cut
 /// at the outer edge, 3–4 A on the slide: 10 lbf at 7.25 in).
@@ -51,8 +40,7 @@ pub struct StretchLog {
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
 pub struct Cutter {
     eng: Engagement,
-    surf: Surface,
-    x_null: f64,
+    nominal: Nominal,
     index_phase_turns: f64,
     /// Recording windows of tool-centre X, in (lo, hi).
     windows: Vec<(f64, f64)>,
@@ -61,8 +49,6 @@ pub struct Cutter {
     /// Time at which the start-up transient is over and the stock memory
     /// starts afresh, s (NaN once done).
     settle_s: f64,
-    nominal: Vec<f64>,
-    nominal_x: f64,
     prev: Option<(f64, f64, f64)>,
     rev: i64,
     rev_force_sum: f64,
@@ -73,8 +59,7 @@ pub struct Cutter {
 impl Cutter {
     pub fn new(
         eng: Engagement,
-        surf: Surface,
-        x_null: f64,
+        nominal: Nominal,
         index_phase_turns: f64,
         windows: Vec<(f64, f64)>,
         trace_window: (f64, f64),
@@ -83,13 +68,10 @@ impl Cutter {
         Self {
             settle_s,
             eng,
-            surf,
-            x_null,
+            nominal,
             index_phase_turns,
             windows,
             trace_window,
-            nominal: vec![0.0; NOMINAL_TERMS],
-            nominal_x: f64::NAN,
             prev: None,
             rev: i64::MIN,
             rev_force_sum: 0.0,
@@ -99,31 +81,6 @@ impl Cutter {
                 ..StretchLog::default()
             },
         }
-    }
-
-    /// Exact Z command at tool-centre `x` and angle φ (turns): the part's
-    /// nominal; zero on the face beyond the table's null zone.
-    fn exact_z(&self, x: f64, phi_turns: f64) -> f64 {
-        if x >= self.x_null || x < 0.0 {
-            return 0.0;
-        }
-        self.surf.z(x, phi_turns * TAU).unwrap_or(0.0)
-    }
-
-    fn nominal_now(&mut self, x: f64, phi_turns: f64) -> f64 {
-        if x >= self.x_null || x < 0.0 {
-            return 0.0;
-        }
-        if (x - self.nominal_x).abs() >= NOMINAL_REFRESH_IN || self.nominal_x.is_nan() {
-            match self.surf.section(x) {
-                Ok(sec) => {
-                    self.nominal = harmonics(&sec, NOMINAL_TERMS - 1).sin_power(NOMINAL_TERMS)
-                }
-                Err(_) => self.nominal.iter_mut().for_each(|c| *c = 0.0),
-            }
-            self.nominal_x = x;
-        }
-        eval_sin_power(&self.nominal, (phi_turns * TAU).sin())
     }
 
     fn recording(&self, x: f64) -> bool {
@@ -141,7 +98,7 @@ impl TickHook for Cutter {
         // The tool rides on the slide carriage (not on the coil frame the
         // gauge also sees).
         let z = rig.slide.position_in();
-        let e = z - self.nominal_now(x, phi);
+        let e = z - self.nominal.fast(x, phi);
         if t_s >= self.settle_s {
             self.eng.reset_memory();
             self.settle_s = f64::INFINITY;
@@ -189,7 +146,7 @@ impl TickHook for Cutter {
                     let xc = x0 + (x - x0) * w;
                     let zc = z0 + (z - z0) * w;
                     let i = k.rem_euclid(CMM_PHI_COUNT as i64) as usize;
-                    let ec = zc - self.exact_z(xc, i as f64 / n);
+                    let ec = zc - self.nominal.exact(xc, i as f64 / n);
                     self.log.passes.by_phi[i].push(Pass { x_in: xc, e_in: ec });
                 }
             }

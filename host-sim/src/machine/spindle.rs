@@ -39,6 +39,13 @@ pub struct SpindleConfig {
     pub tach_gain_error: f64,
     /// Tachometer noise, mV rms (uniform).
     pub tach_noise_mv: f64,
+    /// Timing jitter of the true index edge, µs rms (uniform): the
+    /// photodiode's threshold on a slow edge, the mark's contamination.
+    pub index_jitter_us: f64,
+    /// Random drift of the speed, rpm rms (uniform): a new offset of the
+    /// speed's target every revolution (drive and belt), approached at the
+    /// acceleration limit.
+    pub speed_noise_rpm: f64,
     /// Clock of the timestamps, ticks per second (wraps at 2³²).
     pub ticks_per_s: f64,
     pub seed: u64,
@@ -58,6 +65,8 @@ impl Default for SpindleConfig {
             tach_mv_per_rpm: 5000.0 / 300.0,
             tach_gain_error: 0.0,
             tach_noise_mv: 0.0,
+            index_jitter_us: 0.0,
+            speed_noise_rpm: 0.0,
             ticks_per_s: 1.0e6,
             seed: 1,
         }
@@ -85,6 +94,8 @@ pub struct Spindle {
     rpm: f64,
     set_rpm: f64,
     load: f64,
+    /// This revolution's random speed offset (`speed_noise_rpm`), rpm.
+    speed_offset_rpm: f64,
     last_edge_ticks: u32,
 }
 
@@ -99,6 +110,7 @@ impl Spindle {
             t_ns: 0,
             turns: 0.0,
             load: 0.0,
+            speed_offset_rpm: 0.0,
             last_edge_ticks: 0,
         }
     }
@@ -175,6 +187,7 @@ impl Spindle {
     fn target_rpm(&self, turns: f64) -> f64 {
         self.set_rpm - self.cfg.sag_rpm * self.load
             + self.cfg.ripple_rpm * (std::f64::consts::TAU * turns).sin()
+            + self.speed_offset_rpm
     }
 
     /// Advances to `t_ns` in steps of `step_ns`, appending index pulses.
@@ -206,13 +219,29 @@ impl Spindle {
                     .rng
                     .random_bool(self.cfg.index_loss_prob.clamp(0.0, 1.0))
                 {
-                    let t = at(k);
+                    // The jittered edge: its time and the angle the spindle
+                    // has reached then. No draw when off, so the other
+                    // random streams are unchanged.
+                    let (t, a) = if self.cfg.index_jitter_us > 0.0 {
+                        let j_s = self.rng.random_range(-1.0..1.0)
+                            * self.cfg.index_jitter_us
+                            * 3f64.sqrt()
+                            * 1e-6;
+                        let t = (at(k) as f64 + j_s * 1e9).max(self.t_ns as f64) as u64;
+                        (t, k + r0 / 60.0 * j_s)
+                    } else {
+                        (at(k), k)
+                    };
                     out.push(IndexPulse {
                         t_ns: t,
                         edge_ticks: self.ticks_at(t),
-                        count: self.count_of(k),
+                        count: self.count_of(a),
                         spurious: false,
                     });
+                }
+                if self.cfg.speed_noise_rpm > 0.0 {
+                    self.speed_offset_rpm =
+                        self.rng.random_range(-1.0..1.0) * self.cfg.speed_noise_rpm * 3f64.sqrt();
                 }
                 k += 1.0;
             }
