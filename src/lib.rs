@@ -31,6 +31,7 @@ pub mod setpoint;
 pub mod servo;
 pub mod looptick;
 pub mod drivers;
+pub mod watchdog;
 // The bundle the boards and host-sim use.
 pub mod firmware;
 // The second system on the same core (Feezell 1967).

@@ -41,6 +41,7 @@ mod app {
     use zslide::servo::ServoConfig;
     use zslide::spindle::EncoderConfig;
     use zslide::units::SpindleAngle;
+    use zslide::watchdog::FeedGate;
 
     use crate::board::gpio::Output;
     use crate::board::spi::{self, NoCs, SpiDev};
@@ -222,7 +223,14 @@ mod app {
         let mut reported_fault = false;
         // The arm button, debounced: a level held 20 ms is a press.
         let (mut button, mut since) = (false, timers::micros());
+        // Fed here, below every handler, and only when the loop tick ran
+        // (`zslide::watchdog`): a hung handler or a stopped loop tick
+        // lets the 10 ms watchdog reset the chip.
+        let mut gate = FeedGate::new(TICKS.load(Ordering::Relaxed), 1);
         loop {
+            if gate.may_feed(TICKS.load(Ordering::Relaxed)) {
+                timers::feed_watchdog();
+            }
             let level = pins::ARM_BUTTON.is_high();
             let now = timers::micros();
             if level != button && now.wrapping_sub(since) >= 20_000 {
@@ -291,7 +299,6 @@ mod app {
         let enable = l.lp.amplifier_enable();
         pins::AMP_ENABLE.set(enable);
         ARMED.store(enable, Ordering::Relaxed);
-        timers::feed_watchdog();
         TICKS.store(l.lp.ticks(), Ordering::Relaxed);
         if let Some(f) = l.lp.fault() {
             if !FAULT_PUBLISHED.load(Ordering::Relaxed) {

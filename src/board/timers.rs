@@ -6,7 +6,7 @@
 //! | TIM3 | 200 MHz, ARR = 200 MHz / [`LOOP_HZ`] − 1 | loop period; CH1 PWM = gauge CNV pulse on PC6, high for [`CNV_HIGH_TICKS`] from each update; CH2 compare at [`READ_AT_TICKS`] raises the loop-tick interrupt |
 //! | TIM2 | 200 MHz, free-running 32 bit | `hw::Clock` (5 ns ticks, wraps every 21.5 s) |
 //! | TIM5 | 1 MHz, free-running 32 bit | defmt timestamp, µs (wraps every 71.6 min) |
-//! | IWDG1 | LSI 32 kHz / 4 | 10 ms watchdog, refreshed by the loop tick |
+//! | IWDG1 | LSI 32 kHz / 4 | 10 ms watchdog, refreshed by the background when the loop tick ran (`zslide::watchdog`) |
 //!
 //! The AD4020 converts on CNV's rising edge (t_CONV ≤ 320 ns) and, in its
 //! three-wire mode with SDI high, puts its result on SDO once CNV falls; so
@@ -106,7 +106,7 @@ pub fn start_watchdog(iwdg: &IWDG, dbgmcu: &DBGMCU) {
     }
 }
 
-/// Reloads the watchdog (from the loop tick).
+/// Reloads the watchdog (from the background, through `zslide::watchdog::FeedGate`).
 pub fn feed_watchdog() {
     // SAFETY: 0xAAAA into IWDG_KR only reloads the counter.
     unsafe { (*IWDG::ptr()).kr().write(|w| w.bits(0xAAAA)) };
