@@ -173,8 +173,7 @@ fn gauge_noise_moves_the_slide_less_than_a_quarter_of_its_rms_at_null() {
 /// The 1979 plan's dynamic-error goal: a 10 Hz × 0.004 in spindle-synchronous
 /// command followed within 10 µin peak (true slide position from the plant
 /// minus the exact command) after learning (`host-sim track` on legacy-hw:
-/// 8.4 µin peak, gauge
-/// noise through the 45 Hz loop).
+/// 7.8 µin peak, gauge noise through the 45 Hz loop).
 #[test]
 fn ten_hz_command_is_followed_within_ten_microinch_peak_after_learning() {
     let r = run(

@@ -21,8 +21,8 @@ fn spec(controller: Controller) -> TrackSpec {
 }
 
 /// The 1979 plan's goal on the 1983 machine (legacy-hw): 10 Hz × 0.004 in
-/// followed within 10 µin peak after learning, no fault (measured 8.4 µin
-/// peak, 2.35 µin RMS).
+/// followed within 10 µin peak after learning, no fault (measured 7.8 µin
+/// peak, 2.26 µin RMS).
 #[test]
 fn digital_loop_follows_10_hz_within_10_microinch_on_legacy_hw() {
     let r = run(&load("legacy-hw").unwrap(), &spec(Controller::Digital)).unwrap();

@@ -171,7 +171,7 @@ impl ServoDesign {
             hum_notch_q: 20.0,
             mode_notch_hz: 3150.0,
             mode_notch_q: 0.7,
-            learning_gain: 0.4,
+            learning_gain: 0.3,
             learning_lead_bins: 3,
             learning_q_shift: 2,
             slew_in_per_s: 0.25,
