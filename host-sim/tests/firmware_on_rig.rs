@@ -98,7 +98,8 @@ fn fit_sine_is_exact_off_the_period_grid() {
 /// The digital loop's sensitivities on legacy-hw, measured through the
 /// chips with a sinusoid injected into the gauge's reading: margins a
 /// servo engineer accepts (measured: crossover 94.5 Hz, phase margin 40°,
-/// gain margin 10.7 dB at 271 Hz, peak |S| 5.9 dB); the 120 Hz hum notch on
+/// gain margin 10.5 dB at 268 Hz, peak |S| 6.0 dB with the board's 8.5 µs
+/// DAC latency); the 120 Hz hum notch on
 /// the feedback makes T at 120 Hz very small (the loop does not drive
 /// the slide with hum); S → 1 far above the loop.
 #[test]
