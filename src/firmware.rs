@@ -469,6 +469,7 @@ mod tests {
             max_rpm: 3000,
             index_tolerance_counts: 4,
             index_angle: SpindleAngle(0),
+            edge_stamps: crate::spindle::EdgeStamps::Captured,
         }
     }
 

@@ -75,6 +75,7 @@ mod app {
                 max_rpm: 1_200,
                 index_tolerance_counts: 4,
                 index_angle: SpindleAngle(0),
+                edge_stamps: zslide::spindle::EdgeStamps::AtRead,
             }),
             x: XMode::Legacy {
                 clock_hz: timers::CLOCK_HZ,

@@ -60,6 +60,7 @@ fuzz_target!(|data: &[u8]| {
                 max_rpm: file.spindle.max_rpm,
                 index_tolerance_counts: 2,
                 index_angle: SpindleAngle(0),
+                edge_stamps: zslide::spindle::EdgeStamps::Captured,
             };
             assert!(
                 EncoderAngle::new(enc).is_some(),

@@ -41,6 +41,7 @@ fn encoder(c: &[u8], events: &[u8]) {
         max_rpm: u32_at(c, 12),
         index_tolerance_counts: u32_at(c, 16),
         index_angle: SpindleAngle(u32_at(c, 20)),
+        edge_stamps: zslide::spindle::EdgeStamps::Captured,
     };
     let valid = cfg.counts_per_rev >= 4
         && cfg.ticks_per_s > 0

@@ -66,6 +66,8 @@ pub struct MachineConfig {
     pub x: XInterface,
     pub spindle: SpindleConfig,
     pub sensor: SpindleSensor,
+    /// The encoder's edge timestamps as the board gives them.
+    pub encoder_edges: zslide::spindle::EdgeStamps,
     /// Integration step of the spindle model, ns (speed changes over
     /// seconds: 250 µs keeps the angle's interpolation error far below a
     /// count; the angle is interpolated linearly inside a step).
@@ -96,6 +98,7 @@ impl MachineConfig {
                 ..SpindleConfig::default()
             },
             sensor: SpindleSensor::TachIndex,
+            encoder_edges: zslide::spindle::EdgeStamps::AtRead,
             spindle_step_ns: 250_000,
             x_step_ns: 100_000,
             window_ns: 5_000_000,
@@ -373,12 +376,15 @@ impl FirmwareWorld {
                     max_rpm: m.max_rpm,
                     index_tolerance_counts: 2,
                     index_angle,
+                    edge_stamps: m.encoder_edges,
                 };
                 (
                     AngleState::Encoder {
                         dev: SimSpindleEncoder {
                             link: link.clone(),
                             time: time.clone(),
+                            edges: m.encoder_edges,
+                            last: None,
                         },
                         est: EncoderAngle::new(c).expect("valid encoder configuration"),
                     },

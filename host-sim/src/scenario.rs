@@ -284,6 +284,11 @@ pub struct Spindle {
     pub tach_gain_error: f64,
     /// Tachometer noise, mV RMS.
     pub tach_noise_mv: f64,
+    /// The encoder's edge timestamps: "at-read" (the count read at the
+    /// loop tick, a change stamped with the read time: the NUCLEO's code;
+    /// the default) or "captured" (a timer input capture per edge).
+    #[serde(default = "default_encoder_edges")]
+    pub encoder_edges: String,
     /// Timing jitter of the index edge, µs RMS (0 when absent).
     #[serde(default)]
     pub index_jitter_us: f64,
@@ -384,6 +389,12 @@ impl ScenarioFile {
         check("x.jitter_uin", x.jitter_uin, 0.0, 1000.0)?;
         check("x.ripple_prob", x.ripple_prob, 0.0, 1.0)?;
         let s = &self.spindle;
+        if !matches!(s.encoder_edges.as_str(), "at-read" | "captured") {
+            anyhow::bail!(
+                "spindle.encoder_edges = {:?}: expected \"at-read\" or \"captured\"",
+                s.encoder_edges
+            );
+        }
         if !matches!(s.sensor.as_str(), "tach-index" | "encoder-index") {
             bail!(
                 "spindle.sensor = {:?}: expected \"tach-index\" or \"encoder-index\"",
@@ -517,6 +528,11 @@ impl ScenarioFile {
                 ticks_per_s: self.loop_.clock_hz as f64,
                 seed: self.seed ^ 0x5350,
             },
+            encoder_edges: if s.encoder_edges == "captured" {
+                zslide::spindle::EdgeStamps::Captured
+            } else {
+                zslide::spindle::EdgeStamps::AtRead
+            },
             sensor: if s.sensor == "tach-index" {
                 SpindleSensor::TachIndex
             } else {
@@ -606,4 +622,8 @@ impl ScenarioArg {
     pub fn load(&self) -> anyhow::Result<Scenario> {
         load(&self.scenario)
     }
+}
+
+fn default_encoder_edges() -> String {
+    "at-read".into()
 }

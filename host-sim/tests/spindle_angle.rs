@@ -105,6 +105,7 @@ fn encoder() -> Est {
             max_rpm: 500,
             index_tolerance_counts: ENC_TOL_COUNTS,
             index_angle: SpindleAngle::from_degrees(INDEX_DEG),
+            edge_stamps: zslide::spindle::EdgeStamps::Captured,
         })
         .unwrap(),
     )

@@ -371,6 +371,7 @@ fn main() -> ! {
             // (timer 1 plays it back); the phase comes from the latched count.
             index_tolerance_counts: 32,
             index_angle: SpindleAngle(0),
+            edge_stamps: zslide::spindle::EdgeStamps::Captured,
         }),
         x: if cfg!(feature = "modern-x") {
             XMode::Count(X_COUNT_CFG)

@@ -187,6 +187,7 @@ pub fn run(s: &Setup) -> anyhow::Result<Outcome> {
             max_rpm: 26,
             index_tolerance_counts: 2,
             index_angle: SpindleAngle(0),
+            edge_stamps: zslide::spindle::EdgeStamps::Captured,
         },
         // The operator enters the part's nominal radius.
         part_radius: TableInches::from_f64(s.part.radius_in),

@@ -17,10 +17,13 @@
 //!
 //! # Encoder edges
 //! Encoder edges are not interrupts on the target: a timer in encoder mode
-//! counts them and captures the last edge's timestamp in hardware. The
-//! [`SimSpindleEncoder`] gives exactly that (count and edge time at the read
-//! instant), so no event per edge is needed; the firmware's 1/T estimator
-//! sees the same numbers as on the board.
+//! counts them. What the edge timestamp is depends on the board
+//! (`zslide::spindle::EdgeStamps`, the firmware is told the same): with input capture, the last edge's time in hardware
+//! (`Captured`: the [`SimSpindleEncoder`] gives the exact edge time); the
+//! NUCLEO's code today reads the count at each loop tick and stamps a
+//! change with the read time (`AtRead`: the simulator does exactly that,
+//! so the firmware's 1/T estimator sees no better times than on the
+//! board).
 
 use super::spindle::{IndexPulse, Spindle, SpindleConfig};
 use super::xslide::{XInterrupt, XSlide, XSlideConfig};
@@ -31,6 +34,7 @@ use std::cell::{Cell, RefCell};
 use std::collections::VecDeque;
 use std::rc::Rc;
 use zslide::hw::{Encoder, EncoderSample, Tachometer, XLatch, XLatchWord};
+use zslide::spindle::EdgeStamps;
 
 /// Clock ticks at `t_ns` for a clock of `ticks_per_s` (wrapping at 2³²),
 /// the same rounding as [`crate::chips::SimClock`].
@@ -207,11 +211,30 @@ pub type SharedSpindle = Rc<RefCell<SpindleLink>>;
 pub struct SimSpindleEncoder {
     pub link: SharedSpindle,
     pub time: SimTime,
+    pub edges: EdgeStamps,
+    /// The last sample (for `AtRead`: a count seen again keeps its stamp).
+    pub last: Option<EncoderSample>,
 }
 
 impl Encoder for SimSpindleEncoder {
     fn sample(&mut self) -> EncoderSample {
-        self.link.borrow_mut().encoder_at(self.time.get())
+        let t = self.time.get();
+        let mut link = self.link.borrow_mut();
+        let s = link.encoder_at(t);
+        match self.edges {
+            EdgeStamps::Captured => s,
+            EdgeStamps::AtRead => match self.last {
+                Some(l) if l.count == s.count => l,
+                _ => {
+                    let l = EncoderSample {
+                        count: s.count,
+                        edge_ticks: link.model().ticks_at(t),
+                    };
+                    self.last = Some(l);
+                    l
+                }
+            },
+        }
     }
 }
 
