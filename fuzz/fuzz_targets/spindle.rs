@@ -8,7 +8,8 @@
 //!   gain kept in [1/4, 4], re-phasing at an index bounded by rate × the
 //!   time between the edge and the last tick.
 //!
-//! Input: a mode byte, 24 configuration bytes, then 9-byte events
+//! Input: a mode byte (bit 0: tachometer; bit 1: encoder edges stamped at
+//! the read, `EdgeStamps::AtRead`), 24 configuration bytes, then 9-byte events
 //! `[kind, a: u32 LE, b: u32 LE]`.
 #![no_main]
 
@@ -33,7 +34,7 @@ fn period(ticks_per_s: u32, rpm: u32) -> u64 {
     u64::from(ticks_per_s) * 60 / u64::from(rpm)
 }
 
-fn encoder(c: &[u8], events: &[u8]) {
+fn encoder(c: &[u8], events: &[u8], at_read: bool) {
     let cfg = EncoderConfig {
         counts_per_rev: u32_at(c, 0),
         ticks_per_s: u32_at(c, 4),
@@ -41,7 +42,11 @@ fn encoder(c: &[u8], events: &[u8]) {
         max_rpm: u32_at(c, 12),
         index_tolerance_counts: u32_at(c, 16),
         index_angle: SpindleAngle(u32_at(c, 20)),
-        edge_stamps: zslide::spindle::EdgeStamps::Captured,
+        edge_stamps: if at_read {
+            zslide::spindle::EdgeStamps::AtRead
+        } else {
+            zslide::spindle::EdgeStamps::Captured
+        },
     };
     let valid = cfg.counts_per_rev >= 4
         && cfg.ticks_per_s > 0
@@ -256,7 +261,7 @@ fuzz_target!(|data: &[u8]| {
     }
     let (cfg, events) = data[1..].split_at(24);
     if data[0] & 1 == 0 {
-        encoder(cfg, events);
+        encoder(cfg, events, data[0] & 2 != 0);
     } else {
         tach(cfg, events);
     }
