@@ -117,6 +117,63 @@ pub enum TableError {
     SignCheck,
 }
 
+/// The refusal in words, for a machinist reading a log or a terminal.
+impl core::fmt::Display for TableError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            TableError::Truncated { needed, got } => write!(
+                f,
+                "the image is cut short: {got} bytes where {needed} are needed"
+            ),
+            TableError::TrailingBytes { expected, got } => write!(
+                f,
+                "{got} bytes where the header describes {expected}: extra bytes after the coefficients"
+            ),
+            TableError::BadMagic => f.write_str("not a coefficient table (the file does not start with the table's magic)"),
+            TableError::UnsupportedVersion(v) => {
+                write!(f, "table format version {v} is not one this firmware reads")
+            }
+            TableError::BadHeaderLength(n) => {
+                write!(f, "header length {n} bytes is not this format version's")
+            }
+            TableError::HeaderCrc { stored, computed } => write!(
+                f,
+                "the header is corrupt: its CRC says {stored:#010x}, its bytes give {computed:#010x}"
+            ),
+            TableError::PayloadCrc { stored, computed } => write!(
+                f,
+                "the coefficients are corrupt: their CRC says {stored:#010x}, their bytes give {computed:#010x}"
+            ),
+            TableError::UnknownRepresentation(r) => {
+                write!(f, "unknown series representation code {r} (sin-power or harmonic expected)")
+            }
+            TableError::UnknownUnit(u) => write!(f, "unknown length unit code {u}"),
+            TableError::ReservedNotZero => f.write_str("reserved header bytes are not zero"),
+            TableError::AbsurdSize => f.write_str(
+                "node count, column count or fraction bits outside what the format allows",
+            ),
+            TableError::HarmonicColumnsNotOdd(n) => write!(
+                f,
+                "a harmonic table needs an odd number of columns (C0, then C_k/S_k pairs); it has {n}"
+            ),
+            TableError::NonMonotonicGrid => f.write_str("the X grid does not increase (step <= 0)"),
+            TableError::GridStepBelowResolution => f.write_str(
+                "the X grid step is finer than the firmware's X resolution (2^-24 in): nodes would coincide",
+            ),
+            TableError::GridOverflow => {
+                f.write_str("the last node's X does not fit the firmware's X format")
+            }
+            TableError::NullZoneOutsideGrid => f.write_str("the null-zone start lies outside the X grid"),
+            TableError::BadGeometry => f.write_str(
+                "a geometry field is out of range (c and S_y must be positive, the tool radius not negative)",
+            ),
+            TableError::SignCheck => f.write_str(
+                "the command is positive somewhere (Z must be <= 0 everywhere): a reversed sign convention, or a table for another surface",
+            ),
+        }
+    }
+}
+
 /// Everything in the header, decoded and checked.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]

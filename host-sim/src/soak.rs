@@ -273,7 +273,7 @@ pub fn run(spec: &SoakSpec, progress: &dyn Fn(f64)) -> anyhow::Result<Vec<HourSu
     }
     machine.spindle.speed_noise_rpm = spec.speed_noise_rpm;
     let t = zslide::table::CoeffTable::parse(zslide::DEFAULT_TABLE)
-        .map_err(|e| anyhow::anyhow!("default table refused: {e:?}"))?;
+        .map_err(|e| anyhow::anyhow!("default table refused: {e}"))?;
     let surf = crate::surface::Surface::from_table_geometry(&t.header().geometry)
         .map_err(|e| anyhow::anyhow!("table geometry: {e}"))?;
     let dt = 1.0 / f64::from(sc.loop_hz);

@@ -590,3 +590,32 @@ fn z_motion_is_slightly_under_8_mils() {
         e.z_peak_to_peak_in
     );
 }
+
+/// A refused table file is named and its defect said in words (not the
+/// error's Debug form): a corrupted coefficient byte, a file that is not a
+/// table at all.
+#[test]
+fn a_refused_table_file_is_named_and_explained_in_words() {
+    let dir = std::env::temp_dir().join(format!("zslide-bad-table-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut image = zslide::DEFAULT_TABLE.to_vec();
+    image[200] ^= 0x55;
+    let corrupt = dir.join("corrupt.zsct");
+    std::fs::write(&corrupt, &image).unwrap();
+    let junk = dir.join("junk.zsct");
+    std::fs::write(&junk, b"not a table").unwrap();
+    for (file, words) in [(&corrupt, "coefficients are corrupt"), (&junk, "cut short")] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["accuracy", "--table", file.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{err}");
+        assert!(
+            err.contains(file.to_str().unwrap()) && err.contains(words),
+            "{err}"
+        );
+        assert!(!err.contains('{'), "Debug form leaked: {err}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -62,7 +62,15 @@ pub struct TableInfo {
 /// The table image the firmware uses by default, or the one given.
 pub fn load_table(path: Option<&PathBuf>) -> anyhow::Result<Vec<u8>> {
     match path {
-        Some(p) => std::fs::read(p).with_context(|| format!("reading table {}", p.display())),
+        Some(p) => {
+            let image =
+                std::fs::read(p).with_context(|| format!("reading table {}", p.display()))?;
+            // Refused here, where the file's name is known.
+            if let Err(e) = CoeffTable::parse(&image) {
+                anyhow::bail!("table {} refused: {e}", p.display());
+            }
+            Ok(image)
+        }
         None => default_table(),
     }
 }
@@ -141,7 +149,7 @@ type XResult = (f64, bool, f64, f64, f64, u64);
 
 /// Measures a table image through the firmware path.
 pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<Report> {
-    let t = CoeffTable::parse(image).map_err(|e| anyhow::anyhow!("table refused: {e:?}"))?;
+    let t = CoeffTable::parse(image).map_err(|e| anyhow::anyhow!("table refused: {e}"))?;
     let gen = CommandGen::new(t);
     let g = t.header().geometry;
     let surface =

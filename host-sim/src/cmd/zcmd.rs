@@ -59,7 +59,7 @@ pub fn z_at(gen: &CommandGen, x_in: f64, phi_deg: f64) -> Result<f64, String> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let image = load_table(args.table.as_ref())?;
-    let t = CoeffTable::parse(&image).map_err(|e| anyhow!("table refused: {e:?}"))?;
+    let t = CoeffTable::parse(&image).map_err(|e| anyhow!("table refused: {e}"))?;
     let gen = CommandGen::new(t);
     let stdin = std::io::stdin();
     let mut out = BufWriter::new(std::io::stdout().lock());

@@ -131,7 +131,7 @@ impl CutSpec {
     /// The part's nominal surface: the geometry of the firmware's table.
     pub fn surface(&self) -> anyhow::Result<(Surface, f64)> {
         let t = zslide::table::CoeffTable::parse(zslide::DEFAULT_TABLE)
-            .map_err(|e| anyhow::anyhow!("default table refused: {e:?}"))?;
+            .map_err(|e| anyhow::anyhow!("default table refused: {e}"))?;
         let mut s = Surface::from_table_geometry(&t.header().geometry)
             .map_err(|e| anyhow::anyhow!("table geometry: {e}"))?;
         let r_t = self.scenario.cutting.tool_radius_in;
