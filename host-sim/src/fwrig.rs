@@ -454,11 +454,12 @@ impl FirmwareWorld {
     /// enable line.
     #[inline]
     pub fn tick(&mut self) {
-        if self.cpu != Cpu::Running {
-            return;
-        }
+        // The machine's physics runs whatever the MCU does.
         if let (Some(h), Some(m)) = (self.hook.as_mut(), self.machine.as_ref()) {
             h.before_tick(&mut self.rig, m, &self.fw);
+        }
+        if self.cpu != Cpu::Running {
+            return;
         }
         self.rig.cnv();
         let mut input = TickInput::NONE;
