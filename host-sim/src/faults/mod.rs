@@ -110,7 +110,7 @@ impl Case {
     pub fn injection(self) -> &'static str {
         match self {
             Case::CorruptTable => "one byte of the coefficient table image flipped before boot (CRC); arm requested",
-            Case::XOutsideTable => "the X feed carries the tool centre below the table's first node (1.0 in)",
+            Case::XOutsideTable => "the X feed carries the tool centre past the axis (X < 0, below the table's first node; interferometer count X)",
             Case::XGlitchStorm => "20 half-mil interrupts 50 us apart on an unchanged latch (a noisy interrupt line)",
             Case::XBadBcd => "one half-mil interrupt whose latch holds thousandths nibble 0xC",
             Case::IndexMissing => "the index pulse is lost from now on (index_loss_prob = 1)",
@@ -270,7 +270,7 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
     // The tool centre reaches X_INJECT_IN (or, for the X fault, the first
     // half-mil below the table's first node) at the injection instant.
     let x_at_inj = if case == Case::XOutsideTable {
-        0.9995 - 0.1e-6
+        0.2e-6
     } else {
         X_INJECT_IN
     };
@@ -282,8 +282,15 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
         index: seed_index,
     };
     let mut spec = spec.clone();
-    if case == Case::ReversedGauge {
-        spec.scenario.rig.gauge.reversed = true;
+    if case == Case::XOutsideTable {
+        // The default table covers X = 0..7.2 in and the null zone lies
+        // beyond it, so only a count below zero is outside it: the
+        // interferometer count crossing the axis (the 1983 BCD counter
+        // has no sign and would wrap, a jump: a glitch storm).
+        use crate::fwrig::XInterface;
+        if let XInterface::LegacyBcd(c) = &spec.scenario.machine.x {
+            spec.scenario.machine.x = XInterface::Quadrature(c.clone());
+        }
     }
     let table: &'static [u8] = if case == Case::CorruptTable {
         let mut t = zslide::DEFAULT_TABLE.to_vec();
@@ -339,6 +346,10 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             );
         }
     }
+    if case == Case::ReversedGauge {
+        // Rewired after the firmware was configured: it is not told.
+        w.rig.gauge.params.reversed = true;
+    }
     let spindle = w.machine.as_ref().map(|m| m.spindle.clone());
     let mut burst: OneShots<crate::fwrig::FirmwareWorld> =
         OneShots::new("injected", prio::X_EVENT);
@@ -393,9 +404,15 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
         }
         Case::FollowingError | Case::CurrentLimit => {
             let (lbf, dur) = if case == Case::FollowingError {
-                (40.0, 5 * MS)
+                (
+                    std::env::var("FE_LBF").map_or(19.5, |v| v.parse().unwrap()),
+                    std::env::var("FE_MS").map_or(18, |v| v.parse().unwrap()) * MS,
+                )
             } else {
-                (20.0, 60 * MS)
+                (
+                    std::env::var("CL_LBF").map_or(18.0, |v| v.parse().unwrap()),
+                    std::env::var("CL_MS").map_or(40, |v| v.parse().unwrap()) * MS,
+                )
             };
             let c = rig.cutter.clone();
             c.borrow_mut().extra_force_lbf = lbf;
@@ -430,6 +447,8 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             * 1e6
     };
     let safe = |x: &Sample| match reaction {
+        // Refused at boot: the loop must never have closed.
+        _ if case == Case::CorruptTable => !x.amp_enabled,
         Some(Reaction::RampToNull) => {
             x.amp_enabled && x.command_in == 0.0 && x.z_in.abs() <= NULL_HOLD_IN
         }
