@@ -27,12 +27,22 @@ fn every_injected_fault_is_detected_with_its_reason_and_ends_safe_within_the_dep
             assert!(r.reason.starts_with("not applicable"), "{r:?}");
             continue;
         }
-        let f = o.latched.unwrap_or_else(|| panic!("{}: not detected", r.fault));
+        let f = o
+            .latched
+            .unwrap_or_else(|| panic!("{}: not detected", r.fault));
         assert!(case.expects(f), "{}: latched {f:?}", r.fault);
         assert_eq!(r.detected, Some(true));
-        assert!(r.reason.starts_with(f.reason()), "{}: {}", r.fault, r.reason);
+        assert!(
+            r.reason.starts_with(f.reason()),
+            "{}: {}",
+            r.fault,
+            r.reason
+        );
         assert_eq!(r.reason.contains("board model"), case.board_model());
-        assert_eq!(r.reaction.as_deref(), Some(format!("{:?}", f.reaction()).as_str()));
+        assert_eq!(
+            r.reaction.as_deref(),
+            Some(format!("{:?}", f.reaction()).as_str())
+        );
         assert_eq!(r.safe_state, Some(true), "{r:?}");
         let t = r.time_to_safe_ms.expect("time to safe");
         // The last 100 ms of the run are in the safe state.

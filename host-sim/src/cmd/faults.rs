@@ -85,7 +85,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             opt(r.detected),
             r.reaction.as_deref().unwrap_or("-"),
             r.latched.as_deref().map_or("-".into(), |s| short(s, 24)),
-            r.max_excursion_uin.map_or("-".into(), |v| format!("{v:.1}")),
+            r.max_excursion_uin
+                .map_or("-".into(), |v| format!("{v:.1}")),
             opt(r.safe_state),
             r.time_to_safe_ms.map_or("-".into(), |v| format!("{v:.2}")),
             r.reason

@@ -298,8 +298,7 @@ pub fn build_stretch(
         // memory starts after a third of the pre-roll (at least 5 revs).
         (rec_start_s / 3.0).max(5.0 * 60.0 / spec.rpm),
     )));
-    let (mut w, mut s) =
-        machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
+    let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
     spec.controller.attach(&mut w, &mut s);
     w.fw.set_target_code((spec.z_offset_in * run::CODES_PER_IN).round() as i32);
     w.hook = Some(Box::new(SharedCutter(cutter.clone())));

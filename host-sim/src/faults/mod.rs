@@ -361,8 +361,7 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
         w.rig.gauge.params.reversed = true;
     }
     let spindle = w.machine.as_ref().map(|m| m.spindle.clone());
-    let mut burst: OneShots<crate::fwrig::FirmwareWorld> =
-        OneShots::new("injected", prio::X_EVENT);
+    let mut burst: OneShots<crate::fwrig::FirmwareWorld> = OneShots::new("injected", prio::X_EVENT);
     match case {
         Case::CorruptTable | Case::ReversedGauge | Case::XOutsideTable => {}
         Case::XGlitchStorm => {
@@ -371,7 +370,9 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             }
         }
         Case::XBadBcd => {
-            let latch = w.x_latch().context("x-bad-bcd needs the legacy BCD X interface")?;
+            let latch = w
+                .x_latch()
+                .context("x-bad-bcd needs the legacy BCD X interface")?;
             let w0 = latch.0.get();
             // Flags toggled so the debounce lets it through; then the BCD
             // check sees the nibble.
@@ -425,7 +426,9 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             let c = rig.cutter.clone();
             c.borrow_mut().extra_force_lbf = lbf;
             let c2 = c.clone();
-            burst.at(t_inj + dur, move |_, _| c2.borrow_mut().extra_force_lbf = 0.0);
+            burst.at(t_inj + dur, move |_, _| {
+                c2.borrow_mut().extra_force_lbf = 0.0
+            });
         }
         Case::AmplifierTrip => w.rig.amp.trip_now(),
         Case::StalledLoop => w.cpu = Cpu::LoopStalled,
@@ -447,13 +450,7 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
     let trace = std::mem::take(&mut *samples.borrow_mut());
     let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
     let before: Vec<&Sample> = trace.iter().filter(|x| x.t_ns < t_inj).collect();
-    let into = |v: &[&Sample]| {
-        v.iter()
-            .map(|x| -x.err_in)
-            .fold(0.0f64, f64::max)
-            .max(0.0)
-            * 1e6
-    };
+    let into = |v: &[&Sample]| v.iter().map(|x| -x.err_in).fold(0.0f64, f64::max).max(0.0) * 1e6;
     let safe = |x: &Sample| match reaction {
         Some(Reaction::RampToNull) => {
             x.amp_enabled && x.command_in == 0.0 && x.z_in.abs() <= NULL_HOLD_IN
@@ -470,10 +467,9 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
     let safe_from = after.get(first_safe).map(|x| x.t_ns);
     let stays = safe_from.is_some_and(|t| t_end - t >= HOLD_NS);
     let reason = match latched {
-        Some(f) if case.board_model() => format!(
-            "{} [board model in host-sim, not in the core]",
-            f.reason()
-        ),
+        Some(f) if case.board_model() => {
+            format!("{} [board model in host-sim, not in the core]", f.reason())
+        }
         Some(f) => f.reason().to_string(),
         None => "not detected".to_string(),
     };
