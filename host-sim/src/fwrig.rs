@@ -248,6 +248,23 @@ pub struct FirmwareWorld {
     init_fault: Option<Fault>,
     /// The 1983 loop when it drives the amplifier ([`Controller::LegacyAnalog`]).
     pub analog: Option<crate::analog1983::AnalogController>,
+    /// What the MCU is doing: a board-level state the core has no notion
+    /// of (a stalled loop-tick interrupt, a halted core), set by the fault
+    /// campaign's board models (`faults::board`).
+    pub cpu: Cpu,
+}
+
+/// The MCU's execution state, as far as the handlers are concerned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cpu {
+    /// Every interrupt runs.
+    Running,
+    /// The loop-tick interrupt no longer runs (a handler that never
+    /// returns at its priority, or its timer stopped); the DAC holds its
+    /// last code and the enable line its last level, as on the board.
+    LoopStalled,
+    /// Nothing runs (panic handler spinning, core in reset).
+    Halted,
 }
 
 impl World for FirmwareWorld {
@@ -314,6 +331,7 @@ impl FirmwareWorld {
             hook: None,
             init_fault,
             analog: None,
+            cpu: Cpu::Running,
         }
     }
 
@@ -442,8 +460,12 @@ impl FirmwareWorld {
     /// enable line.
     #[inline]
     pub fn tick(&mut self) {
+        // The machine's physics runs whatever the MCU does.
         if let (Some(h), Some(m)) = (self.hook.as_mut(), self.machine.as_ref()) {
             h.before_tick(&mut self.rig, m, &self.fw);
+        }
+        if self.cpu != Cpu::Running {
+            return;
         }
         self.rig.cnv();
         let mut input = TickInput::NONE;
@@ -494,6 +516,9 @@ impl FirmwareWorld {
     /// The half-mil interrupt: the latch was loaded at the edge; the
     /// firmware's `x_event` reads it through `hw::XLatch`.
     pub fn x_event(&mut self, stale: bool) {
+        if self.cpu == Cpu::Halted {
+            return;
+        }
         let now = self.clock.now_ticks();
         let Some(m) = self.machine.as_mut() else {
             return;
@@ -519,6 +544,9 @@ impl FirmwareWorld {
     /// The index interrupt: the count the encoder timer latched at the edge
     /// and the edge's captured timestamp.
     pub fn index_event(&mut self, count: u32, edge_ticks: u32) {
+        if self.cpu == Cpu::Halted {
+            return;
+        }
         let Some(m) = self.machine.as_mut() else {
             return;
         };
@@ -531,6 +559,15 @@ impl FirmwareWorld {
         if let Err(f) = r {
             m.stats.index_faults += 1;
             m.stats.last_fault = Some(f);
+        }
+    }
+
+    /// The legacy X interface's BCD latch (what the half-mil handler
+    /// reads); `None` without a legacy-X machine.
+    pub fn x_latch(&self) -> Option<SimXLatch> {
+        match self.machine.as_ref().map(|m| &m.x) {
+            Some(XState::Legacy { latch, .. }) => Some(latch.clone()),
+            _ => None,
         }
     }
 
@@ -741,8 +778,19 @@ pub fn machine_with(
     loop_hz: u32,
     loop_cfg: ServoConfig,
 ) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
+    machine_with_table(cfg, machine, loop_hz, loop_cfg, zslide::DEFAULT_TABLE)
+}
+
+/// [`machine_with`] with another coefficient table image.
+pub fn machine_with_table(
+    cfg: RigConfig,
+    machine: &MachineConfig,
+    loop_hz: u32,
+    loop_cfg: ServoConfig,
+    table: &'static [u8],
+) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
     let (mut w, mut s) = firmware_with(cfg, loop_hz, loop_cfg);
-    w.attach_machine(machine);
+    w.attach_machine_with_table(machine, table);
     add_machine_sources(&w, &mut s);
     (w, s)
 }

@@ -7,6 +7,7 @@ pub mod cmd;
 pub mod coeffgen;
 pub mod csmp;
 pub mod cut;
+pub mod faults;
 pub mod fastmath;
 pub mod fwrig;
 pub mod geometry;

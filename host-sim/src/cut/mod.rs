@@ -27,7 +27,7 @@ pub mod run;
 
 use crate::cut::part::{CmmGrid, PassLog, CMM_X_IN};
 use crate::cut::run::{Cutter, SharedCutter, StretchLog};
-use crate::fwrig::{machine_with, XInterface};
+use crate::fwrig::{machine_with_table, XInterface};
 use crate::scenario::Scenario;
 use crate::surface::Surface;
 use anyhow::{bail, Context};
@@ -243,14 +243,27 @@ fn seeded(sc: &Scenario, index: u64) -> Scenario {
     sc
 }
 
-/// Simulates one stretch; `progress(simulated_s)` after every chunk.
-pub fn run_stretch(
+/// A stretch ready to run: the world with the cutter hooked in and the
+/// controller attached, its scheduler, and the cutter's other handle.
+pub struct StretchRig {
+    pub w: crate::fwrig::FirmwareWorld,
+    pub s: crate::sched::Scheduler<crate::fwrig::FirmwareWorld>,
+    pub cutter: Rc<RefCell<Cutter>>,
+    /// When the first recording window starts, s.
+    pub rec_start_s: f64,
+    /// The stretch's length, s.
+    pub total_s: f64,
+}
+
+/// Builds stretch `st` of `spec` with the coefficient table image `table`
+/// (the firmware's default for a cut), keeping a tick-by-tick trace of
+/// `trace_s` seconds of the recording.
+pub fn build_stretch(
     spec: &CutSpec,
     st: &Stretch,
-    extras: &Extras,
-    progress: &(dyn Fn(f64) + Sync),
-) -> anyhow::Result<StretchResult> {
-    let wall0 = Instant::now();
+    trace_s: f64,
+    table: &'static [u8],
+) -> anyhow::Result<StretchRig> {
     let sc = seeded(&spec.scenario, st.index);
     let mut machine = sc.machine.clone();
     let feed = spec.feed_in_per_min();
@@ -281,15 +294,39 @@ pub fn run_stretch(
         nominal::Nominal::new(surf, x_null),
         machine.spindle.index_phase_turns,
         st.windows.clone(),
-        (rec_start_s, rec_start_s + extras.trace_s),
+        (rec_start_s, rec_start_s + trace_s),
         // The slide starts at null, the firmware unreferenced: the stock
         // memory starts after a third of the pre-roll (at least 5 revs).
         (rec_start_s / 3.0).max(5.0 * 60.0 / spec.rpm),
     )));
-    let (mut w, mut s) = machine_with(sc.rig.clone(), &machine, sc.loop_hz, sc.servo);
+    let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
     spec.controller.attach(&mut w, &mut s);
     w.fw.set_target_code((spec.z_offset_in * run::CODES_PER_IN).round() as i32);
     w.hook = Some(Box::new(SharedCutter(cutter.clone())));
+    Ok(StretchRig {
+        w,
+        s,
+        cutter,
+        rec_start_s,
+        total_s,
+    })
+}
+
+/// Simulates one stretch; `progress(simulated_s)` after every chunk.
+pub fn run_stretch(
+    spec: &CutSpec,
+    st: &Stretch,
+    extras: &Extras,
+    progress: &(dyn Fn(f64) + Sync),
+) -> anyhow::Result<StretchResult> {
+    let wall0 = Instant::now();
+    let StretchRig {
+        mut w,
+        mut s,
+        cutter,
+        rec_start_s,
+        total_s,
+    } = build_stretch(spec, st, extras.trace_s, zslide::DEFAULT_TABLE)?;
     let trace = match &extras.vcd {
         Some((path, from, to)) => {
             let file = std::io::BufWriter::new(

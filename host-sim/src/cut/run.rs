@@ -54,6 +54,13 @@ pub struct Cutter {
     rev_force_sum: f64,
     rev_force_n: u32,
     pub log: StretchLog,
+    /// A force added to the cutting force from now on, lbf (+Z: a hard
+    /// spot or a wedged chip pushing the tool out; a fault campaign's
+    /// injection; 0 in a plain cut).
+    pub extra_force_lbf: f64,
+    /// At the last tick: the tool (slide carriage, true) minus the nominal
+    /// command at the true X and φ, in; negative = into the part.
+    pub last_error_in: f64,
 }
 
 impl Cutter {
@@ -80,6 +87,8 @@ impl Cutter {
                 passes: PassLog::new(),
                 ..StretchLog::default()
             },
+            extra_force_lbf: 0.0,
+            last_error_in: 0.0,
         }
     }
 
@@ -103,8 +112,9 @@ impl TickHook for Cutter {
             self.eng.reset_memory();
             self.settle_s = f64::INFINITY;
         }
+        self.last_error_in = e;
         let c = self.eng.step(x, phi, e);
-        rig.set_force_lbf(c.force_lbf);
+        rig.set_force_lbf(c.force_lbf + self.extra_force_lbf);
 
         // Spindle load, once per revolution (the speed sags over seconds).
         let rev = turns.floor() as i64;

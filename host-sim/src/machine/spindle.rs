@@ -133,6 +133,12 @@ impl Spindle {
         &self.cfg
     }
 
+    /// The configuration from now on (index loss and noise rates take
+    /// effect at the next step; a fault campaign's injection).
+    pub fn config_mut(&mut self) -> &mut SpindleConfig {
+        &mut self.cfg
+    }
+
     /// Total angle since t = 0, turns relative to the index mark (not
     /// wrapped): the state the hardware bindings interpolate between steps.
     pub fn turns(&self) -> f64 {

@@ -98,6 +98,15 @@ impl Amplifier {
     pub fn tripped(&self) -> bool {
         self.tripped
     }
+    /// Trips now for a cause of its own (over-temperature, supply): the
+    /// output stage turns off and the fault line goes high until the next
+    /// enable edge, as an overload trip does.
+    pub fn trip_now(&mut self) {
+        if !self.tripped {
+            self.tripped = true;
+            self.trips += 1;
+        }
+    }
     /// Clears a trip and the overload timer.
     pub fn reset(&mut self) {
         self.tripped = false;

@@ -1,0 +1,504 @@
+//! The fault campaign (`host-sim faults`): one fault at a time injected
+//! into a simulated cut on the real firmware (`cut::build_stretch`: the
+//! finishing pass on `fwrig`, the digital loop armed, settled and
+//! learning), and what it leaves: detection, the firmware's reaction and
+//! reason, the tool's largest departure into the part, the safe state and
+//! how long it took. The bound and its derivation: docs/SAFETY.md
+//! ("Fault campaign").
+//!
+//! Injections reuse the simulator's own mechanisms: the chips' bus-fault
+//! injector, the gauge's injection input, the amplifier's trip, the
+//! spindle and X-slide models, the cutter's force; the watchdog and the
+//! panic handler are board models ([`board`]).
+
+pub mod board;
+
+use crate::chips::BusFault;
+use crate::cut::run::CODES_PER_IN;
+use crate::cut::{build_stretch, CutSpec, Stretch};
+use crate::fwrig::{src, Controller, Cpu};
+use crate::sched::{prio, Nanos, OneShots};
+use anyhow::{bail, Context};
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
+use zslide::hw::XLatchWord;
+use zslide::safety::{Device, Fault, Reaction};
+use zslide::servo::Phase;
+
+const MS: Nanos = 1_000_000;
+
+/// Radius of the cut where faults are injected, in (tool-centre X).
+pub const X_INJECT_IN: f64 = 5.0;
+/// Revolutions of cut before the injection (sign check, engagement,
+/// settling, learning and the stock memory: the cut's own pre-roll).
+pub const PREROLL_REVS: f64 = 60.0;
+/// Observation kept before the injection (the trace's start), ns.
+pub const BEFORE_NS: Nanos = 20 * MS;
+/// How long the safe state must hold, to the end of the run, to count.
+pub const HOLD_NS: Nanos = 100 * MS;
+/// "Holding at null": the slide within this of Z = 0, in: the depth of
+/// cut. Null is not clear of the stock everywhere (at X = 5 in the
+/// surface rises to within 100 µin of Z = 0, the stock 300 µin above it),
+/// so the loop holds null against the tool's rubbing; the hold is judged
+/// against the depth it could leave, not against the gauge noise.
+pub const NULL_HOLD_IN: f64 = 300e-6;
+
+/// One fault of the campaign (the issue's list).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Case {
+    CorruptTable,
+    XOutsideTable,
+    XGlitchStorm,
+    XBadBcd,
+    IndexMissing,
+    IndexExtra,
+    SpindleSpeed,
+    GaugeSaturation,
+    AdcBusError,
+    DacBusError,
+    FollowingError,
+    CurrentLimit,
+    AmplifierTrip,
+    ReversedGauge,
+    StalledLoop,
+    Panic,
+    MalformedHostFrame,
+}
+
+impl Case {
+    pub const ALL: [Case; 17] = [
+        Case::CorruptTable,
+        Case::XOutsideTable,
+        Case::XGlitchStorm,
+        Case::XBadBcd,
+        Case::IndexMissing,
+        Case::IndexExtra,
+        Case::SpindleSpeed,
+        Case::GaugeSaturation,
+        Case::AdcBusError,
+        Case::DacBusError,
+        Case::FollowingError,
+        Case::CurrentLimit,
+        Case::AmplifierTrip,
+        Case::ReversedGauge,
+        Case::StalledLoop,
+        Case::Panic,
+        Case::MalformedHostFrame,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Case::CorruptTable => "corrupt-table",
+            Case::XOutsideTable => "x-outside-table",
+            Case::XGlitchStorm => "x-glitch-storm",
+            Case::XBadBcd => "x-bad-bcd",
+            Case::IndexMissing => "index-missing",
+            Case::IndexExtra => "index-extra",
+            Case::SpindleSpeed => "spindle-speed",
+            Case::GaugeSaturation => "gauge-saturation",
+            Case::AdcBusError => "adc-bus-error",
+            Case::DacBusError => "dac-bus-error",
+            Case::FollowingError => "following-error",
+            Case::CurrentLimit => "current-limit",
+            Case::AmplifierTrip => "amplifier-trip",
+            Case::ReversedGauge => "reversed-gauge",
+            Case::StalledLoop => "stalled-loop",
+            Case::Panic => "panic",
+            Case::MalformedHostFrame => "malformed-host-frame",
+        }
+    }
+
+    /// What is injected, in words.
+    pub fn injection(self) -> &'static str {
+        match self {
+            Case::CorruptTable => "one byte of the coefficient table image flipped before boot (CRC); arm requested",
+            Case::XOutsideTable => "the X feed carries the tool centre past the axis (X < 0, below the table's first node; interferometer count X)",
+            Case::XGlitchStorm => "20 half-mil interrupts 50 us apart on an unchanged latch (a noisy interrupt line)",
+            Case::XBadBcd => "one half-mil interrupt whose latch holds thousandths nibble 0xC",
+            Case::IndexMissing => "the index pulse is lost from now on (index_loss_prob = 1)",
+            Case::IndexExtra => "noise on the index line (20 spurious pulses per revolution)",
+            Case::SpindleSpeed => "the spindle drive fails: the spindle coasts down at its 100 rpm/s",
+            Case::GaugeSaturation => "the gauge output driven to its +10 V rail (0.02 in injected into its input)",
+            Case::AdcBusError => "gauge ADC bus stuck low on every frame from now on",
+            Case::DacBusError => "every amplifier-DAC transaction fails from now on (SPI error)",
+            Case::FollowingError => "the amplifier's output stage fails to 4 A while a hard spot pushes the tool out of the cut (16 lbf for 30 ms)",
+            Case::CurrentLimit => "a chip wedged under the tool: 18 lbf pushing the tool out for 40 ms (above the 6 A the loop allows)",
+            Case::AmplifierTrip => "the amplifier trips on its own (its fault line goes high)",
+            Case::ReversedGauge => "gauge wired reversed, the firmware not told; arm requested at boot",
+            Case::StalledLoop => "the loop-tick interrupt stops running (the board's IWDG is fed by it)",
+            Case::Panic => "the firmware panics (board panic handler)",
+            Case::MalformedHostFrame => "-",
+        }
+    }
+
+    /// Whether the row applies to this firmware (the host link does not
+    /// exist yet).
+    pub fn applies(self) -> bool {
+        self != Case::MalformedHostFrame
+    }
+
+    /// Whether `f` is the fault this injection must latch.
+    pub fn expects(self, f: Fault) -> bool {
+        use zslide::table::TableError;
+        match self {
+            Case::CorruptTable => matches!(f, Fault::Table(TableError::PayloadCrc { .. })),
+            Case::XOutsideTable => f == Fault::XOutsideTable,
+            Case::XGlitchStorm => f == Fault::XGlitchStorm,
+            Case::XBadBcd => f == Fault::XBadBcd,
+            Case::IndexMissing => f == Fault::IndexMissing,
+            Case::IndexExtra => f == Fault::IndexExtra,
+            Case::SpindleSpeed => f == Fault::SpindleSpeed,
+            // The gauge's rail is the ADC's full scale: the OV flag.
+            Case::GaugeSaturation => f == Fault::GaugeRange,
+            Case::AdcBusError => f == Fault::Bus(Device::GaugeAdc),
+            Case::DacBusError => f == Fault::Bus(Device::AmplifierDac),
+            // A slide lost at ~4 in/s crosses the 0.006 in between the
+            // following-error limit (0.004 in) and the gauge's range
+            // (0.010 in) in ~1.5 ms, inside the monitor's 2 ms persistence:
+            // the more severe GaugeRange then holds the latch.
+            Case::FollowingError => matches!(f, Fault::FollowingError | Fault::GaugeRange),
+            Case::CurrentLimit => f == Fault::CurrentLimit,
+            Case::AmplifierTrip => f == Fault::AmplifierTrip,
+            Case::ReversedGauge => f == Fault::SignCheck,
+            Case::StalledLoop => f == Fault::Watchdog,
+            Case::Panic => f == Fault::Panic,
+            Case::MalformedHostFrame => false,
+        }
+    }
+
+    /// Injected at boot (or at arm) rather than during the cut.
+    pub fn at_boot(self) -> bool {
+        matches!(self, Case::CorruptTable | Case::ReversedGauge)
+    }
+
+    /// Modelled on the board, not in the core.
+    pub fn board_model(self) -> bool {
+        matches!(self, Case::StalledLoop | Case::Panic)
+    }
+
+    /// Simulated time after the injection, ns: the detection's own time
+    /// scale plus the hold.
+    fn observe_ns(self) -> Nanos {
+        match self {
+            // 300 → 100 rpm at 100 rpm/s.
+            Case::SpindleSpeed => 2_500 * MS,
+            // One revolution (200 ms) plus its tolerance.
+            Case::IndexMissing => 600 * MS,
+            _ => 400 * MS,
+        }
+    }
+}
+
+/// One row of the campaign (brief §5).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Row {
+    pub fault: &'static str,
+    pub injection: &'static str,
+    /// `None`: not applicable.
+    pub detected: Option<bool>,
+    /// The fault the firmware latched (Debug form).
+    pub latched: Option<String>,
+    pub reaction: Option<String>,
+    /// The tool's largest departure into the part (below the exact command)
+    /// after the injection, µin (0 when it never went below).
+    pub max_excursion_uin: Option<f64>,
+    /// The same over the 20 ms before the injection (the cut's own
+    /// following error), µin.
+    pub excursion_before_uin: Option<f64>,
+    pub safe_state: Option<bool>,
+    pub reason: String,
+    pub time_to_safe_ms: Option<f64>,
+    /// Injection instant, s of simulated time.
+    pub injected_at_s: Option<f64>,
+}
+
+/// One sample per loop-tick instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub t_ns: Nanos,
+    /// Tool (true) minus the exact command, in; negative = into the part.
+    pub err_in: f64,
+    /// Slide carriage position, in.
+    pub z_in: f64,
+    /// The firmware's command, in.
+    pub command_in: f64,
+    /// Amplifier input (the DAC's analog output), V.
+    pub dac_v: f64,
+    pub fault: bool,
+    /// The enable line as the amplifier sees it.
+    pub amp_enabled: bool,
+}
+
+/// A row and its trace (from `BEFORE_NS` before the injection).
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    pub row: Row,
+    /// The fault latched (by the firmware, or the board model).
+    pub latched: Option<Fault>,
+    pub trace: Vec<Sample>,
+}
+
+/// The cut every fault is injected into: chapter 5's pass on the scenario,
+/// the digital loop.
+pub fn spec(scenario: crate::scenario::Scenario) -> anyhow::Result<CutSpec> {
+    let mut spec = CutSpec::chapter5(scenario, Controller::Digital, None, None, false)?;
+    spec.preroll_revs = PREROLL_REVS;
+    Ok(spec)
+}
+
+/// Runs one case; `seed_index` 0 is the scenario's own seeds, others mix
+/// into every random stream (as the cut's stretches do).
+pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<Outcome> {
+    if !case.applies() {
+        return Ok(Outcome {
+            row: Row {
+                fault: case.name(),
+                injection: case.injection(),
+                detected: None,
+                latched: None,
+                reaction: None,
+                max_excursion_uin: None,
+                excursion_before_uin: None,
+                safe_state: None,
+                reason: "not applicable: no host link yet (issue 11)".into(),
+                time_to_safe_ms: None,
+                injected_at_s: None,
+            },
+            latched: None,
+            trace: Vec::new(),
+        });
+    }
+    let f = spec.feed_per_rev_in;
+    let rev_s = 60.0 / spec.rpm;
+    let t_inj: Nanos = if case.at_boot() {
+        0
+    } else {
+        (PREROLL_REVS * rev_s * 1e9).round() as Nanos
+    };
+    let feed_in_per_s = f / rev_s;
+    // The tool centre reaches X_INJECT_IN (or, for the X fault, the first
+    // half-mil below the table's first node) at the injection instant.
+    let x_at_inj = if case == Case::XOutsideTable {
+        0.2e-6
+    } else {
+        X_INJECT_IN
+    };
+    let x_start = x_at_inj + feed_in_per_s * t_inj as f64 * 1e-9;
+    let st = Stretch {
+        x_start_in: x_start,
+        x_end_in: x_at_inj - 1.0,
+        windows: vec![(x_at_inj - 0.01, x_start)],
+        index: seed_index,
+    };
+    let mut spec = spec.clone();
+    if case == Case::XOutsideTable {
+        // The default table covers X = 0..7.2 in and the null zone lies
+        // beyond it, so only a count below zero is outside it: the
+        // interferometer count crossing the axis (the 1983 BCD counter
+        // has no sign and would wrap, a jump: a glitch storm).
+        use crate::fwrig::XInterface;
+        if let XInterface::LegacyBcd(c) = &spec.scenario.machine.x {
+            spec.scenario.machine.x = XInterface::Quadrature(c.clone());
+        }
+    }
+    let table: &'static [u8] = if case == Case::CorruptTable {
+        let mut t = zslide::DEFAULT_TABLE.to_vec();
+        // A byte in the middle of the coefficients: only the CRC sees it.
+        let k = t.len() / 2;
+        t[k] ^= 0x10;
+        Box::leak(t.into_boxed_slice())
+    } else {
+        zslide::DEFAULT_TABLE
+    };
+    let mut rig = build_stretch(&spec, &st, 0.0, table)?;
+    let reset_at = Rc::new(Cell::new(None));
+    rig.s.add(board::Iwdg::new(reset_at.clone()));
+
+    // One sample per loop-tick instant from BEFORE_NS before the injection.
+    let samples: Rc<RefCell<Vec<Sample>>> = Rc::new(RefCell::new(Vec::new()));
+    {
+        let samples = samples.clone();
+        let cutter = rig.cutter.clone();
+        let t0 = t_inj.saturating_sub(BEFORE_NS);
+        rig.s.on_event = Some(Box::new(move |t, k, w| {
+            if k != src::LOOP_TICK || t < t0 {
+                return;
+            }
+            samples.borrow_mut().push(Sample {
+                t_ns: t,
+                err_in: cutter.borrow().last_error_in,
+                z_in: w.rig.slide.position_in(),
+                command_in: f64::from(w.fw.command_code()) / CODES_PER_IN,
+                dac_v: w.rig.v_in,
+                fault: w.fw.fault().is_some(),
+                amp_enabled: w.rig.amp.enabled(),
+            });
+        }));
+    }
+
+    let (w, s) = (&mut rig.w, &mut rig.s);
+    s.run_until(w, t_inj);
+    if !case.at_boot() {
+        if let Some(f) = w.fw.fault() {
+            bail!(
+                "{}: the cut faulted before the injection ({f:?}: {})",
+                case.name(),
+                f.reason()
+            );
+        }
+        let phase = w.fw.servo().phase();
+        let revs = w.fw.servo().learning().revolutions();
+        if phase != Phase::Engaged || revs == 0 {
+            bail!(
+                "{}: the loop is not engaged and learning at the injection (phase {phase:?}, {revs} learned revolutions)",
+                case.name()
+            );
+        }
+    }
+    if case == Case::ReversedGauge {
+        // Rewired after the firmware was configured: it is not told.
+        w.rig.gauge.params.reversed = true;
+    }
+    let spindle = w.machine.as_ref().map(|m| m.spindle.clone());
+    let mut burst: OneShots<crate::fwrig::FirmwareWorld> = OneShots::new("injected", prio::X_EVENT);
+    match case {
+        Case::CorruptTable | Case::ReversedGauge | Case::XOutsideTable => {}
+        Case::XGlitchStorm => {
+            for k in 0..20 {
+                burst.at(t_inj + k * 50_000, |_, w| w.x_event(false));
+            }
+        }
+        Case::XBadBcd => {
+            let latch = w
+                .x_latch()
+                .context("x-bad-bcd needs the legacy BCD X interface")?;
+            let w0 = latch.0.get();
+            // Flags toggled so the debounce lets it through; then the BCD
+            // check sees the nibble.
+            latch
+                .0
+                .set(XLatchWord((w0.0 ^ XLatchWord::HALF_MIL) & !0xF | 0xC));
+            burst.at(t_inj, |_, w| w.x_event(false));
+        }
+        Case::IndexMissing => {
+            if let Some(sp) = &spindle {
+                sp.borrow_mut().model_mut().config_mut().index_loss_prob = 1.0;
+            }
+        }
+        Case::IndexExtra => {
+            if let Some(sp) = &spindle {
+                sp.borrow_mut().model_mut().config_mut().index_noise_per_rev = 20.0;
+            }
+        }
+        Case::SpindleSpeed => {
+            if let Some(sp) = &spindle {
+                sp.borrow_mut().model_mut().set_rpm(0.0);
+            }
+        }
+        Case::GaugeSaturation => w.rig.gauge_injection_in = 0.02,
+        Case::AdcBusError => {
+            w.rig
+                .adc
+                .state
+                .borrow_mut()
+                .faults
+                .random(1, 1.0, BusFault::StuckLow);
+        }
+        Case::DacBusError => {
+            w.rig
+                .dac
+                .state
+                .borrow_mut()
+                .faults
+                .random(1, 1.0, BusFault::Error);
+        }
+        Case::FollowingError | Case::CurrentLimit => {
+            let (lbf, dur) = if case == Case::FollowingError {
+                // An output stage that can give only 4 A: the loop's own
+                // 6 A estimate limit never engages, the slide is lost.
+                w.rig.amp.params.current_limit_a = 4.0;
+                w.rig.amp.params.trip_after_s = 10.0;
+                (16.0, 30 * MS)
+            } else {
+                (18.0, 40 * MS)
+            };
+            let c = rig.cutter.clone();
+            c.borrow_mut().extra_force_lbf = lbf;
+            let c2 = c.clone();
+            burst.at(t_inj + dur, move |_, _| {
+                c2.borrow_mut().extra_force_lbf = 0.0
+            });
+        }
+        Case::AmplifierTrip => w.rig.amp.trip_now(),
+        Case::StalledLoop => w.cpu = Cpu::LoopStalled,
+        Case::Panic => board::panic(w),
+        Case::MalformedHostFrame => unreachable!("handled above"),
+    }
+    let (w, s) = (&mut rig.w, &mut rig.s);
+    s.add(burst);
+    let t_end = t_inj + case.observe_ns();
+    s.run_until(w, t_end);
+
+    // What the firmware (or the board model) latched.
+    let latched = match case {
+        Case::StalledLoop => reset_at.get().map(|_| Fault::Watchdog),
+        Case::Panic => Some(Fault::Panic),
+        _ => w.fw.fault(),
+    };
+    let reaction = latched.map(Fault::reaction);
+    let trace = std::mem::take(&mut *samples.borrow_mut());
+    let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
+    let before: Vec<&Sample> = trace.iter().filter(|x| x.t_ns < t_inj).collect();
+    let into = |v: &[&Sample]| v.iter().map(|x| -x.err_in).fold(0.0f64, f64::max).max(0.0) * 1e6;
+    let safe = |x: &Sample| match reaction {
+        Some(Reaction::RampToNull) => {
+            x.amp_enabled && x.command_in == 0.0 && x.z_in.abs() <= NULL_HOLD_IN
+        }
+        Some(Reaction::DisableAmplifier) => !x.amp_enabled,
+        None => false,
+    };
+    // The first sample from which the safe state holds to the end.
+    let first_safe = after
+        .iter()
+        .rposition(|x| !safe(x))
+        .map_or(0, |k| k + 1)
+        .min(after.len());
+    let safe_from = after.get(first_safe).map(|x| x.t_ns);
+    let stays = safe_from.is_some_and(|t| t_end - t >= HOLD_NS);
+    let reason = match latched {
+        Some(f) if case.board_model() => {
+            format!("{} [board model in host-sim, not in the core]", f.reason())
+        }
+        Some(f) => f.reason().to_string(),
+        None => "not detected".to_string(),
+    };
+    Ok(Outcome {
+        row: Row {
+            fault: case.name(),
+            injection: case.injection(),
+            detected: Some(latched.is_some()),
+            latched: latched.map(|f| format!("{f:?}")),
+            reaction: reaction.map(|r| format!("{r:?}")),
+            max_excursion_uin: Some(into(&after)),
+            excursion_before_uin: (!case.at_boot()).then(|| into(&before)),
+            safe_state: Some(stays),
+            reason,
+            time_to_safe_ms: safe_from
+                .filter(|_| stays)
+                .map(|t| (t - t_inj) as f64 * 1e-6),
+            injected_at_s: Some(t_inj as f64 * 1e-9),
+        },
+        latched,
+        trace,
+    })
+}
+
+/// Runs `cases` (in parallel, each on its own thread's simulation).
+pub fn campaign(spec: &CutSpec, cases: &[Case], seed_index: u64) -> anyhow::Result<Vec<Outcome>> {
+    use rayon::prelude::*;
+    cases
+        .par_iter()
+        .map(|&c| run_case(spec, c, seed_index).with_context(|| format!("fault {}", c.name())))
+        .collect()
+}
