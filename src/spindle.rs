@@ -258,7 +258,10 @@ impl EncoderAngle {
         let step = self.recip.clamp(-(1 << 40), 1 << 40) * dt;
         let pred = self.track_q32.wrapping_add(step as u64);
         let lo = u64::from(count) << 32;
-        let d = pred.wrapping_sub(lo) as i64;
+        // Bounded first: a glitching count puts the prediction anywhere in
+        // the wrapping range, and the pull below must not overflow
+        // (found by the `spindle` fuzz target).
+        let d = (pred.wrapping_sub(lo) as i64).clamp(-(1 << 34), 1 << 34);
         // Over time the truth is spread evenly across the count, so its
         // mean is the count's middle: a slow pull there (1/256 a tick,
         // 13 ms at 20 kHz) removes the offset the clamps alone would keep,
@@ -565,6 +568,39 @@ mod tests {
             sum / f64::from(n)
         );
         assert!(worst_dd < 0.05 * count_deg, "second difference {worst_dd}°");
+    }
+
+    /// Fuzz finding: a count that jumps by half the counter's range (a
+    /// glitch) right after the tracked position was held at the bottom of
+    /// its count put the distance to the new count at i64::MIN, and the
+    /// pull to the count's middle overflowed. The angle must land inside
+    /// the new count.
+    #[test]
+    fn encoder_read_at_the_tick_survives_a_count_jumping_half_the_range() {
+        let mut e = EncoderAngle::new(EncoderConfig {
+            counts_per_rev: 10_000,
+            ticks_per_s: 100_000_000,
+            min_rpm: 50,
+            max_rpm: 500,
+            index_tolerance_counts: 2,
+            index_angle: SpindleAngle(0),
+            edge_stamps: EdgeStamps::AtRead,
+        })
+        .unwrap();
+        e.on_index(0, 0).unwrap();
+        // All at one instant: no prediction step, the clamps alone act.
+        e.tick(0, 0, 0);
+        e.tick(10, 0, 0); // held at the bottom of count 10
+        let jump = 10u32.wrapping_add(1 << 31);
+        let est = e.tick(jump, 0, 0);
+        // The count relative to the index, as the estimator reads it (a
+        // signed 32-bit difference), within the revolution.
+        let want = (i64::from(jump as i32).rem_euclid(10_000)) as f64 * 0.036;
+        let got = est.angle.to_degrees();
+        // Inside the count: from its start (less the binary angle's
+        // rounding) to its end.
+        let d = (got - want + 1e-6).rem_euclid(360.0);
+        assert!(d < 0.036 + 1e-6, "{got}° vs {want}°");
     }
 
     #[test]
