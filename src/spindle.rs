@@ -86,8 +86,8 @@ pub struct EncoderAngle {
     last_count: u32,
     last_edge: u32,
     /// 2³²·counts/period (Q32 counts per tick), signed by direction: over
-    /// the last count interval until a baseline has run, then over the
-    /// baseline.
+    /// the last count interval (captured edges; at-read stamps until a
+    /// baseline has run), or over the baseline (at-read stamps).
     recip: i64,
     /// Start of the rate's baseline: count and edge time.
     base_count: u32,
@@ -175,7 +175,8 @@ impl EncoderAngle {
         let mut fault = None;
         if self.have_sample && count != self.last_count {
             let span = edge_ticks.wrapping_sub(self.base_edge);
-            if span >= self.base_ticks {
+            let at_read = self.cfg.edge_stamps == EdgeStamps::AtRead;
+            if at_read && span >= self.base_ticks {
                 // The rate over a 20 ms baseline: an edge stamped late (a
                 // board that reads the count at the loop tick stamps a
                 // change with the read time, up to a loop period after the
@@ -189,8 +190,10 @@ impl EncoderAngle {
                 self.base_count = count;
                 self.base_edge = edge_ticks;
                 self.base_done = true;
-            } else if !self.base_done {
-                // Until the first baseline has run: the last interval.
+            } else if !(at_read && self.base_done) {
+                // Captured edges, or until the first baseline has run:
+                // the last interval (exact with captured edges, and the
+                // quickest to follow an acceleration).
                 let dc = i64::from(count.wrapping_sub(self.last_count) as i32);
                 let dt = edge_ticks.wrapping_sub(self.last_edge).max(1);
                 // Q32 counts per tick; dc is a few counts, dt ≥ 1.
@@ -301,8 +304,8 @@ impl EncoderAngle {
         Ok(())
     }
 
-    /// Speed over the last 20 ms baseline, binary-angle units per clock
-    /// tick, Q16 (for feedforward: ω = this · 2π/2³² · ticks_per_s rad/s).
+    /// Speed (captured edges: the last count interval; at-read stamps: the
+    /// last 20 ms baseline), binary-angle units per clock tick, Q16 (for feedforward: ω = this · 2π/2³² · ticks_per_s rad/s).
     pub fn rate_q16(&self) -> i64 {
         ((i128::from(self.recip) * i128::from(self.per_count_q32)) >> 48) as i64
     }
