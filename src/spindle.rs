@@ -184,7 +184,10 @@ impl EncoderAngle {
                 // over one count's interval (a loop period of two or three
                 // counts: the rate would swing by a third from tick to tick).
                 let dc = i64::from(count.wrapping_sub(self.base_count) as i32);
-                let q = (dc.unsigned_abs() << 32) / u64::from(span);
+                // span ≥ base_ticks ≥ 1; checked so no panic path exists.
+                let q = (dc.unsigned_abs() << 32)
+                    .checked_div(u64::from(span))
+                    .unwrap_or(0);
                 let q = q.min(1 << 40) as i64;
                 self.recip = if dc < 0 { -q } else { q };
                 self.base_count = count;
