@@ -37,6 +37,8 @@ enum Command {
     Soak(cmd::soak::Args),
     /// Cost of one plant step and of one simulated second at the loop rate.
     Bench(cmd::bench::Args),
+    /// A board's decoded defmt trace log as a VCD with the simulator's signal names.
+    Trace2vcd(cmd::trace2vcd::Args),
 }
 
 /// Errors go to stderr as one readable chain ("what: because"), exit code 1,
@@ -62,5 +64,6 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Faults(a) => cmd::faults::run(a),
         Command::Soak(a) => cmd::soak::run(a),
         Command::Bench(a) => cmd::bench::run(a),
+        Command::Trace2vcd(a) => cmd::trace2vcd::run(a),
     }
 }

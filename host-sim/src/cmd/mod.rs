@@ -8,5 +8,6 @@ pub mod cut;
 pub mod faults;
 pub mod response;
 pub mod soak;
+pub mod trace2vcd;
 pub mod track;
 pub mod zcmd;

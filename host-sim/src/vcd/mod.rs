@@ -113,3 +113,4 @@ impl<W: Write> VcdRecorder<W> {
 }
 
 pub mod machine;
+pub mod target;
