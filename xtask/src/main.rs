@@ -23,6 +23,7 @@ mod elf;
 mod fuzz;
 mod isr_cost;
 mod nopanic;
+mod trace;
 
 use clap::{Parser, Subcommand};
 use std::env;
@@ -72,6 +73,9 @@ enum Cmd {
     NoPanic,
     /// Build and run the cargo-fuzz targets (nightly toolchain, cargo-fuzz).
     Fuzz(fuzz::Args),
+    /// A board's decoded defmt log with trace events as a VCD (the
+    /// simulator's signal names).
+    Trace2vcd(trace::Args),
 }
 
 fn main() -> ExitCode {
@@ -83,6 +87,7 @@ fn main() -> ExitCode {
         Cmd::IsrCost(args) => isr_cost::run(&args),
         Cmd::NoPanic => cmd_no_panic(),
         Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
+        Cmd::Trace2vcd(args) => trace::run(&args),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -746,6 +751,7 @@ mod tests {
             &["isr-cost"],
             &["no-panic"],
             &["fuzz", "--seconds", "1"],
+            &["trace2vcd", "run.log", "--out", "run.vcd"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();
