@@ -7,7 +7,9 @@
 //!   missing.
 //! * `qemu [--bless]` – builds and runs the QEMU image, decodes its defmt
 //!   log, compares it (timestamps stripped) with `boards/qemu/expected.log`
-//!   (`--bless` rewrites that file), and exits with the image's status.
+//!   (`--bless` rewrites that file); then replays host-sim's recorded runs
+//!   bit-exact on the emulated target and checks that an altered code is
+//!   caught (`replay.rs`).
 //! * `size`    – flash and RAM use of both images (builds them first).
 //! * `isr-cost [--json] [--variant V] [--profile R [--call N]]` –
 //!   instructions per interrupt handler under QEMU.
@@ -23,6 +25,7 @@ mod elf;
 mod fuzz;
 mod isr_cost;
 mod nopanic;
+mod replay;
 
 use clap::{Parser, Subcommand};
 use std::env;
@@ -107,7 +110,7 @@ pub fn qemu_dir() -> PathBuf {
 
 /// Both workspaces build into the root's target directory (boards/qemu's
 /// config points there), unless CARGO_TARGET_DIR overrides it for both.
-fn target_dir() -> PathBuf {
+pub fn target_dir() -> PathBuf {
     match env::var_os("CARGO_TARGET_DIR") {
         Some(dir) => root().join(dir),
         None => root().join("target"),
@@ -391,9 +394,16 @@ fn wait_timeout(
 
 /// Runs the QEMU image with its log decoded; returns (exit code, log lines).
 fn run_qemu() -> Result<(u8, Vec<String>)> {
-    let elf = qemu_elf();
     step("QEMU run: qemu-system-arm -machine mps2-an386 | defmt-print");
+    run_qemu_with(&qemu_elf(), &[])
+}
+
+/// Runs `elf` under QEMU (with `extra` arguments) with its log decoded and
+/// shown; returns (exit code, log lines).
+pub fn run_qemu_with(elf: &Path, extra: &[&str]) -> Result<(u8, Vec<String>)> {
+    let elf = elf.to_path_buf();
     let mut qemu = qemu_command(&elf)
+        .args(extra)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
@@ -481,6 +491,8 @@ fn cmd_qemu(bless: bool) -> Result<u8> {
     eprintln!("QEMU image exited with status {code}");
     if code == 0 {
         check_snapshot(&lines, bless)?;
+        let summary = replay::check()?;
+        eprintln!("QEMU replay: {summary}");
     }
     Ok(code)
 }
@@ -623,6 +635,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         check_no_panic()?;
     }
     let mut qemu_code = None;
+    let mut replay_line = None;
     if qemu_possible {
         let (code, lines) = run_qemu()?;
         if code != 0 {
@@ -630,6 +643,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
+        replay_line = Some(replay::check()?);
     }
 
     // A short fuzz run of every target: a finding fails the run (after the
@@ -680,6 +694,10 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             Some(_) => "ran, exit status 0, log as expected",
             None => "NOT RUN",
         }
+    );
+    eprintln!(
+        "QEMU replay: {}",
+        replay_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
     let code = if fuzz_failed > 0 {

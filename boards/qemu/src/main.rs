@@ -38,7 +38,6 @@
 #![no_std]
 #![no_main]
 
-mod board;
 mod plant;
 
 use core::cell::Cell;
@@ -50,7 +49,6 @@ use cortex_m_semihosting::debug;
 use critical_section::Mutex;
 use defmt_semihosting as _;
 
-use board::{interrupt, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS};
 use plant::{Dac, DacSpi, GaugeSpi, Plant};
 use zslide::drivers::{ad4020::Ad4020, ad5791::Ad5791};
 use zslide::firmware::{
@@ -63,6 +61,7 @@ use zslide::servo::ServoConfig;
 use zslide::spindle::EncoderConfig;
 use zslide::units::SpindleAngle;
 use zslide::xpos::{half_mils_to_x, latch_word, CountConfig, CountX};
+use zslide_qemu::board::{interrupt, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS};
 
 /// Loop-tick rate, Hz (the real board's rate).
 const LOOP_HZ: u32 = 20_000;
