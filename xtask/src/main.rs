@@ -9,7 +9,8 @@
 //!   log, compares it (timestamps stripped) with `boards/qemu/expected.log`
 //!   (`--bless` rewrites that file); then replays host-sim's recorded runs
 //!   bit-exact on the emulated target and checks that an altered code is
-//!   caught (`replay.rs`).
+//!   caught (`replay.rs`); then hangs each handler and checks that the
+//!   watchdog trips (`watchdog.rs`).
 //! * `size`    – flash and RAM use of both images (builds them first).
 //! * `isr-cost [--json] [--variant V] [--profile R [--call N]]` –
 //!   instructions per interrupt handler under QEMU.
@@ -26,6 +27,7 @@ mod fuzz;
 mod isr_cost;
 mod nopanic;
 mod replay;
+mod watchdog;
 
 use clap::{Parser, Subcommand};
 use std::env;
@@ -493,6 +495,8 @@ fn cmd_qemu(bless: bool) -> Result<u8> {
         check_snapshot(&lines, bless)?;
         let summary = replay::check()?;
         eprintln!("QEMU replay: {summary}");
+        let summary = watchdog::check()?;
+        eprintln!("QEMU watchdog: {summary}");
     }
     Ok(code)
 }
@@ -542,7 +546,7 @@ fn print_sizes() -> Result<()> {
         (
             "QEMU mps2-an386 (zslide-qemu)",
             qemu_elf(),
-            4096 * 1024,
+            3072 * 1024,
             4096 * 1024,
         ),
     ] {
@@ -636,6 +640,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     }
     let mut qemu_code = None;
     let mut replay_line = None;
+    let mut watchdog_line = None;
     if qemu_possible {
         let (code, lines) = run_qemu()?;
         if code != 0 {
@@ -644,6 +649,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
         replay_line = Some(replay::check()?);
+        watchdog_line = Some(watchdog::check()?);
     }
 
     // A short fuzz run of every target: a finding fails the run (after the
@@ -698,6 +704,10 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     eprintln!(
         "QEMU replay: {}",
         replay_line.as_deref().unwrap_or("NOT RUN")
+    );
+    eprintln!(
+        "QEMU watchdog: {}",
+        watchdog_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
     let code = if fuzz_failed > 0 {
