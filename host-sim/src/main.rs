@@ -1,4 +1,4 @@
-//! `host-sim`: the acceptance interface of `BRIEF.md` §5.
+//! `host-sim`: the simulator's and the coefficient tools' command line.
 use clap::{Parser, Subcommand};
 use host_sim::cmd;
 
