@@ -81,12 +81,25 @@ const CTRL_IRQ_ENABLE: u32 = 1 << 3;
 pub const TIMER0_LOOP: CmsdkTimer = CmsdkTimer { base: 0x4000_0000 };
 pub const TIMER1_EVENTS: CmsdkTimer = CmsdkTimer { base: 0x4000_1000 };
 
+/// Writes a word register of one of the blocks in the table above.
+fn reg_write(addr: usize, value: u32) {
+    // SAFETY: every caller passes a block base of the table above plus one
+    // of that block's word register offsets: a volatile word write there
+    // has no effect on memory Rust owns.
+    unsafe { core::ptr::write_volatile(addr as *mut u32, value) }
+}
+
+/// Reads a word register (one without read side effects) of one of the
+/// blocks in the table above.
+fn reg_read(addr: usize) -> u32 {
+    // SAFETY: as for `reg_write`; the registers read (a timer's VALUE)
+    // change nothing when read.
+    unsafe { core::ptr::read_volatile(addr as *const u32) }
+}
+
 impl CmsdkTimer {
     fn write(self, offset: usize, value: u32) {
-        // SAFETY: `base` is one of the two timer blocks of the mps2-an386
-        // memory map and `offset` one of its word registers: a volatile word
-        // write there has no effect on memory Rust owns.
-        unsafe { core::ptr::write_volatile((self.base + offset) as *mut u32, value) }
+        reg_write(self.base + offset, value);
     }
 
     /// Starts a periodic interrupt every `period` PCLK cycles (≥ 2).
@@ -123,13 +136,10 @@ pub mod dualtimer {
     const SIZE_32: u32 = 1 << 1;
 
     fn write(offset: usize, value: u32) {
-        // SAFETY: a word register of the dual timer block of the
-        // mps2-an386 memory map: no memory Rust owns.
-        unsafe { core::ptr::write_volatile((BASE + offset) as *mut u32, value) }
+        super::reg_write(BASE + offset, value);
     }
     fn read(offset: usize) -> u32 {
-        // SAFETY: as for `write`; reading VALUE has no side effect.
-        unsafe { core::ptr::read_volatile((BASE + offset) as *const u32) }
+        super::reg_read(BASE + offset)
     }
 
     /// Timer 1: an interrupt every `period` PCLK cycles (≥ 2).
@@ -173,9 +183,7 @@ pub mod watchdog {
     const INT_EN: u32 = 1 << 0;
 
     fn write(offset: usize, value: u32) {
-        // SAFETY: a word register of the watchdog block of the mps2-an386
-        // memory map: no memory Rust owns.
-        unsafe { core::ptr::write_volatile((BASE + offset) as *mut u32, value) }
+        super::reg_write(BASE + offset, value);
     }
 
     /// Starts it with a timeout of `counts` PCLK cycles, interrupt (NMI)

@@ -45,7 +45,6 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::debug;
 use critical_section::Mutex;
 use defmt_semihosting as _;
 
@@ -62,6 +61,7 @@ use zslide::spindle::EncoderConfig;
 use zslide::units::SpindleAngle;
 use zslide::xpos::{half_mils_to_x, latch_word, CountConfig, CountX};
 use zslide_qemu::board::{interrupt, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS};
+use zslide_qemu::exit;
 
 /// Loop-tick rate, Hz (the real board's rate).
 const LOOP_HZ: u32 = 20_000;
@@ -580,17 +580,6 @@ fn main() -> ! {
         defmt::info!("PASS");
     }
     exit(ok)
-}
-
-fn exit(ok: bool) -> ! {
-    debug::exit(if ok {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::wfi();
-    }
 }
 
 // cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its body

@@ -14,11 +14,10 @@
 #![no_main]
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::debug;
 use defmt::Display2Format;
 use defmt_semihosting as _;
 // The board's vector table (every device interrupt unused here).
-use zslide_qemu as _;
+use zslide_qemu::exit;
 use zslide_replay::{container, play_run};
 
 extern "C" {
@@ -80,17 +79,6 @@ fn main() -> ! {
         defmt::info!("PASS");
     }
     exit(ok)
-}
-
-fn exit(ok: bool) -> ! {
-    debug::exit(if ok {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::wfi();
-    }
 }
 
 // cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its body

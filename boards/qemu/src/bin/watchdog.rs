@@ -35,7 +35,6 @@ use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::debug;
 use critical_section::Mutex;
 use defmt_semihosting as _;
 use zslide::firmware::{
@@ -49,6 +48,7 @@ use zslide::xpos::latch_word;
 use zslide_qemu::board::{
     dualtimer, interrupt, watchdog, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS,
 };
+use zslide_qemu::exit;
 
 const LOOP_HZ: u32 = 20_000;
 /// The watchdog's timeout: 10 ms of PCLK, as the NUCLEO's IWDG.
@@ -389,17 +389,6 @@ fn main() -> ! {
 fn fail(what: &str) -> ! {
     defmt::error!("FAIL: {=str}", what);
     exit(false)
-}
-
-fn exit(ok: bool) -> ! {
-    debug::exit(if ok {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::wfi();
-    }
 }
 
 // cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its body
