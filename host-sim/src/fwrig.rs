@@ -42,7 +42,7 @@ use zslide::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
 use zslide::units::{SpindleAngle, XInches};
 use zslide::xpos::{CountConfig, CountX, XEvent};
 use zslide_replay::record::{Recorder, Tap, TapPin};
-use zslide_replay::wire::{Dev, Event, Spindle, XResult};
+use zslide_replay::wire::{Dev, Event, XResult};
 
 /// How the firmware learns X.
 #[derive(Clone, Debug, PartialEq)]
@@ -527,19 +527,7 @@ impl FirmwareWorld {
             }
         }
         if let Some(r) = &self.recorder {
-            r.begin(Event::Tick {
-                now: input.now,
-                spindle: match input.spindle {
-                    SpindleReading::None => Spindle::None,
-                    SpindleReading::Encoder(s) => Spindle::Encoder {
-                        count: s.count,
-                        edge_ticks: s.edge_ticks,
-                    },
-                    SpindleReading::Tach(mv) => Spindle::Tach(mv),
-                },
-                x_count: input.x_count,
-                amplifier_fault: input.amplifier_fault,
-            });
+            r.begin_tick(&input);
         }
         self.fw.loop_tick(&input, &mut self.adc, &mut self.dac);
         if let Some(r) = &self.recorder {

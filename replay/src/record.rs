@@ -11,13 +11,13 @@ use std::vec::Vec;
 
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
-use zslide::firmware::{FirmwareConfig, Request};
+use zslide::firmware::{FirmwareConfig, Request, SpindleReading, TickInput};
 use zslide::safety::Fault;
 
 use crate::frames;
 use crate::player::fault_text;
 use crate::setup::setup_of;
-use crate::wire::{Codec, Dev, Event, Io, Req, Setup, XResult};
+use crate::wire::{Codec, Dev, Event, Io, Req, Setup, Spindle, XResult};
 
 /// An event with owned text (the recorder's copy).
 #[derive(Clone, Debug, PartialEq)]
@@ -57,8 +57,29 @@ impl Recorder {
         i.setup = Some((fc.loop_cfg.rate_hz, table, *fc));
     }
 
+    /// A loop tick begins with `input`.
+    #[cold]
+    #[inline(never)]
+    pub fn begin_tick(&self, input: &TickInput) {
+        self.begin(Event::Tick {
+            now: input.now,
+            spindle: match input.spindle {
+                SpindleReading::None => Spindle::None,
+                SpindleReading::Encoder(s) => Spindle::Encoder {
+                    count: s.count,
+                    edge_ticks: s.edge_ticks,
+                },
+                SpindleReading::Tach(mv) => Spindle::Tach(mv),
+            },
+            x_count: input.x_count,
+            amplifier_fault: input.amplifier_fault,
+        });
+    }
+
     /// A handler call begins (`Event::Boot`, `Tick`, `X` with any result,
     /// `Index`).
+    #[cold]
+    #[inline(never)]
     pub fn begin(&self, call: Event<'static>) {
         let mut i = self.0.borrow_mut();
         if i.call.is_some() && i.error.is_none() {
@@ -82,6 +103,8 @@ impl Recorder {
     }
 
     /// The call ends: its record, its bus items, then what it changed.
+    #[cold]
+    #[inline(never)]
     pub fn end(&self, x_result: Option<XResult>, enable: bool, fault: Option<Fault>) {
         let mut i = self.0.borrow_mut();
         let Some(mut call) = i.call.take() else {
@@ -200,27 +223,40 @@ impl<S: ErrorType> ErrorType for Tap<S> {
 impl<S: SpiDevice> SpiDevice for Tap<S> {
     #[inline]
     fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), S::Error> {
-        let Some(rec) = &self.rec else {
-            return self.inner.transaction(ops);
-        };
-        let mosi = frames::mosi(ops);
-        let r = self.inner.transaction(ops);
-        match (mosi, frames::miso(ops)) {
-            (Some(o), Some(i)) => rec.item(Event::Spi(Io {
-                dev: self.dev,
-                ok: r.is_ok(),
-                mosi_len: o.len,
-                mosi: o.word,
-                miso_len: i.len,
-                miso: i.word,
-            })),
-            _ => rec.fail(format!(
-                "{}: a transaction longer than 3 bytes each way",
-                self.dev.name()
-            )),
+        match &self.rec {
+            None => self.inner.transaction(ops),
+            Some(rec) => recorded(rec, self.dev, &mut self.inner, ops),
         }
-        r
     }
+}
+
+/// The recording path, out of line: a tap that does not record costs the
+/// simulator's hot path one branch and changes no inlining around it.
+#[cold]
+#[inline(never)]
+fn recorded<S: SpiDevice>(
+    rec: &Recorder,
+    dev: Dev,
+    inner: &mut S,
+    ops: &mut [Operation<'_, u8>],
+) -> Result<(), S::Error> {
+    let mosi = frames::mosi(ops);
+    let r = inner.transaction(ops);
+    match (mosi, frames::miso(ops)) {
+        (Some(o), Some(i)) => rec.item(Event::Spi(Io {
+            dev,
+            ok: r.is_ok(),
+            mosi_len: o.len,
+            mosi: o.word,
+            miso_len: i.len,
+            miso: i.word,
+        })),
+        _ => rec.fail(format!(
+            "{}: a transaction longer than 3 bytes each way",
+            dev.name()
+        )),
+    }
+    r
 }
 
 /// A tap on the LDAC pin.
