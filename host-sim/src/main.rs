@@ -1,4 +1,4 @@
-//! `host-sim`: the acceptance interface of `BRIEF.md` §5.
+//! `host-sim`: the simulator's and the coefficient tools' command line.
 use clap::{Parser, Subcommand};
 use host_sim::cmd;
 
@@ -37,6 +37,8 @@ enum Command {
     Soak(cmd::soak::Args),
     /// Cost of one plant step and of one simulated second at the loop rate.
     Bench(cmd::bench::Args),
+    /// Record the runs the target replays bit-exact (`cargo xtask qemu`).
+    ReplayRecord(cmd::replay::Args),
 }
 
 /// Errors go to stderr as one readable chain ("what: because"), exit code 1,
@@ -62,5 +64,6 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Faults(a) => cmd::faults::run(a),
         Command::Soak(a) => cmd::soak::run(a),
         Command::Bench(a) => cmd::bench::run(a),
+        Command::ReplayRecord(a) => cmd::replay::run(a),
     }
 }
