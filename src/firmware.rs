@@ -270,7 +270,7 @@ mod tests {
 
     #[test]
     fn gauge_scale_is_one_volt_per_mil_over_20_bits() {
-        // Brief: code = round(V · 2¹⁹ / 10 V), 1 V per mil.
+        // The gauge scale: code = round(V · 2¹⁹ / 10 V), 1 V per mil.
         assert_eq!(gauge_code_from_z(ZInches::from_f64(0.005)), 1 << 18);
         assert_eq!(gauge_code_from_z(ZInches::from_f64(-0.010)), CODE_MIN);
         assert_eq!(gauge_code_from_z(ZInches::from_f64(0.010)), CODE_MAX);

@@ -1,10 +1,12 @@
 //! Portable core of the Z-slide controller.
 //!
 //! `no_std`, no allocation, no chips and no simulator: boards (`src/main.rs`,
-//! `boards/qemu`) and `host-sim` implement its traits. The module list below
-//! follows the data path: X position and spindle angle arrive by interrupt, the
-//! coefficient table is interpolated at X, the command is formed at φ, the
-//! loop closes on the gauge, and the result goes to the DAC. See
+//! `boards/qemu`) and `host-sim` implement its traits. The modules are
+//! grouped: types and traits; configuration and the coefficient table; the
+//! data path in order (X position and spindle angle arrive by interrupt, the
+//! table is interpolated at X, the command is formed at φ, the loop closes on
+//! the gauge, the result goes to the DAC); what serves it (converter drivers,
+//! the watchdog's feed decision); the bundle; the second system. See
 //! `docs/ARCHITECTURE.md`.
 #![no_std]
 #![forbid(unsafe_code)]
@@ -30,6 +32,7 @@ pub mod command;
 pub mod setpoint;
 pub mod servo;
 pub mod looptick;
+// Around the data path: the converters' drivers, the watchdog feed decision.
 pub mod drivers;
 pub mod watchdog;
 // What the boards report of their handlers, for a VCD beside the simulator's.

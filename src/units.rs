@@ -9,7 +9,8 @@
 //! * **φ** ([`SpindleAngle`]) is the spindle angle of eq 2-5, counter-clockwise
 //!   seen from +Y_t, zero on the x3 axis, as a binary angle (one turn = 2³²).
 //! * **Z** ([`ZInches`]) is the Z-slide displacement along +Y_t of eq 2-8,
-//!   `Y_t(X, φ) = Y(X) + Z(X, φ)`. With the brief's corrected eq 2-14 the
+//!   `Y_t(X, φ) = Y(X) + Z(X, φ)`. With eq 2-14 corrected (its printed form
+//!   lost a leading `1 −`, `docs/COEFFICIENTS.md`) the
 //!   command satisfies `max_φ Z(X, φ) = 0`, so a correct command is never
 //!   positive: the sign check in `safety` relies on that.
 //!

@@ -21,7 +21,7 @@
 //! its output is R1. Kv = 8088 · Ko (eq 4-46); Ko = 0.5934 gives the
 //! published Kv ≈ 4800 1/s.
 
-use crate::plant::linear::{lead_lag, LinearSystem};
+use crate::plant::linear::{lead_lag, LinearSystem, StateSpace};
 use crate::plant::ZSlideParams;
 use nalgebra::DMatrix;
 

@@ -9,7 +9,7 @@
 //! states), so the printed values are the exact solution of the diagram to
 //! rounding, not an integration-method artefact.
 //!
-//! Block conventions (CSMP/360, as quoted in the brief §2):
+//! Block conventions (CSMP/360, as the listings of appendix C use them):
 //! `LEDLAG(a,b,x)` = (1+as)/(1+bs), `REALPL(ic,p,x)` = 1/(1+ps),
 //! `CMPLXPL(ic1,ic2,ζ,ωn,x)` = 1/(s²+2ζωn s+ωn²) (no ωn² on top: the programs
 //! multiply by `P2SQ` themselves), `STEP(0.)` = 1 for t ≥ 0, `RAMP(0.)` = t.

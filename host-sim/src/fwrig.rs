@@ -41,6 +41,8 @@ use zslide::servo::ServoConfig;
 use zslide::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
 use zslide::units::{SpindleAngle, XInches};
 use zslide::xpos::{CountConfig, CountX, XEvent};
+use zslide_replay::record::{Recorder, Tap, TapPin};
+use zslide_replay::wire::{Dev, Event, XResult};
 
 /// How the firmware learns X.
 #[derive(Clone, Debug, PartialEq)]
@@ -236,12 +238,17 @@ pub const ANALOG_SUBSTEP_NS: Nanos = 5_000;
 pub struct FirmwareWorld {
     pub rig: Rig,
     pub fw: Firmware,
-    pub adc: Ad4020<SimAd4020>,
-    pub dac: Ad5791<SimAd5791>,
+    /// The converters through the core drivers, behind taps that log
+    /// every frame when a replay is being recorded (`recorder`).
+    pub adc: Ad4020<Tap<SimAd4020>>,
+    pub dac: Ad5791<Tap<SimAd5791>>,
     pub enable: SimAmpEnablePin,
     pub clock: SimClock,
     /// The coefficient DAC through the core driver (legacy output mode).
-    pub quad: Ad5686<SimAd5686, SimLdacPin>,
+    pub quad: Ad5686<Tap<SimAd5686>, TapPin<SimLdacPin>>,
+    /// Records every handler call with its inputs and outputs for the
+    /// bit-exact replay on the target (`zslide_replay`, `crate::replay`).
+    pub recorder: Option<Recorder>,
     pub machine: Option<Machine>,
     /// Machine physics run at each loop tick (none: no cutting).
     pub hook: Option<Box<dyn TickHook>>,
@@ -283,7 +290,12 @@ impl FirmwareWorld {
     /// code, control register, read-back). A failed init latches
     /// `Fault::Bus(AmplifierDac)`, as the board does.
     pub fn new(cfg: RigConfig, loop_cfg: ServoConfig) -> Self {
-        Self::build(Rig::new(cfg), loop_cfg)
+        Self::build(Rig::new(cfg), loop_cfg, None)
+    }
+
+    /// [`Self::new`], every handler call recorded from the boot on.
+    pub fn new_recording(cfg: RigConfig, loop_cfg: ServoConfig, rec: Recorder) -> Self {
+        Self::build(Rig::new(cfg), loop_cfg, Some(rec))
     }
 
     /// [`Self::new`] with `fault` injected into the DAC's first four frames
@@ -295,22 +307,33 @@ impl FirmwareWorld {
     ) -> Self {
         let rig = Rig::new(cfg);
         rig.dac.state.borrow_mut().faults.inject(fault, 4);
-        Self::build(rig, loop_cfg)
+        Self::build(rig, loop_cfg, None)
     }
 
-    fn build(rig: Rig, loop_cfg: ServoConfig) -> Self {
+    fn build(rig: Rig, loop_cfg: ServoConfig, recorder: Option<Recorder>) -> Self {
         let dev = rig.devices();
-        let mut dac = Ad5791::new(dev.amp_dac);
+        let r = recorder.clone();
+        let mut dac = Ad5791::new(Tap::new(dev.amp_dac, Dev::AmpDac, r.clone()));
         let mut fw = Firmware::new(loop_cfg);
+        if let Some(r) = &r {
+            r.begin(Event::Boot);
+        }
         let mut init_fault = None;
         if dac.init().is_err() {
             init_fault = Some(Fault::Bus(Device::AmplifierDac));
         }
-        let quad = match Ad5686::new(dev.quad_dac.clone(), dev.ldac.clone()) {
+        let tapped = || {
+            (
+                Tap::new(dev.quad_dac.clone(), Dev::QuadDac, r.clone()),
+                TapPin::new(dev.ldac.clone(), r.clone()),
+            )
+        };
+        let (spi, pin) = tapped();
+        let quad = match Ad5686::new(spi, pin) {
             Ok(q) => q,
             Err(_) => {
                 init_fault = Some(Fault::Bus(Device::CoefficientDac));
-                let (spi, pin) = (dev.quad_dac, dev.ldac);
+                let (spi, pin) = tapped();
                 // The pin write is infallible on the simulated pin; the
                 // error path is kept for the type.
                 Ad5686::new(spi, pin).unwrap_or_else(|_| unreachable!())
@@ -319,10 +342,13 @@ impl FirmwareWorld {
         if let Some(f) = init_fault {
             fw.trip(f);
         }
+        if let Some(r) = &r {
+            r.end(None, fw.amplifier_enable(), fw.fault());
+        }
         Self {
             rig,
             fw,
-            adc: Ad4020::new(dev.gauge_adc),
+            adc: Ad4020::new(Tap::new(dev.gauge_adc, Dev::GaugeAdc, r)),
             dac,
             enable: dev.amp_enable,
             clock: dev.clock,
@@ -332,6 +358,7 @@ impl FirmwareWorld {
             init_fault,
             analog: None,
             cpu: Cpu::Running,
+            recorder,
         }
     }
 
@@ -445,6 +472,9 @@ impl FirmwareWorld {
         if let Some(f) = self.init_fault {
             fw.trip(f);
         }
+        if let Some(r) = &self.recorder {
+            r.set_setup(table, &fc);
+        }
         self.fw = fw;
         self.machine = Some(Machine {
             x,
@@ -496,7 +526,13 @@ impl FirmwareWorld {
                 m.stats.x = Some(decoder.x(input.x_count));
             }
         }
+        if let Some(r) = &self.recorder {
+            r.begin_tick(&input);
+        }
         self.fw.loop_tick(&input, &mut self.adc, &mut self.dac);
+        if let Some(r) = &self.recorder {
+            r.end(None, self.fw.amplifier_enable(), self.fw.fault());
+        }
         if let Some(m) = self.machine.as_mut() {
             let sh = self.fw.shared();
             m.stats.x_accepted = u64::from(sh.x_accepted());
@@ -528,13 +564,28 @@ impl FirmwareWorld {
         };
         m.stats.x_events += 1;
         m.stats.x_stale += u64::from(stale);
-        match self.fw.x_event(latch.read(), now, &mut self.quad) {
-            Ok(XEvent::Ignored) => {}
-            Ok(XEvent::Update(u)) => m.stats.x = Some(u.x),
+        let word = latch.read();
+        if let Some(r) = &self.recorder {
+            r.begin(Event::X {
+                word: word.0,
+                now,
+                result: XResult::Ignored,
+            });
+        }
+        let result = match self.fw.x_event(word, now, &mut self.quad) {
+            Ok(XEvent::Ignored) => XResult::Ignored,
+            Ok(XEvent::Update(u)) => {
+                m.stats.x = Some(u.x);
+                XResult::Update
+            }
             Err(f) => {
                 m.stats.x_faults += 1;
                 m.stats.last_fault = Some(f);
+                XResult::Fault
             }
+        };
+        if let Some(r) = &self.recorder {
+            r.end(Some(result), self.fw.amplifier_enable(), self.fw.fault());
         }
         let sh = self.fw.shared();
         m.stats.x_accepted = u64::from(sh.x_accepted());
@@ -551,7 +602,13 @@ impl FirmwareWorld {
             return;
         };
         m.stats.index_events += 1;
+        if let Some(r) = &self.recorder {
+            r.begin(Event::Index { edge_ticks, count });
+        }
         self.fw.index_event(edge_ticks, count);
+        if let Some(r) = &self.recorder {
+            r.end(None, self.fw.amplifier_enable(), self.fw.fault());
+        }
         let r = match &mut m.angle {
             AngleState::Encoder { est, .. } => est.on_index(count, edge_ticks),
             AngleState::Tach { est, .. } => est.on_index(edge_ticks),
@@ -600,6 +657,9 @@ impl FirmwareWorld {
 
     /// Posts an operator request (arm, disarm, clear) for the next tick.
     pub fn request(&mut self, r: Request) {
+        if let Some(rec) = &self.recorder {
+            rec.request(r);
+        }
         self.fw.request(r);
     }
 

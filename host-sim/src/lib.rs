@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod machine;
 pub mod plant;
 pub mod plot;
+pub mod replay;
 pub mod scenario;
 pub mod sched;
 pub mod soak;

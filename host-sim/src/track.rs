@@ -1,6 +1,6 @@
 //! `track`: a spindle-synchronous sinusoidal Z command through the
 //! firmware's real command path on the scenario's machine, after settling
-//! and learning (brief §5).
+//! and learning.
 //!
 //! The command is a coefficient table of its own, harmonic form, constant
 //! over X: `Z = A·(sin kφ − 1)` (C₀ = −A, S_k = A), whose maximum is 0, so

@@ -1,7 +1,7 @@
 //! The plant against the dissertation's numbers and against closed-form
 //! solutions of its linear dynamics.
 
-use host_sim::plant::linear::LinearSystem;
+use host_sim::plant::linear::{LinearSystem, StateSpace};
 use host_sim::plant::zslide::st;
 use host_sim::plant::{ZSlide, ZSlideParams};
 use nalgebra::DMatrix;

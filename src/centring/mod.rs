@@ -1,4 +1,4 @@
-//! Automatic part centring (Y-1594, Feezell 1967; brief §7): the second
+//! Automatic part centring (Y-1594, Feezell 1967): the second
 //! system on the same core.
 //!
 //! A rotary table (1-25 rpm) carries two cross slides and the part; a

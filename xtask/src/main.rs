@@ -7,7 +7,10 @@
 //!   missing.
 //! * `qemu [--bless]` – builds and runs the QEMU image, decodes its defmt
 //!   log, compares it (timestamps stripped) with `boards/qemu/expected.log`
-//!   (`--bless` rewrites that file), and exits with the image's status.
+//!   (`--bless` rewrites that file); then replays host-sim's recorded runs
+//!   bit-exact on the emulated target and checks that an altered code is
+//!   caught (`replay.rs`); then hangs each handler and checks that the
+//!   watchdog trips (`watchdog.rs`).
 //! * `size`    – flash and RAM use of both images (builds them first).
 //! * `isr-cost [--json] [--variant V] [--profile R [--call N]]` –
 //!   instructions per interrupt handler under QEMU.
@@ -23,7 +26,9 @@ mod elf;
 mod fuzz;
 mod isr_cost;
 mod nopanic;
+mod replay;
 mod trace;
+mod watchdog;
 
 use clap::{Parser, Subcommand};
 use std::env;
@@ -112,7 +117,7 @@ pub fn qemu_dir() -> PathBuf {
 
 /// Both workspaces build into the root's target directory (boards/qemu's
 /// config points there), unless CARGO_TARGET_DIR overrides it for both.
-fn target_dir() -> PathBuf {
+pub fn target_dir() -> PathBuf {
     match env::var_os("CARGO_TARGET_DIR") {
         Some(dir) => root().join(dir),
         None => root().join("target"),
@@ -403,9 +408,16 @@ fn wait_timeout(
 
 /// Runs the QEMU image with its log decoded; returns (exit code, log lines).
 fn run_qemu() -> Result<(u8, Vec<String>)> {
-    let elf = qemu_elf();
     step("QEMU run: qemu-system-arm -machine mps2-an386 | defmt-print");
+    run_qemu_with(&qemu_elf(), &[])
+}
+
+/// Runs `elf` under QEMU (with `extra` arguments) with its log decoded and
+/// shown; returns (exit code, log lines).
+pub fn run_qemu_with(elf: &Path, extra: &[&str]) -> Result<(u8, Vec<String>)> {
+    let elf = elf.to_path_buf();
     let mut qemu = qemu_command(&elf)
+        .args(extra)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
@@ -493,6 +505,10 @@ fn cmd_qemu(bless: bool) -> Result<u8> {
     eprintln!("QEMU image exited with status {code}");
     if code == 0 {
         check_snapshot(&lines, bless)?;
+        let summary = replay::check()?;
+        eprintln!("QEMU replay: {summary}");
+        let summary = watchdog::check()?;
+        eprintln!("QEMU watchdog: {summary}");
     }
     Ok(code)
 }
@@ -542,7 +558,7 @@ fn print_sizes() -> Result<()> {
         (
             "QEMU mps2-an386 (zslide-qemu)",
             qemu_elf(),
-            4096 * 1024,
+            3072 * 1024,
             4096 * 1024,
         ),
     ] {
@@ -650,6 +666,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         check_no_panic()?;
     }
     let mut qemu_code = None;
+    let mut replay_line = None;
+    let mut watchdog_line = None;
     if qemu_possible {
         let (code, lines) = run_qemu()?;
         if code != 0 {
@@ -657,6 +675,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
+        replay_line = Some(replay::check()?);
+        watchdog_line = Some(watchdog::check()?);
     }
 
     // A short fuzz run of every target: a finding fails the run (after the
@@ -707,6 +727,14 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             Some(_) => "ran, exit status 0, log as expected",
             None => "NOT RUN",
         }
+    );
+    eprintln!(
+        "QEMU replay: {}",
+        replay_line.as_deref().unwrap_or("NOT RUN")
+    );
+    eprintln!(
+        "QEMU watchdog: {}",
+        watchdog_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
     let code = if fuzz_failed > 0 {

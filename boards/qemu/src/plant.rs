@@ -1,47 +1,57 @@
-//! A small model of the Z slide for the QEMU image, with the brief's
-//! section 2 numbers: moving mass, viscous air-film friction, the Model 15
-//! voice-coil motor behind the ×10 linear amplifier (back-EMF, 8 A limit,
-//! coil inductance neglected: L/R = 0.26 ms is 5 ticks), and an amplifier
-//! input offset for the integral term to remove. The capacitance gauge reads
-//! 1 V/mil into a 20-bit ±10 V ADC.
+//! The simulated world of the QEMU image: the project's one plant model
+//! (`zslide-plant`: the Model 15 slide and motor with its coil inductance
+//! and the 3150 Hz coil-frame mode, the ×10 amplifier with its 8 A limit and
+//! trip, the capacitance gauge with the modern gauge's noise and the ADC's
+//! quantisation), the same code `host-sim` steps, behind `SpiDevice` models
+//! of the converters that speak the chips' frames.
 //!
-//! This is the simulated world, not firmware: it uses `f64` (soft float on the
-//! M4F, deterministic) and semi-implicit Euler with four sub-steps per tick
-//! (12.5 µs against a 3.3 ms mechanical time constant).
+//! The slide steps with the exact zero-order-hold matrices that
+//! `build.rs` generated from the same parameters with the same code (the
+//! image has no matrix exponential); every step this image takes is one of
+//! those or composed of their power-of-two entries, and
+//! [`Plant::missing_steps`] proves it at the end of the run.
+//!
+//! This is the world, not firmware: `f64` (soft float on the M4F,
+//! deterministic), stepped in the loop-timer interrupt after the firmware's
+//! tick, which `cargo xtask isr-cost` does not count (it measures the
+//! firmware's entry points).
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use embedded_hal::spi::{ErrorKind, ErrorType, Operation, SpiDevice};
+use zslide_plant::slide::st;
+use zslide_plant::{gauge, Amplifier, AmplifierParams, Gauge, GaugeParams, ZSlide, ZSlideParams};
 
-/// Slide mass, lbf·s²/in (0.194 slug).
-const MASS: f64 = 0.194 / 12.0;
-/// Air-film viscous friction, lbf·s/in (51.2 lbf·s/ft, eq 4-32).
-const FRICTION: f64 = 51.2 / 12.0;
-/// Motor force constant, lbf/A (Model 15).
-const KF: f64 = 2.9;
-/// Back-EMF constant, V·s/in (4.002 V·s/ft).
-const KB: f64 = 4.002 / 12.0;
-/// Coil resistance, Ω.
-const R_COIL: f64 = 1.4;
-/// Amplifier voltage gain and current limit.
-const AMP_GAIN: f64 = 10.0;
-const AMP_LIMIT_A: f64 = 8.0;
+/// The discretisations of the slide model `build.rs` generated:
+/// `STEPS: [Step; N]`.
+mod steps {
+    use zslide_plant::slide::{Mats, Step};
+    include!(concat!(env!("OUT_DIR"), "/plant_steps.rs"));
+}
+
 /// Gauge codes per inch: 1000 V/in · 2¹⁹ codes / 10 V.
 pub const CODES_PER_IN: f64 = 52_428_800.0;
-const SUBSTEPS: u32 = 4;
+/// Time from the loop-tick event to the end of its DAC frame, ns: the
+/// NUCLEO's estimate (`scenarios/*.toml`, `loop.dac_latency_ns`), so the
+/// loop sees the board's delay here too.
+pub const DAC_LATENCY_NS: u64 = 8_500;
+/// Seed of the gauge noise.
+const SEED: u64 = 1983;
 
 /// The slide, its motor and amplifier, and the gauge.
 pub struct Plant {
-    /// Position along +Z, inches.
-    x: f64,
-    /// Velocity, in/s.
-    v: f64,
-    /// Amplifier input offset, volts.
-    offset_v: f64,
-    dt: f64,
-    /// The gauge's reading of `x`, converted when the plant moves, so that a
-    /// read costs the firmware what a real converter read would, not a
-    /// soft-float conversion (it would distort `cargo xtask isr-cost`).
+    slide: ZSlide,
+    amp: Amplifier,
+    gauge: Gauge,
+    /// Plant time, ns.
+    t_ns: u64,
+    period_ns: u64,
+    /// Amplifier input now applied, V.
+    v_in: f64,
+    /// The gauge's conversion at the last sampling instant, published to
+    /// the ADC's SPI model when the plant moves, so that a read costs the
+    /// firmware what a real converter read would, not a soft-float
+    /// conversion (it would distort `cargo xtask isr-cost`).
     code: i32,
     overrange: bool,
     /// Makes the gauge bus fail, for the fault-reaction check.
@@ -49,12 +59,19 @@ pub struct Plant {
 }
 
 impl Plant {
-    pub fn new(x_in: f64, offset_v: f64, tick_hz: u32) -> Self {
+    /// The slide at rest at `x_in`, amplifier off, modern gauge; the loop
+    /// ticks at `tick_hz` (the generated steps are for 20 kHz).
+    pub fn new(x_in: f64, tick_hz: u32) -> Self {
+        let mut slide = ZSlide::new(ZSlideParams::model15());
+        slide.preload(&steps::STEPS);
+        slide.x[st::Z] = x_in;
         let mut p = Self {
-            x: x_in,
-            v: 0.0,
-            offset_v,
-            dt: 1.0 / f64::from(tick_hz) / f64::from(SUBSTEPS),
+            slide,
+            amp: Amplifier::new(AmplifierParams::default()),
+            gauge: Gauge::new(GaugeParams::modern(), SEED),
+            t_ns: 0,
+            period_ns: 1_000_000_000 / u64::from(tick_hz.max(1)),
+            v_in: 0.0,
             code: 0,
             overrange: false,
             gauge_bus_broken: false,
@@ -63,34 +80,36 @@ impl Plant {
         p
     }
 
+    /// CNV at the plant's time: the gauge (with its noise) converted.
     fn convert(&mut self) {
-        let s = self.x * CODES_PER_IN;
-        let r = if s >= 0.0 { s + 0.5 } else { s - 0.5 };
-        self.code = (r as i64).clamp(-(1 << 19), (1 << 19) - 1) as i32;
-        self.overrange = self.x.abs() * CODES_PER_IN > f64::from(1u32 << 19);
+        let v = self.gauge.volts(self.t_ns, self.slide.gauge_position_in());
+        (self.code, self.overrange) = gauge::adc_convert(v);
         self.publish_gauge();
     }
 
-    /// Advances one tick with the DAC output held (zero-order hold); the
-    /// amplifier drives no current when disabled.
+    /// Advances one loop period after a tick that wrote `dac_volts` and set
+    /// the amplifier enable: the old output for the DAC's latency, then the
+    /// new one (zero-order hold), then the next sample.
     pub fn step(&mut self, dac_volts: f64, amplifier_enabled: bool) {
-        for _ in 0..SUBSTEPS {
-            let current = if amplifier_enabled {
-                let coil_v = AMP_GAIN * (dac_volts + self.offset_v) - KB * self.v;
-                (coil_v / R_COIL).clamp(-AMP_LIMIT_A, AMP_LIMIT_A)
-            } else {
-                0.0
-            };
-            let accel = (KF * current - FRICTION * self.v) / MASS;
-            self.v += accel * self.dt;
-            self.x += self.v * self.dt;
-        }
+        let latency = DAC_LATENCY_NS.min(self.period_ns);
+        self.amp.advance(&mut self.slide, latency, self.v_in, 0.0);
+        self.v_in = dac_volts;
+        self.amp.set_enabled(amplifier_enabled);
+        self.amp
+            .advance(&mut self.slide, self.period_ns - latency, self.v_in, 0.0);
+        self.t_ns += self.period_ns;
         self.convert();
     }
 
-    /// The gauge code the ADC would convert now (rounded, clamped).
+    /// The gauge code the ADC converted at the last sampling instant.
     pub fn gauge_code(&self) -> i32 {
         self.code
+    }
+
+    /// Steps the slide could not take (zero when the generated table
+    /// covers every step: see the module doc).
+    pub fn missing_steps(&self) -> u64 {
+        self.slide.missing_steps()
     }
 }
 

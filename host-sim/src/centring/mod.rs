@@ -1,4 +1,4 @@
-//! The automatic centring machine of Y-1594 (brief §7), simulated around
+//! The automatic centring machine of Y-1594 (Feezell 1967), simulated around
 //! the real firmware sequence `zslide::centring::Centring`.
 //!
 //! Each loop tick (10 kHz): the table encoder and index are read

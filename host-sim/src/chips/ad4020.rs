@@ -16,7 +16,7 @@ use std::rc::Rc;
 /// The fixed low bits of every frame.
 pub const PATTERN: u32 = 0b010;
 pub const OV_BIT: u32 = 1 << 3;
-pub const FULL_SCALE_V: f64 = 10.0;
+pub const FULL_SCALE_V: f64 = zslide_plant::gauge::ADC_FULL_SCALE_V;
 
 #[derive(Clone, Debug, Default)]
 pub struct Ad4020State {
@@ -33,12 +33,8 @@ pub struct Ad4020State {
 impl Ad4020State {
     /// CNV: converts `volts`.
     pub fn convert(&mut self, volts: f64) {
-        let max = (1i32 << 19) - 1;
-        let min = -(1i32 << 19);
-        // Same as `round()` then clamp (NaN → 0), without the software round.
-        let raw = crate::fastmath::round_i64(volts * f64::from(1u32 << 19) / FULL_SCALE_V);
-        let code = raw.clamp(i64::from(min), i64::from(max)) as i32;
-        let ov = volts.abs() >= FULL_SCALE_V || volts.is_nan();
+        // The quantisation is the plant model's (shared with the QEMU image).
+        let (code, ov) = zslide_plant::gauge::adc_convert(volts);
         self.code = code;
         self.input_v = volts;
         self.result = ((code as u32 & 0xF_FFFF) << 4) | if ov { OV_BIT } else { 0 } | PATTERN;

@@ -1,4 +1,4 @@
-//! `host-sim center`: automatic part centring (Y-1594, brief §7) on the
+//! `host-sim center`: automatic part centring (Y-1594, Feezell 1967) on the
 //! simulated machine, through the firmware's own sequence.
 
 use crate::centring::{self, Lobe, Mechanics, Outcome, Setup};

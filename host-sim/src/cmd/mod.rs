@@ -6,6 +6,7 @@ pub mod coeffs;
 pub mod csmp;
 pub mod cut;
 pub mod faults;
+pub mod replay;
 pub mod response;
 pub mod soak;
 pub mod trace2vcd;

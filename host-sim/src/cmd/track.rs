@@ -1,5 +1,5 @@
 //! `host-sim track`: closed-loop tracking of a spindle-synchronous sinusoid
-//! on the scenario's machine (brief §5; logic in `crate::track`).
+//! on the scenario's machine (logic in `crate::track`).
 
 use crate::fwrig::Controller;
 use crate::scenario::ScenarioArg;

@@ -1,8 +1,12 @@
 //! What the NUCLEO board does about a stalled loop and a panic, outside the
 //! core (`src/board/timers.rs`, `src/main.rs`), modelled on the simulated
 //! machine so that the fault campaign can show their effect. The core has
-//! no watchdog and no panic handler of its own: these rows test this model
-//! of the board, and say so.
+//! only the feed decision (`zslide::watchdog::FeedGate`), no watchdog and
+//! no panic handler of its own: these rows test this model of the board,
+//! and say so. The model's background runs at every count, so it shows a
+//! loop tick that stops firing; a handler that hangs (and starves the
+//! background by its priority) is shown on the emulated Cortex-M4F instead
+//! (`boards/qemu`, `zslide-qemu-watchdog`).
 
 use crate::fwrig::{Cpu, FirmwareWorld};
 use crate::sched::{EventSource, Nanos};

@@ -190,7 +190,7 @@ impl Case {
     }
 }
 
-/// One row of the campaign (brief §5).
+/// One row of the campaign.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Row {
     pub fault: &'static str,
@@ -261,7 +261,7 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
                 max_excursion_uin: None,
                 excursion_before_uin: None,
                 safe_state: None,
-                reason: "not applicable: no host link yet (issue 11)".into(),
+                reason: "not applicable: no host link yet".into(),
                 time_to_safe_ms: None,
                 injected_at_s: None,
             },

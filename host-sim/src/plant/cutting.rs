@@ -16,7 +16,7 @@
 //! edge term dominates, as it does in real ultra-precision turning.
 //! `engaged` is the fraction of the contact chord not over a hole.
 //!
-//! Constants (not in the seeds, so calibrated to the one published datum):
+//! Constants (not in the dissertation, so calibrated to its one datum):
 //! roughing cuts of 0.010 in drew 3–4 A, i.e. 8.7–11.6 lbf at Kf = 2.9
 //! lbf/A. With the X feed of 0.2 in/min at 300 rpm (667 µin/rev), k_t =
 //! 200 000 psi and k_e = 150 lbf/in give 8.9 lbf (3.1 A). The finishing
@@ -55,7 +55,7 @@ impl Default for CuttingParams {
     }
 }
 
-/// The eight countersunk bolt holes in the part face. The seeds give the
+/// The eight countersunk bolt holes in the part face. The dissertation gives the
 /// number and that the part sat on an 8 in faceplate; the bolt circle and
 /// countersink size are chosen to fit inside it (documented assumption).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -179,3 +179,30 @@ impl ZohCache {
         &self.entries[0].1
     }
 }
+
+/// The slide model's continuous state space (`zslide_plant`) as a
+/// [`LinearSystem`], with outputs `y = [z_gauge, i, v, z]`
+/// (`z_gauge = z + q` when the gauge sees the mode), for analysis:
+/// poles, frequency responses, series connections.
+pub trait StateSpace {
+    /// See `zslide_plant::slide::ZSlideParams::continuous` for
+    /// `current_held`.
+    fn state_space(&self, current_held: bool) -> LinearSystem;
+}
+
+impl StateSpace for zslide_plant::ZSlideParams {
+    fn state_space(&self, current_held: bool) -> LinearSystem {
+        use zslide_plant::slide::st;
+        let (a, b) = self.continuous(current_held);
+        let n = st::N;
+        let a = DMatrix::from_fn(n, n, |r, c| a[r][c]);
+        let b = DMatrix::from_fn(n, 2, |r, c| b[r][c]);
+        let mut c = DMatrix::zeros(4, n);
+        c[(0, st::Z)] = 1.0;
+        c[(0, st::Q)] = if self.gauge_sees_mode() { 1.0 } else { 0.0 };
+        c[(1, st::I)] = 1.0;
+        c[(2, st::V)] = 1.0;
+        c[(3, st::Z)] = 1.0;
+        LinearSystem::new(a, b, c, DMatrix::zeros(4, 2))
+    }
+}

@@ -17,9 +17,14 @@
 //! [`Amplifier::reset`]) clears it, like the 1983 amplifier that "turned
 //! itself off" and needed a complete re-initialisation.
 
-use super::zslide::{st, ZSlide};
+use crate::slide::{st, ZSlide};
+// The f64 functions of `libm` where std's are missing (no_std builds);
+// with std the inherent methods are used and the import is idle.
+#[allow(unused_imports)]
+use num_traits::Float;
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct AmplifierParams {
     /// Voltage gain, V/V (chapter 4: K_A = 10).
     pub gain: f64,
@@ -125,7 +130,7 @@ impl Amplifier {
 
     /// Output voltage demanded by the input (before the current limiter).
     pub fn demand_v(&self, v_in: f64) -> f64 {
-        (self.params.gain * v_in).clamp(-self.params.rail_v, self.params.rail_v)
+        crate::fastmath::clamp_symmetric(self.params.gain * v_in, self.params.rail_v)
     }
 
     /// Advances slide and amplifier together by `dt_ns` with the amplifier

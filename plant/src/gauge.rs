@@ -10,10 +10,15 @@
 //! and spectrum are right for any sample spacing. Seeded ChaCha8: the same
 //! seed and the same sample instants give bit-identical noise.
 
+// The f64 functions of `libm` where std's are missing (no_std builds);
+// with std the inherent methods are used and the import is idle.
+#[allow(unused_imports)]
+use num_traits::Float;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct GaugeParams {
     /// Sensitivity, V/in (1 V/mil).
     pub v_per_in: f64,
@@ -101,8 +106,8 @@ const HUM_EXACT_EVERY: u32 = 4096;
 impl Gauge {
     pub fn new(params: GaugeParams, seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let hum_phase = rng.random::<f64>() * std::f64::consts::TAU;
-        let hum2_phase = rng.random::<f64>() * std::f64::consts::TAU;
+        let hum_phase = rng.random::<f64>() * core::f64::consts::TAU;
+        let hum2_phase = rng.random::<f64>() * core::f64::consts::TAU;
         let ou = params.white_rms_in * gaussian(&mut rng);
         Self {
             params,
@@ -127,7 +132,7 @@ impl Gauge {
             let h_ns = self.last_ns.map_or(0, |l| t_ns.saturating_sub(l));
             if h_ns > 0 {
                 if self.ou_coef.0 != h_ns {
-                    let tau = 1.0 / (std::f64::consts::TAU * p.white_bw_hz);
+                    let tau = 1.0 / (core::f64::consts::TAU * p.white_bw_hz);
                     let a = (-(h_ns as f64 * 1e-9) / tau).exp();
                     self.ou_coef = (h_ns, a, (1.0 - a * a).sqrt());
                 }
@@ -146,7 +151,7 @@ impl Gauge {
         self.last_ns = Some(t_ns);
         let mut n = self.ou;
         if p.hum_amp_in != 0.0 || p.hum2_amp_in != 0.0 {
-            let w = std::f64::consts::TAU * p.hum_hz;
+            let w = core::f64::consts::TAU * p.hum_hz;
             let h = self.hum_t_ns.map(|l| t_ns.saturating_sub(l));
             match h {
                 Some(h) if h == self.hum_rot.0 && self.hum_n < HUM_EXACT_EVERY => {
@@ -190,8 +195,24 @@ impl Gauge {
     /// Output for a position without noise (saturated).
     pub fn volts_noiseless(&self, z_in: f64) -> f64 {
         let sign = if self.params.reversed { -1.0 } else { 1.0 };
-        (sign * z_in * self.params.v_per_in).clamp(-self.params.range_v, self.params.range_v)
+        crate::fastmath::clamp_symmetric(sign * z_in * self.params.v_per_in, self.params.range_v)
     }
+}
+
+/// Full scale of the gauge ADC (AD4020 class, 20 bits), ±V.
+pub const ADC_FULL_SCALE_V: f64 = 10.0;
+
+/// The gauge ADC's conversion of `volts`: code = round(V · 2¹⁹ / 10 V),
+/// clamped to [−2¹⁹, 2¹⁹ − 1] (NaN → 0), and the over-range flag (input
+/// at or beyond full scale, or NaN). 1 LSB = 19.07 µV = 0.019 µin.
+#[inline]
+pub fn adc_convert(volts: f64) -> (i32, bool) {
+    let max = (1i32 << 19) - 1;
+    let min = -(1i32 << 19);
+    let raw = crate::fastmath::round_i64(volts * f64::from(1u32 << 19) / ADC_FULL_SCALE_V);
+    let code = raw.clamp(i64::from(min), i64::from(max)) as i32;
+    let ov = volts.abs() >= ADC_FULL_SCALE_V || volts.is_nan();
+    (code, ov)
 }
 
 /// Standard normal deviate (first of a polar pair).

@@ -28,8 +28,10 @@
 //! `α` is set from the chosen zero frequency, so pole and zero are the
 //! documented parameters (`docs/PLANT.md`).
 
-use super::linear::LinearSystem;
-use nalgebra::DMatrix;
+// The f64 functions of `libm` where std's are missing (no_std builds);
+// with std the inherent methods are used and the import is idle.
+#[allow(unused_imports)]
+use num_traits::Float;
 
 /// lbm per slug (standard gravity 32.174 ft/s²).
 pub const LBM_PER_SLUG: f64 = 32.174;
@@ -45,7 +47,8 @@ pub mod st {
 }
 
 /// Physical parameters of slide, motor and mode, inch units (see module doc).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ZSlideParams {
     /// Motor force constant Kf, lbf/A.
     pub kf_lbf_per_a: f64,
@@ -65,7 +68,8 @@ pub struct ZSlideParams {
 }
 
 /// The structural mode as the gauge sees it.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ModeParams {
     pub pole_hz: f64,
     pub zero_hz: f64,
@@ -141,46 +145,47 @@ impl ZSlideParams {
         }
     }
 
-    /// Continuous state space. `current_held`: the amplifier holds the coil
-    /// current (current limit, or zero when disabled/tripped), so the
-    /// current equation is frozen (di/dt = 0) and the voltage input has no
-    /// effect; the mechanical part is then driven by the held current.
-    pub fn state_space(&self, current_held: bool) -> LinearSystem {
-        let n = st::N;
+    /// Continuous state space `x' = A x + B u` (inputs `[e_m, f_ext]`).
+    /// `current_held`: the amplifier holds the coil current (current
+    /// limit, or zero when disabled/tripped), so the current equation is
+    /// frozen (di/dt = 0) and the voltage input has no effect; the
+    /// mechanical part is then driven by the held current. The outputs
+    /// (`z_gauge = z + q`, `i`, `v`, `z`) are [`ZSlideParams::gauge_sees_mode`]
+    /// and the states themselves.
+    pub fn continuous(&self, current_held: bool) -> ([[f64; st::N]; st::N], [[f64; 2]; st::N]) {
         let p = self;
-        let mut a = DMatrix::zeros(n, n);
-        let mut b = DMatrix::zeros(n, 2);
+        let mut a = [[0.0; st::N]; st::N];
+        let mut b = [[0.0; 2]; st::N];
         if !current_held {
-            a[(st::I, st::I)] = -p.r_ohm / p.l_h;
-            a[(st::I, st::V)] = -p.kb_v_s_per_in / p.l_h;
-            b[(st::I, 0)] = 1.0 / p.l_h;
+            a[st::I][st::I] = -p.r_ohm / p.l_h;
+            a[st::I][st::V] = -p.kb_v_s_per_in / p.l_h;
+            b[st::I][0] = 1.0 / p.l_h;
         }
-        a[(st::V, st::I)] = p.kf_lbf_per_a / p.mass_lbf_s2_per_in;
-        a[(st::V, st::V)] = -p.b_lbf_s_per_in / p.mass_lbf_s2_per_in;
-        b[(st::V, 1)] = 1.0 / p.mass_lbf_s2_per_in;
-        a[(st::Z, st::V)] = 1.0;
+        a[st::V][st::I] = p.kf_lbf_per_a / p.mass_lbf_s2_per_in;
+        a[st::V][st::V] = -p.b_lbf_s_per_in / p.mass_lbf_s2_per_in;
+        b[st::V][1] = 1.0 / p.mass_lbf_s2_per_in;
+        a[st::Z][st::V] = 1.0;
         match self.mode {
             Some(m) => {
-                let wp = 2.0 * std::f64::consts::PI * m.pole_hz;
-                a[(st::Q, st::QD)] = 1.0;
-                a[(st::QD, st::Q)] = -wp * wp;
-                a[(st::QD, st::QD)] = -2.0 * m.zeta * wp;
-                a[(st::QD, st::I)] = self.mode_alpha() * p.kf_lbf_per_a;
+                let wp = 2.0 * core::f64::consts::PI * m.pole_hz;
+                a[st::Q][st::QD] = 1.0;
+                a[st::QD][st::Q] = -wp * wp;
+                a[st::QD][st::QD] = -2.0 * m.zeta * wp;
+                a[st::QD][st::I] = self.mode_alpha() * p.kf_lbf_per_a;
             }
             None => {
                 // Keep the modal states decoupled and at rest; a stable
                 // diagonal keeps the matrix exponential well conditioned.
-                a[(st::Q, st::Q)] = -1.0;
-                a[(st::QD, st::QD)] = -1.0;
+                a[st::Q][st::Q] = -1.0;
+                a[st::QD][st::QD] = -1.0;
             }
         }
-        let mut c = DMatrix::zeros(4, n);
-        c[(0, st::Z)] = 1.0;
-        c[(0, st::Q)] = if self.mode.is_some() { 1.0 } else { 0.0 };
-        c[(1, st::I)] = 1.0;
-        c[(2, st::V)] = 1.0;
-        c[(3, st::Z)] = 1.0;
-        LinearSystem::new(a, b, c, DMatrix::zeros(4, 2))
+        (a, b)
+    }
+
+    /// Whether the gauge sees the modal coordinate (`z_gauge = z + q`).
+    pub fn gauge_sees_mode(&self) -> bool {
+        self.mode.is_some()
     }
 
     /// Denominator of eq 4-11, `s² + a1 s + a0` (velocity per volt), for the
@@ -200,54 +205,25 @@ impl ZSlideParams {
     }
 }
 
-/// `Φ` and `Γ` of one step in fixed arrays (no bounds checks, no heap).
-#[derive(Clone, Copy, Debug)]
-struct Mats {
-    phi: [[f64; st::N]; st::N],
-    gamma: [[f64; 2]; st::N],
+/// `Φ` and `Γ` of one step: `x(t+h) = Φ x(t) + Γ u`, exact for inputs held
+/// over the step (zero-order hold), in fixed arrays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mats {
+    pub phi: [[f64; st::N]; st::N],
+    pub gamma: [[f64; 2]; st::N],
 }
 
-impl Mats {
-    fn from(d: &super::linear::Discrete) -> Self {
-        let mut m = Mats {
-            phi: [[0.0; st::N]; st::N],
-            gamma: [[0.0; 2]; st::N],
-        };
-        for r in 0..st::N {
-            for c in 0..st::N {
-                m.phi[r][c] = d.phi[(r, c)];
-            }
-            m.gamma[r] = [d.gamma[(r, 0)], d.gamma[(r, 1)]];
-        }
-        m
-    }
-}
-
-/// The slide's state with the two drive models (voltage-driven, current
-/// held) and a most-recently-used cache of their discretisations keyed by
-/// (step length in ns, model), stepped without allocation.
-#[derive(Clone, Debug)]
-pub struct ZSlide {
-    pub params: ZSlideParams,
-    pub x: [f64; st::N],
-    voltage: LinearSystem,
-    held: LinearSystem,
-    /// Cache keys (step ns, current held), apart from the matrices so the
-    /// search walks 16-byte entries.
-    keys: Vec<(u64, bool)>,
-    mats: Vec<Mats>,
-    /// Entry used last (the usual hit: the loop period).
-    mru: usize,
-    /// Next entry to replace when full (round robin).
-    evict: usize,
-    /// Entries whose step is not a power of two.
-    odd: usize,
-    misses: u64,
+/// One discretisation: its step length, its drive model and the matrices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Step {
+    pub dt_ns: u64,
+    pub current_held: bool,
+    pub mats: Mats,
 }
 
 /// Entries kept: the event spacings of a run plus the power-of-two steps
 /// that compose any other spacing.
-const CACHE_SIZE: usize = 128;
+pub const CACHE_SIZE: usize = 128;
 /// Distinct non-power-of-two steps given their own discretisation; beyond
 /// this an odd step (an X event or index pulse splitting a loop period at
 /// an arbitrary nanosecond) is composed of cached power-of-two steps
@@ -255,64 +231,124 @@ const CACHE_SIZE: usize = 128;
 /// input compose).
 const ODD_MAX: usize = 32;
 
+/// The slide's state with the two drive models (voltage-driven, current
+/// held) and a most-recently-used cache of their discretisations keyed by
+/// (step length in ns, model), stepped without allocation.
+///
+/// With the `std` feature a missing discretisation is computed
+/// ([`crate::zoh`]); without it (the QEMU image, which has no matrix
+/// exponential) the cache holds what [`ZSlide::preload`] put there, the
+/// same code's output generated at build time, and any other step is
+/// composed of its power-of-two entries. A step that cannot be composed
+/// is counted ([`ZSlide::missing_steps`]) and leaves the state as it was.
+#[derive(Clone, Debug)]
+pub struct ZSlide {
+    pub params: ZSlideParams,
+    pub x: [f64; st::N],
+    /// Cache keys (step ns, current held), apart from the matrices so the
+    /// search walks 16-byte entries.
+    keys: [(u64, bool); CACHE_SIZE],
+    mats: [Mats; CACHE_SIZE],
+    /// Entries in use.
+    len: usize,
+    /// Entry used last (the usual hit: the loop period).
+    mru: usize,
+    /// Next entry to replace when full (round robin).
+    evict: usize,
+    /// Entries whose step is not a power of two.
+    odd: usize,
+    misses: u64,
+    missing: u64,
+}
+
+const ZERO_MATS: Mats = Mats {
+    phi: [[0.0; st::N]; st::N],
+    gamma: [[0.0; 2]; st::N],
+};
+
 impl ZSlide {
     pub fn new(params: ZSlideParams) -> Self {
-        let voltage = params.state_space(false);
-        let held = params.state_space(true);
         Self {
             params,
             x: [0.0; st::N],
-            voltage,
-            held,
-            keys: Vec::with_capacity(CACHE_SIZE),
-            mats: Vec::with_capacity(CACHE_SIZE),
+            keys: [(0, false); CACHE_SIZE],
+            mats: [ZERO_MATS; CACHE_SIZE],
+            len: 0,
             mru: 0,
             evict: 0,
             odd: 0,
             misses: 0,
+            missing: 0,
         }
     }
 
+    /// Puts discretisations into the cache (the QEMU image's, generated at
+    /// build time from the same parameters by [`crate::zoh`]). Entries
+    /// beyond the cache's capacity are ignored.
+    pub fn preload(&mut self, steps: &[Step]) {
+        for s in steps {
+            self.insert((s.dt_ns, s.current_held), s.mats);
+        }
+    }
+
+    fn insert(&mut self, key: (u64, bool), m: Mats) -> usize {
+        let odd = usize::from(!key.0.is_power_of_two());
+        let idx = if self.len < CACHE_SIZE {
+            self.len += 1;
+            self.len - 1
+        } else {
+            let p = self.evict;
+            self.evict = (self.evict + 1) % CACHE_SIZE;
+            if let Some(k) = self.keys.get(p) {
+                self.odd -= usize::from(!k.0.is_power_of_two());
+            }
+            p
+        };
+        if let (Some(k), Some(slot)) = (self.keys.get_mut(idx), self.mats.get_mut(idx)) {
+            *k = key;
+            *slot = m;
+        }
+        self.odd += odd;
+        idx
+    }
+
+    /// The discretisation for a missing key, when this build can compute one.
+    #[cfg(feature = "std")]
+    fn discretise(&mut self, key: (u64, bool)) -> Option<Mats> {
+        self.misses += 1;
+        let (a, b) = self.params.continuous(key.1);
+        Some(crate::zoh::zoh(&a, &b, key.0 as f64 * 1e-9))
+    }
+    #[cfg(not(feature = "std"))]
+    fn discretise(&mut self, _key: (u64, bool)) -> Option<Mats> {
+        None
+    }
+
     /// Advances `dt_ns` with the inputs held. `current_held`: see
-    /// [`ZSlideParams::state_space`].
+    /// [`ZSlideParams::continuous`].
     pub fn step(&mut self, dt_ns: u64, e_m: f64, f_ext: f64, current_held: bool) {
         if dt_ns == 0 {
             return;
         }
         let key = (dt_ns, current_held);
-        let idx = if self.keys.get(self.mru) == Some(&key) {
+        let used = &self.keys[..self.len.min(CACHE_SIZE)];
+        let idx = if used.get(self.mru) == Some(&key) {
             self.mru
-        } else if let Some(p) = self.keys.iter().position(|k| *k == key) {
+        } else if let Some(p) = used.iter().position(|k| *k == key) {
             p
-        } else if !dt_ns.is_power_of_two() && self.odd >= ODD_MAX {
+        } else if !dt_ns.is_power_of_two() && (self.odd >= ODD_MAX || cfg!(not(feature = "std"))) {
             self.step_binary(dt_ns, e_m, f_ext, current_held);
             return;
+        } else if let Some(m) = self.discretise(key) {
+            self.insert(key, m)
         } else {
-            self.misses += 1;
-            let sys = if current_held {
-                &self.held
-            } else {
-                &self.voltage
-            };
-            let m = Mats::from(&sys.zoh(dt_ns as f64 * 1e-9));
-            let odd = usize::from(!dt_ns.is_power_of_two());
-            if self.keys.len() < CACHE_SIZE {
-                self.keys.push(key);
-                self.mats.push(m);
-                self.odd += odd;
-                self.keys.len() - 1
-            } else {
-                let p = self.evict;
-                self.evict = (self.evict + 1) % CACHE_SIZE;
-                self.odd -= usize::from(!self.keys[p].0.is_power_of_two());
-                self.odd += odd;
-                self.keys[p] = key;
-                self.mats[p] = m;
-                p
-            }
+            self.missing += 1;
+            return;
         };
         self.mru = idx;
-        apply_fixed(&mut self.x, &self.mats[idx], [e_m, f_ext]);
+        if let Some(m) = self.mats.get(idx) {
+            apply_fixed(&mut self.x, m, [e_m, f_ext]);
+        }
     }
 
     /// Advances `dt_ns` as a sum of power-of-two steps (at most 64, each
@@ -329,16 +365,13 @@ impl ZSlide {
 
     /// Advances an arbitrary (non-cached) interval; for the rare crossing
     /// searches of the amplifier's current limit.
+    #[cfg(feature = "std")]
     pub fn step_uncached(&mut self, dt_s: f64, e_m: f64, f_ext: f64, current_held: bool) {
         if dt_s <= 0.0 {
             return;
         }
-        let sys = if current_held {
-            &self.held
-        } else {
-            &self.voltage
-        };
-        let m = Mats::from(&sys.zoh(dt_s));
+        let (a, b) = self.params.continuous(current_held);
+        let m = crate::zoh::zoh(&a, &b, dt_s);
         apply_fixed(&mut self.x, &m, [e_m, f_ext]);
     }
 
@@ -362,6 +395,12 @@ impl ZSlide {
     /// Number of matrix exponentials computed so far (cache misses).
     pub fn expm_count(&self) -> u64 {
         self.misses
+    }
+    /// Steps that could not be taken: neither cached nor computable nor
+    /// composable (a build without `std` whose preloaded table lacks a
+    /// power of two). Zero in every correct run.
+    pub fn missing_steps(&self) -> u64 {
+        self.missing
     }
 }
 
