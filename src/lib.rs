@@ -35,6 +35,8 @@ pub mod looptick;
 // Around the data path: the converters' drivers, the watchdog feed decision.
 pub mod drivers;
 pub mod watchdog;
+// What the boards report of their handlers, for a VCD beside the simulator's.
+pub mod trace;
 // The bundle the boards and host-sim use.
 pub mod firmware;
 // The second system on the same core (Feezell 1967).

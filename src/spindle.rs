@@ -748,6 +748,61 @@ mod tests {
         assert!(TachAngle::new(TachConfig { min_rpm: 6, ..tach }).is_none());
     }
 
+    /// The tachometer rate is two truncated products: k (Q16) to within
+    /// one LSB, times the gain (Q30), truncated again, then times the
+    /// reading, truncated: |w − mv·k_exact·g| ≤ |mv|·(g + 1)/2¹⁶ + 1 LSB of
+    /// Q48 turns per tick (the spindle fuzz target's 10-minute run found a
+    /// full-scale reading 2.1 LSB off, against its former bound of 2).
+    #[test]
+    fn tach_rate_is_within_its_rounding_bound_at_full_scale_and_any_gain() {
+        let cfg = TachConfig {
+            ticks_per_s: 25_000_000,
+            mv_at_300_rpm: 4_999,
+            min_rpm: 10,
+            max_rpm: 3_000,
+            index_tolerance_permille: 250,
+            index_angle: SpindleAngle(0),
+        };
+        let exact = |mv: i32, g: f64| {
+            f64::from(mv) * 5.0 / (f64::from(cfg.mv_at_300_rpm) * f64::from(cfg.ticks_per_s))
+                * 2f64.powi(48)
+                * g
+        };
+        let mut worst = 0f64;
+        // The gain as calibrated by one revolution that took `ratio` turns
+        // of the nominal integral (within the quarter turn accepted before
+        // the first calibration).
+        for ratio in [1.0, 0.78, 0.9, 1.1, 1.24] {
+            let mut t = TachAngle::new(cfg).unwrap();
+            let mv = 5_000i32;
+            let per_tick = 1_250u32;
+            let mut now = 0u32;
+            t.tick(mv, now);
+            t.on_index(now).unwrap();
+            // one turn at the nominal rate takes this many ticks:
+            let turn_ticks = 2f64.powi(48) / exact(mv, 1.0) / f64::from(per_tick);
+            for _ in 0..(turn_ticks * ratio) as u32 {
+                now += per_tick;
+                t.tick(mv, now);
+            }
+            let _ = t.on_index(now);
+            let g = t.gain_q30() as f64 / f64::from(1u32 << 30);
+            assert!(ratio == 1.0 || (g - 1.0).abs() > 0.05, "gain {g} not calibrated");
+            for mv in [65_536, -65_536, 65_535, 12_345, 1, 0, -7] {
+                t.tick(mv, now);
+                let bound = f64::from(mv).abs() * (g + 1.0) / 65_536.0 + 1.0;
+                let err = t.rate_q48() as f64 - exact(mv, g);
+                assert!(
+                    err.abs() <= bound,
+                    "ratio {ratio}, gain {g}, {mv} mV: {err} LSB > {bound}"
+                );
+                worst = worst.max(err.abs());
+            }
+        }
+        // the bound is not vacuous: full scale does lose more than one LSB
+        assert!(worst > 1.0, "worst {worst}");
+    }
+
     #[test]
     fn encoder_glitch_then_stall_keeps_the_angle_within_a_count() {
         let mut e = EncoderAngle::new(EncoderConfig {

@@ -207,8 +207,14 @@ fn tach(c: &[u8], events: &[u8]) {
                 * 2f64.powi(48)
                 * gain;
             let got = t.rate_q48() as f64;
+            // Two truncated products (k to one LSB of Q16, times the Q30
+            // gain, truncated; times the reading, truncated): at most
+            // |mv|·(gain + 1)/2^16 + 1 LSB (`spindle::tests::tach_rate_is_
+            // within_its_rounding_bound…`), plus the f64 reference's own
+            // rounding.
+            let bound = mv.abs() * (gain + 1.0) / 65_536.0 + 1.0 + want.abs() * 1e-12;
             assert!(
-                (got - want).abs() <= want.abs() * 1e-6 + 2.0,
+                (got - want).abs() <= bound,
                 "rate {got} Q48 turns/tick, want {want} ({mv} mV)"
             );
             if mv * 600.0 < f64::from(cfg.mv_at_300_rpm) * f64::from(cfg.min_rpm) - 600.0 {

@@ -27,6 +27,7 @@ mod fuzz;
 mod isr_cost;
 mod nopanic;
 mod replay;
+mod trace;
 mod watchdog;
 
 use clap::{Parser, Subcommand};
@@ -77,6 +78,9 @@ enum Cmd {
     NoPanic,
     /// Build and run the cargo-fuzz targets (nightly toolchain, cargo-fuzz).
     Fuzz(fuzz::Args),
+    /// A board's decoded defmt log with trace events as a VCD (the
+    /// simulator's signal names).
+    Trace2vcd(trace::Args),
 }
 
 fn main() -> ExitCode {
@@ -88,6 +92,7 @@ fn main() -> ExitCode {
         Cmd::IsrCost(args) => isr_cost::run(&args),
         Cmd::NoPanic => cmd_no_panic(),
         Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
+        Cmd::Trace2vcd(args) => trace::run(&args),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -185,6 +190,52 @@ enum Tool {
     FlipLink,
     DefmtPrint,
     Qemu,
+    Viewers,
+}
+
+/// `bin` from Debian's `package`: there already, or installed with apt-get
+/// when running as root; otherwise the exact command to run.
+fn apt_tool(bin: &str, package: &str, what: &str) -> Result<()> {
+    if on_path(bin) {
+        return Ok(());
+    }
+    let root = output("id", &["-u"])
+        .map(|s| s.trim() == "0")
+        .unwrap_or(false);
+    let apt = works("apt-get", &["--version"]);
+    if root && apt {
+        step(&format!("installing {package} (apt-get)"));
+        let env = [("DEBIAN_FRONTEND", "noninteractive")];
+        run(
+            Command::new("apt-get").arg("update").envs(env),
+            "apt-get update",
+        )
+        .and_then(|()| {
+            run(
+                Command::new("apt-get")
+                    .args(["install", "-y", "--no-install-recommends", package])
+                    .envs(env),
+                &format!("apt-get install {package}"),
+            )
+        })
+        .map_err(|e| format!("{bin} ({e})"))?;
+        if on_path(bin) {
+            Ok(())
+        } else {
+            Err(format!(
+                "{bin} (package {package} installed but {bin} not found)"
+            ))
+        }
+    } else if apt {
+        Err(format!(
+            "{bin}: run `sudo apt-get update && sudo apt-get install -y {package}` (not root, so \
+             xtask does not)"
+        ))
+    } else {
+        Err(format!(
+            "{bin} ({what}): no apt-get here; install it with your package manager"
+        ))
+    }
 }
 
 /// Makes sure each tool is there, installing it when possible. Returns the
@@ -227,54 +278,15 @@ fn ensure_one(tool: Tool) -> Result<()> {
             // defmt-print 1.x decodes defmt 1.x frames.
             &["defmt-print", "--locked", "--version", "^1"],
         ),
-        Tool::Qemu => {
-            if works("qemu-system-arm", &["--version"]) {
-                return Ok(());
-            }
-            let root = output("id", &["-u"])
-                .map(|s| s.trim() == "0")
-                .unwrap_or(false);
-            let apt = works("apt-get", &["--version"]);
-            if root && apt {
-                step("installing qemu-system-arm (apt-get)");
-                let env = [("DEBIAN_FRONTEND", "noninteractive")];
-                run(
-                    Command::new("apt-get").arg("update").envs(env),
-                    "apt-get update",
-                )
-                .and_then(|()| {
-                    run(
-                        Command::new("apt-get")
-                            .args([
-                                "install",
-                                "-y",
-                                "--no-install-recommends",
-                                "qemu-system-arm",
-                            ])
-                            .envs(env),
-                        "apt-get install qemu-system-arm",
-                    )
-                })
-                .map_err(|e| format!("qemu-system-arm ({e})"))?;
-                if works("qemu-system-arm", &["--version"]) {
-                    Ok(())
-                } else {
-                    Err("qemu-system-arm (installed but does not run)".into())
-                }
-            } else if apt {
-                Err(
-                    "qemu-system-arm: run `sudo apt-get update && sudo apt-get install -y \
-                     qemu-system-arm` (not root, so xtask does not)"
-                        .into(),
-                )
-            } else {
-                Err(
-                    "qemu-system-arm (QEMU ≥ 7 with the mps2-an386 machine): no apt-get here; \
-                     install it with your package manager"
-                        .into(),
-                )
-            }
-        }
+        Tool::Qemu => apt_tool(
+            "qemu-system-arm",
+            "qemu-system-arm",
+            "QEMU ≥ 7 with the mps2-an386 machine",
+        ),
+        // The VCD viewers' readers the host tests check the VCDs with
+        // (`host-sim/tests/vcd_viewers.rs`): GTKWave's converter, libsigrok.
+        Tool::Viewers => apt_tool("vcd2fst", "gtkwave", "GTKWave's vcd2fst")
+            .and_then(|()| apt_tool("sigrok-cli", "sigrok-cli", "sigrok-cli (libsigrok)")),
     }
 }
 
@@ -591,8 +603,14 @@ fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
 
 /// `cargo test --workspace`, its output shown as it comes; returns the
 /// summed counts of its "test result:" lines.
-fn host_tests() -> Result<(u64, u64, u64)> {
-    let mut child = cargo()
+/// `cargo test --workspace`; with `viewers`, the VCD viewer test must find
+/// its tools (they were installed above) instead of skipping.
+fn host_tests(viewers: bool) -> Result<(u64, u64, u64)> {
+    let mut cmd = cargo();
+    if viewers {
+        cmd.env("ZSLIDE_REQUIRE_VIEWERS", "1");
+    }
+    let mut child = cmd
         .current_dir(root())
         .args(["test", "--workspace"])
         .stdout(Stdio::piped())
@@ -620,7 +638,16 @@ fn host_tests() -> Result<(u64, u64, u64)> {
 
 fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     let started = Instant::now();
-    let mut missing = ensure(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint]);
+    let mut missing = ensure(&[
+        Tool::Target,
+        Tool::FlipLink,
+        Tool::Qemu,
+        Tool::DefmtPrint,
+        Tool::Viewers,
+    ]);
+    let viewers = !missing
+        .iter()
+        .any(|m| m.starts_with("vcd2fst") || m.starts_with("sigrok"));
     let firmware_possible = !missing.iter().any(|m| {
         m.starts_with("Rust target") || m.starts_with("rustup") || m.starts_with("flip-link")
     });
@@ -630,7 +657,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             .any(|m| m.starts_with("qemu") || m.starts_with("defmt-print"));
 
     step("host tests: cargo test --workspace");
-    let results = host_tests()?;
+    let results = host_tests(viewers)?;
 
     if firmware_possible {
         build_board()?;
@@ -752,6 +779,7 @@ mod tests {
             &["isr-cost"],
             &["no-panic"],
             &["fuzz", "--seconds", "1"],
+            &["trace2vcd", "run.log", "--out", "run.vcd"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();

@@ -9,5 +9,6 @@ pub mod faults;
 pub mod replay;
 pub mod response;
 pub mod soak;
+pub mod trace2vcd;
 pub mod track;
 pub mod zcmd;

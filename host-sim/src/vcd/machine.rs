@@ -13,34 +13,42 @@ use crate::sched::Scheduler;
 use std::cell::RefCell;
 use std::io::Write;
 use std::rc::Rc;
+use zslide::servo::Phase;
+use zslide::trace::Signal;
 
-/// Names and kinds of the recorded signals, in order.
-pub const SIGNALS: [(&str, SignalKind); 17] = [
+/// Names and kinds of the recorded signals, in order. What the firmware
+/// itself knows carries the names of `zslide::trace::Signal`, which a
+/// target trace (`host-sim trace2vcd`) uses too, so the two open side by
+/// side; the rest is the plant's truth, which only the simulator has.
+pub const SIGNALS: [(&str, SignalKind); 19] = [
     ("slide_z_uin", SignalKind::Real),
     ("gauge_z_uin", SignalKind::Real),
-    ("command_uin", SignalKind::Real),
-    ("error_uin", SignalKind::Real),
+    (Signal::Command.name(), SignalKind::Real),
+    (Signal::Error.name(), SignalKind::Real),
     ("current_a", SignalKind::Real),
     ("force_lbf", SignalKind::Real),
-    ("adc_code", SignalKind::Int(20)),
-    ("dac_code", SignalKind::Int(20)),
-    ("amp_enabled", SignalKind::Bit),
+    (Signal::AdcCode.name(), SignalKind::Int(20)),
+    (Signal::DacCode.name(), SignalKind::Int(20)),
+    (Signal::AmpEnabled.name(), SignalKind::Bit),
     ("x_true_in", SignalKind::Real),
-    ("x_fw_in", SignalKind::Real),
+    (Signal::XFirmware.name(), SignalKind::Real),
     ("spindle_phi_deg", SignalKind::Real),
-    ("spindle_phi_fw_deg", SignalKind::Real),
-    ("loop_tick", SignalKind::Bit),
-    ("x_event", SignalKind::Bit),
-    ("index", SignalKind::Bit),
-    ("fault", SignalKind::Bit),
+    (Signal::AngleFirmware.name(), SignalKind::Real),
+    (Signal::LoopTick.name(), SignalKind::Bit),
+    (Signal::XEvent.name(), SignalKind::Bit),
+    (Signal::Index.name(), SignalKind::Bit),
+    (Signal::CoeffUpdate.name(), SignalKind::Bit),
+    (Signal::Armed.name(), SignalKind::Bit),
+    (Signal::Fault.name(), SignalKind::Bit),
 ];
 
 /// Records the machine's signals over a time window.
 pub struct MachineTrace<W: Write> {
     rec: VcdRecorder<W>,
-    /// (loop ticks, X events, index events) at the last sample.
-    seen: (u32, u64, u64),
-    toggles: [bool; 3],
+    /// (loop ticks, X events, index events, coefficient generation) at
+    /// the last sample.
+    seen: (u32, u64, u64, u32),
+    toggles: [bool; 4],
     window: (u64, u64),
     error: Option<std::io::Error>,
 }
@@ -50,8 +58,8 @@ impl<W: Write> MachineTrace<W> {
     pub fn new(out: W, t_from: u64, t_to: u64) -> std::io::Result<Self> {
         Ok(Self {
             rec: VcdRecorder::new(out, "zslide", &SIGNALS)?,
-            seen: (0, 0, 0),
-            toggles: [false; 3],
+            seen: (0, 0, 0, 0),
+            toggles: [false; 4],
             window: (t_from, t_to),
             error: None,
         })
@@ -61,8 +69,14 @@ impl<W: Write> MachineTrace<W> {
     pub fn sample(&mut self, t: u64, w: &FirmwareWorld) {
         let ticks = w.fw.ticks();
         let (xe, ie) = w.stats().map_or((0, 0), |s| (s.x_events, s.index_events));
-        let ran = [ticks != self.seen.0, xe != self.seen.1, ie != self.seen.2];
-        self.seen = (ticks, xe, ie);
+        let generation = w.fw.shared().coefficient_generation();
+        let ran = [
+            ticks != self.seen.0,
+            xe != self.seen.1,
+            ie != self.seen.2,
+            generation != self.seen.3,
+        ];
+        self.seen = (ticks, xe, ie, generation);
         if t < self.window.0 || t >= self.window.1 || self.error.is_some() {
             return;
         }
@@ -105,6 +119,8 @@ impl<W: Write> MachineTrace<W> {
             bit(self.toggles[0]),
             bit(self.toggles[1]),
             bit(self.toggles[2]),
+            bit(self.toggles[3]),
+            bit(w.fw.servo().phase() != Phase::Disarmed),
             bit(w.fw.fault().is_some()),
         ];
         if let Err(e) = self.rec.sample(t, &v) {

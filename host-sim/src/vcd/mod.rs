@@ -4,6 +4,14 @@
 //! Signals are declared once (real values, integer codes of a given width,
 //! or 1-bit lines) and then sampled with [`VcdRecorder::sample`]; only
 //! changes are written. Timescale 1 ns, the simulator's time unit.
+//!
+//! Viewers: GTKWave (and its `vcd2fst`) reads every signal. libsigrok
+//! (PulseView, `sigrok-cli -I vcd`, Debian's 0.5.2) reads only 1-bit
+//! wires: it skips `real` variables, but a multi-bit `b…` vector change
+//! makes it stop reading the rest of the chunk, losing the 1-bit lines
+//! after it. So integer codes are declared `real` and written as exact
+//! integers (a 20-bit code is exact in an f64): GTKWave shows them as
+//! numbers (or analog), PulseView shows the 1-bit lines of the same file.
 
 use std::io::Write;
 use vcd::{IdCode, TimescaleUnit, Value, VarType};
@@ -13,7 +21,9 @@ use vcd::{IdCode, TimescaleUnit, Value, VarType};
 pub enum SignalKind {
     /// A real number (positions in µin, volts, amps).
     Real,
-    /// A two's complement integer of `width` bits (DAC/ADC codes).
+    /// A two's complement integer of `width` bits (DAC/ADC codes),
+    /// written as a real-valued variable holding the integer (see the
+    /// module doc: libsigrok reads no multi-bit vectors).
     Int(u32),
     /// A single wire (interrupt active, amplifier enabled).
     Bit,
@@ -42,8 +52,9 @@ impl<W: Write> VcdRecorder<W> {
         let mut ids = Vec::new();
         for &(name, kind) in signals {
             let id = match kind {
-                SignalKind::Real => w.add_var(VarType::Real, 64, name, None)?,
-                SignalKind::Int(width) => w.add_wire(width, name)?,
+                SignalKind::Real | SignalKind::Int(_) => {
+                    w.add_var(VarType::Real, 64, name, None)?
+                }
                 SignalKind::Bit => w.add_wire(1, name)?,
             };
             ids.push((id, kind));
@@ -82,14 +93,11 @@ impl<W: Write> VcdRecorder<W> {
                     .w
                     .change_scalar(id, if b != 0 { Value::V1 } else { Value::V0 })?,
                 (SignalKind::Int(width), Last::Int(x)) => {
-                    let bits = (0..width).rev().map(|b| {
-                        if (x >> b) & 1 == 1 {
-                            Value::V1
-                        } else {
-                            Value::V0
-                        }
-                    });
-                    self.w.change_vector(id, bits)?;
+                    // Two's complement of `width` bits, as the converter
+                    // holds it; exact in an f64 up to 53 bits.
+                    let w = width.clamp(1, 53);
+                    let x = (x << (64 - w)) >> (64 - w);
+                    self.w.change_real(id, x as f64)?
                 }
                 _ => {}
             }
@@ -105,3 +113,4 @@ impl<W: Write> VcdRecorder<W> {
 }
 
 pub mod machine;
+pub mod target;

@@ -1,0 +1,300 @@
+//! Trace events: what a board reports of its handlers and outputs so that a
+//! run on the target can be laid beside a simulated one, signal for signal.
+//!
+//! A board emits each [`Event`] as one defmt frame at `trace` level (the
+//! boards' `trace` module), carrying the event's [`Event::code`], its value
+//! and the board clock (`hw::Clock`) at the moment it happened. defmt's
+//! level filter decides whether the frames exist at all: a normal build
+//! (`DEFMT_LOG=info`) compiles them out and pays nothing, a trace build
+//! (`cargo xtask qemu --vcd`) compiles them in. The host side
+//! (`host-sim trace2vcd`) turns a decoded log into a VCD whose signal names
+//! are [`Signal::name`], the same names the simulator's machine trace uses
+//! for the same quantities (`host-sim/src/vcd/machine.rs`).
+//!
+//! The wire form is three integers, so the decoder needs no knowledge of
+//! defmt's encoding: `ev <code> <value> <clock>`.
+
+/// What happened. The value each carries is given per variant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Event {
+    /// The loop-tick handler started / finished (value 0).
+    LoopEnter,
+    LoopExit,
+    /// The X-event handler started / finished (value 0).
+    XEnter,
+    XExit,
+    /// The index handler started / finished (value 0).
+    IndexEnter,
+    IndexExit,
+    /// The gauge ADC code the tick read (20-bit two's complement).
+    Adc(i32),
+    /// The amplifier DAC code the tick wrote (20-bit two's complement).
+    Dac(i32),
+    /// The position command, gauge codes.
+    Command(i32),
+    /// Command − position estimate, gauge codes.
+    Error(i32),
+    /// Amplifier enable (0 or 1).
+    Enable(bool),
+    /// A fault is latched (1) or none (0); its reason is logged in words
+    /// on its own line.
+    Fault(bool),
+    /// The loop is armed (1) or disarmed (0).
+    Armed(bool),
+    /// A new coefficient set was published (value: its generation).
+    Coefficients(u32),
+    /// X as the firmware has it, `XInches` bits (I8F24 in).
+    X(i32),
+    /// The spindle angle as the firmware has it, binary angle bits.
+    Angle(u32),
+}
+
+impl Event {
+    /// The event's number on the wire.
+    pub const fn code(self) -> u8 {
+        match self {
+            Event::LoopEnter => 0,
+            Event::LoopExit => 1,
+            Event::XEnter => 2,
+            Event::XExit => 3,
+            Event::IndexEnter => 4,
+            Event::IndexExit => 5,
+            Event::Adc(_) => 6,
+            Event::Dac(_) => 7,
+            Event::Command(_) => 8,
+            Event::Error(_) => 9,
+            Event::Enable(_) => 10,
+            Event::Fault(_) => 11,
+            Event::Armed(_) => 12,
+            Event::Coefficients(_) => 13,
+            Event::X(_) => 14,
+            Event::Angle(_) => 15,
+        }
+    }
+
+    /// The event's value on the wire (unsigned quantities as their bits).
+    pub const fn value(self) -> i32 {
+        match self {
+            Event::LoopEnter
+            | Event::LoopExit
+            | Event::XEnter
+            | Event::XExit
+            | Event::IndexEnter
+            | Event::IndexExit => 0,
+            Event::Adc(v) | Event::Dac(v) | Event::Command(v) | Event::Error(v) | Event::X(v) => v,
+            Event::Enable(b) | Event::Fault(b) | Event::Armed(b) => b as i32,
+            Event::Coefficients(g) => g as i32,
+            Event::Angle(a) => a as i32,
+        }
+    }
+
+    /// The event back from its wire form; `None` for an unknown code, or a
+    /// flag that is neither 0 nor 1 (a corrupt line is refused, not guessed).
+    pub const fn decode(code: u8, value: i32) -> Option<Event> {
+        let flag = match value {
+            0 => Some(false),
+            1 => Some(true),
+            _ => None,
+        };
+        Some(match code {
+            0 => Event::LoopEnter,
+            1 => Event::LoopExit,
+            2 => Event::XEnter,
+            3 => Event::XExit,
+            4 => Event::IndexEnter,
+            5 => Event::IndexExit,
+            6 => Event::Adc(value),
+            7 => Event::Dac(value),
+            8 => Event::Command(value),
+            9 => Event::Error(value),
+            10 => match flag {
+                Some(b) => Event::Enable(b),
+                None => return None,
+            },
+            11 => match flag {
+                Some(b) => Event::Fault(b),
+                None => return None,
+            },
+            12 => match flag {
+                Some(b) => Event::Armed(b),
+                None => return None,
+            },
+            13 => Event::Coefficients(value as u32),
+            14 => Event::X(value),
+            15 => Event::Angle(value as u32),
+            _ => return None,
+        })
+    }
+
+    /// The signal the event drives.
+    pub const fn signal(self) -> Signal {
+        match self {
+            Event::LoopEnter => Signal::LoopTick,
+            Event::XEnter => Signal::XEvent,
+            Event::IndexEnter => Signal::Index,
+            Event::LoopExit => Signal::LoopBusy,
+            Event::XExit => Signal::XBusy,
+            Event::IndexExit => Signal::IndexBusy,
+            Event::Adc(_) => Signal::AdcCode,
+            Event::Dac(_) => Signal::DacCode,
+            Event::Command(_) => Signal::Command,
+            Event::Error(_) => Signal::Error,
+            Event::Enable(_) => Signal::AmpEnabled,
+            Event::Fault(_) => Signal::Fault,
+            Event::Armed(_) => Signal::Armed,
+            Event::Coefficients(_) => Signal::CoeffUpdate,
+            Event::X(_) => Signal::XFirmware,
+            Event::Angle(_) => Signal::AngleFirmware,
+        }
+    }
+}
+
+/// A signal the firmware itself knows, named as in every VCD of the project.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Signal {
+    /// Toggles once per loop-tick handler run.
+    LoopTick,
+    /// Toggles once per X-event handler run.
+    XEvent,
+    /// Toggles once per index handler run.
+    Index,
+    /// High while the loop-tick handler runs (entry to exit; a handler that
+    /// preempts it does not lower it). Only a target trace has these three:
+    /// the simulator runs a handler in zero simulated time.
+    LoopBusy,
+    XBusy,
+    IndexBusy,
+    AdcCode,
+    DacCode,
+    /// Position command, µin.
+    Command,
+    /// Command − position, µin.
+    Error,
+    AmpEnabled,
+    Fault,
+    Armed,
+    /// Toggles once per coefficient set published.
+    CoeffUpdate,
+    /// X, inches.
+    XFirmware,
+    /// Spindle angle, degrees.
+    AngleFirmware,
+}
+
+impl Signal {
+    /// Every signal, in the order a VCD declares them.
+    pub const ALL: [Signal; 16] = [
+        Signal::Command,
+        Signal::Error,
+        Signal::AdcCode,
+        Signal::DacCode,
+        Signal::AmpEnabled,
+        Signal::XFirmware,
+        Signal::AngleFirmware,
+        Signal::LoopTick,
+        Signal::XEvent,
+        Signal::Index,
+        Signal::LoopBusy,
+        Signal::XBusy,
+        Signal::IndexBusy,
+        Signal::CoeffUpdate,
+        Signal::Armed,
+        Signal::Fault,
+    ];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Signal::LoopTick => "loop_tick",
+            Signal::XEvent => "x_event",
+            Signal::Index => "index",
+            Signal::LoopBusy => "loop_tick_busy",
+            Signal::XBusy => "x_event_busy",
+            Signal::IndexBusy => "index_busy",
+            Signal::AdcCode => "adc_code",
+            Signal::DacCode => "dac_code",
+            Signal::Command => "command_uin",
+            Signal::Error => "error_uin",
+            Signal::AmpEnabled => "amp_enabled",
+            Signal::Fault => "fault",
+            Signal::Armed => "armed",
+            Signal::CoeffUpdate => "coeff_update",
+            Signal::XFirmware => "x_fw_in",
+            Signal::AngleFirmware => "spindle_phi_fw_deg",
+        }
+    }
+
+    /// A one-bit line (activity toggles and flags); the others are numbers.
+    pub const fn is_bit(self) -> bool {
+        matches!(
+            self,
+            Signal::LoopTick
+                | Signal::XEvent
+                | Signal::Index
+                | Signal::LoopBusy
+                | Signal::XBusy
+                | Signal::IndexBusy
+                | Signal::AmpEnabled
+                | Signal::Fault
+                | Signal::Armed
+                | Signal::CoeffUpdate
+        )
+    }
+
+    /// A handler's activity line: it toggles at each entry.
+    pub const fn toggles(self) -> bool {
+        matches!(
+            self,
+            Signal::LoopTick | Signal::XEvent | Signal::Index | Signal::CoeffUpdate
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_event_survives_its_wire_form() {
+        let events = [
+            Event::LoopEnter,
+            Event::LoopExit,
+            Event::XEnter,
+            Event::XExit,
+            Event::IndexEnter,
+            Event::IndexExit,
+            Event::Adc(-524_288),
+            Event::Dac(524_287),
+            Event::Command(-1),
+            Event::Error(7),
+            Event::Enable(true),
+            Event::Fault(false),
+            Event::Armed(true),
+            Event::Coefficients(u32::MAX),
+            Event::X(0x7000_0000),
+            Event::Angle(0xFFFF_FFFF),
+        ];
+        let mut codes = [false; 16];
+        for e in events {
+            assert_eq!(Event::decode(e.code(), e.value()), Some(e));
+            codes[usize::from(e.code())] = true;
+        }
+        assert!(codes.iter().all(|&c| c), "every code used once");
+    }
+
+    #[test]
+    fn unknown_codes_and_non_flag_values_are_refused() {
+        assert_eq!(Event::decode(16, 0), None);
+        assert_eq!(Event::decode(255, 0), None);
+        assert_eq!(Event::decode(Event::Enable(true).code(), 2), None);
+        assert_eq!(Event::decode(Event::Fault(true).code(), -1), None);
+    }
+
+    #[test]
+    fn signal_names_are_distinct() {
+        for (i, a) in Signal::ALL.iter().enumerate() {
+            for b in &Signal::ALL[i + 1..] {
+                assert_ne!(a.name(), b.name());
+            }
+        }
+    }
+}
