@@ -18,6 +18,7 @@ pub mod units;
 pub mod codes;
 pub mod config;
 pub mod table;
+pub mod params;
 // The data path: interrupt → X / angle → coefficients → command → loop → DAC.
 pub mod handoff;
 pub mod xevent;

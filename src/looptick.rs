@@ -457,7 +457,7 @@ impl LoopState {
                 }
                 Fault::AmplifierTrip => amplifier_fault,
                 // A refused table stays refused: only a new table clears it.
-                Fault::Table(_) => true,
+                Fault::Table(_) | Fault::Parameters(_) => true,
                 _ => false,
             };
         if present {
