@@ -35,6 +35,8 @@ pub mod drivers;
 pub mod watchdog;
 // The bundle the boards and host-sim use.
 pub mod firmware;
+// The host link (background and a tap in the loop tick).
+pub mod link;
 // The second system on the same core (Feezell 1967).
 pub mod centring;
 

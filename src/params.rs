@@ -29,7 +29,6 @@
 //! `Fault::Parameters` and keeps the amplifier off.
 
 use crate::servo::{DesignError, ServoConfig, ServoDesign};
-use crate::table::crc32;
 
 pub const MAGIC: [u8; 4] = *b"ZSPB";
 pub const FORMAT_VERSION: u16 = 1;
