@@ -136,7 +136,7 @@ impl core::fmt::Display for TableError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
             TableError::Missing => f.write_str(
-                "no coefficient table in the table region (it is erased): write one with `cargo xtask flash-table FILE.zsct`",
+                "no coefficient table in the table region (erased, or never written): write one with `cargo xtask flash-table FILE.zsct`",
             ),
             TableError::Truncated { needed, got } => write!(
                 f,
@@ -757,6 +757,45 @@ mod tests {
         let mut m = good.clone();
         patch(&mut m, 40, &0i64.to_le_bytes());
         assert_eq!(CoeffTable::parse(&m), Err(TableError::BadGeometry));
+    }
+
+    /// A region holds the image and erased flash after it; an erased or
+    /// zeroed region holds no table; a region too small for the image the
+    /// header describes is cut short, by the numbers.
+    #[test]
+    fn a_region_is_read_up_to_the_image_its_header_describes() {
+        let h = header(9, 4);
+        let img = image(&h);
+        let mut region = img.clone();
+        region.extend([0xFFu8; 1000]);
+        let t = CoeffTable::parse_region(&region).unwrap();
+        assert_eq!(t, CoeffTable::parse(&img).unwrap());
+        let id = t.identity();
+        assert_eq!(id.len as usize, img.len());
+        assert_eq!(id.crc, u32_at(&img, 60));
+        assert_eq!((id.node_count, id.terms), (9, 4));
+        assert_eq!(id.dx_bits, 1 << 21);
+        for erased in [0xFFu8, 0] {
+            assert_eq!(
+                CoeffTable::parse_region(&[erased; 4096]),
+                Err(TableError::Missing)
+            );
+        }
+        let n = img.len() as u32;
+        assert_eq!(
+            CoeffTable::parse_region(&img[..100]),
+            Err(TableError::Truncated { needed: n, got: 100 })
+        );
+        // Garbage is not "missing": it is refused for what it is.
+        let mut junk = region.clone();
+        junk[0] = b'Q';
+        assert_eq!(CoeffTable::parse_region(&junk), Err(TableError::BadMagic));
+        let mut junk = region.clone();
+        junk[70] ^= 1;
+        assert!(matches!(
+            CoeffTable::parse_region(&junk),
+            Err(TableError::PayloadCrc { .. })
+        ));
     }
 
     #[test]

@@ -39,6 +39,7 @@
 #![no_main]
 
 mod board;
+mod link;
 mod plant;
 
 use core::cell::Cell;
@@ -58,8 +59,12 @@ use zslide::firmware::{
     SpindleMode, SpindleReading, TickInput, XMode,
 };
 use zslide::hw::EncoderSample;
+use zslide::link::proto::{SpindleSource, XSource};
+use zslide::link::station::{Station, StationConfig};
+use zslide::link::tap::{LinkQueues, TickTap};
+use zslide::params::{self, ParamSource};
 use zslide::safety::{Device, Fault};
-use zslide::servo::ServoConfig;
+use zslide::servo::ServoDesign;
 use zslide::spindle::EncoderConfig;
 use zslide::units::SpindleAngle;
 use zslide::xpos::{half_mils_to_x, latch_word, CountConfig, CountX};
@@ -183,6 +188,10 @@ fn index_pulses() -> u32 {
 #[derive(Clone, Copy, Default, defmt::Format)]
 struct Sample {
     tick: u32,
+    /// X of the coefficients and the spindle angle the table command was
+    /// evaluated at (`cargo xtask test` recomputes it on the host).
+    x_bits: i32,
+    phi: u32,
     table: i32,
     command: i32,
     position: i32,
@@ -210,6 +219,7 @@ struct Summary {
 /// Everything the loop-tick handler owns.
 struct Run {
     lp: LoopState,
+    tap: TickTap,
     plant: Plant,
     gauge: Ad4020<GaugeSpi>,
     dac: Ad5791<DacSpi>,
@@ -231,6 +241,9 @@ static HANDOFF_EVENTS: Mutex<Cell<Option<Events>>> = Mutex::new(Cell::new(None))
 static RESULT: Mutex<Cell<Option<Summary>>> = Mutex::new(Cell::new(None));
 static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
 static DONE: AtomicBool = AtomicBool::new(false);
+/// A link session (`link::session_requested`): no scripted injection, no
+/// end; the host drives the loop.
+static SESSION: AtomicBool = AtomicBool::new(false);
 
 #[interrupt]
 fn TIMER0() {
@@ -255,7 +268,12 @@ fn TIMER0() {
 
     run.lp
         .loop_tick(&SHARED, &input, &mut run.gauge, &mut run.dac);
+    run.tap.after_tick(&link::TAP, &mut run.lp);
     let enabled = run.lp.amplifier_enable();
+    if SESSION.load(Ordering::Relaxed) {
+        run.plant.step(Dac::volts(), enabled);
+        return;
+    }
     run.plant.step(Dac::volts(), enabled);
 
     let s = &mut run.summary;
@@ -270,6 +288,8 @@ fn TIMER0() {
             if let Some(slot) = s.trace.get_mut(run.traced) {
                 *slot = Sample {
                     tick: n,
+                    x_bits: run.lp.coefficients().x().to_bits(),
+                    phi: run.lp.setpoint_state().angle().map_or(0, |a| a.0),
                     table: run.lp.table_code(),
                     command: run.lp.command_code(),
                     position: run.plant.gauge_code(),
@@ -349,19 +369,28 @@ fn TIMER1() {
 
 #[entry]
 fn main() -> ! {
+    let session = link::session_requested();
+    SESSION.store(session, Ordering::Relaxed);
     defmt::info!(
         "zslide on QEMU mps2-an386: loop tick {=u32} Hz (CMSDK timer 0, IRQ 8), machine events on timer 1 (IRQ 9), {=u32} ticks",
         LOOP_HZ,
         TICKS
     );
-    let cfg = FirmwareConfig {
-        loop_cfg: match ServoConfig::at_rate(LOOP_HZ) {
-            Ok(c) => c,
+    // Servo parameters: the parameter region's block on the built-in
+    // design, or the built-in design with the block's refusal latched.
+    let base = ServoDesign::brief(LOOP_HZ);
+    let (design, loop_cfg, param_source) = match params::load_region(link::params_region(), &base) {
+        Ok(p) => p,
+        Err(e) => match base.config() {
+            Ok(c) => (base, c, ParamSource::Refused(e)),
             Err(_) => {
                 defmt::error!("FAIL: servo design refused");
                 exit(false);
             }
         },
+    };
+    let cfg = FirmwareConfig {
+        loop_cfg,
         spindle: SpindleMode::Encoder(EncoderConfig {
             counts_per_rev: CPR,
             ticks_per_s: CLOCK_HZ,
@@ -382,24 +411,76 @@ fn main() -> ! {
         gauge_reversed: false,
     };
     defmt::info!("loop config: {}", cfg.loop_cfg);
-    let Ok(fw) = Firmware::with_table(zslide::DEFAULT_TABLE, cfg) else {
+    // The table region (`memory.x`: 0x0030_0000), written by QEMU's
+    // `-device loader`; parsed and sign-checked here.
+    let Ok(fw) = Firmware::with_table_region(link::table_region(), cfg) else {
         defmt::error!("FAIL: configuration refused");
         exit(false);
     };
-    if let Some(g) = fw.command_gen() {
-        let h = g.interpolator().table().header();
-        defmt::info!(
-            "table: {=u8} terms {}, {=u32} nodes, null from {}",
-            h.terms,
-            h.representation,
-            h.node_count,
-            g.x_null()
+    let table = match fw.command_gen() {
+        Some(g) => {
+            let t = g.interpolator().table();
+            let h = t.header();
+            let id = t.identity();
+            defmt::info!(
+                "table: {=u8} terms {}, {=u32} nodes, null from {}; c {=i64} nin, S_y {=i64} nin, tool radius {=i64} nin; {=u32} bytes, CRC {=u32:#010x}",
+                h.terms,
+                h.representation,
+                h.node_count,
+                g.x_null(),
+                id.geometry.c_nin,
+                id.geometry.s_y_nin,
+                id.geometry.tool_radius_nin,
+                id.len,
+                id.crc
+            );
+            Ok(t.identity())
+        }
+        None => match fw.fault() {
+            Some(Fault::Table(e)) => Err(e),
+            _ => Err(zslide::table::TableError::Missing),
+        },
+    };
+    let (mut lp, ev) = fw.into_parts();
+    if let Err(e) = table {
+        defmt::error!(
+            "coefficient table refused, slide held at null: {}",
+            defmt::Display2Format(&e)
         );
     }
-    let (mut lp, ev) = fw.into_parts();
-    if let Some(f) = lp.fault() {
-        defmt::error!("table refused: {}", f);
+    match param_source {
+        ParamSource::Refused(e) => {
+            defmt::error!(
+                "servo parameter block refused, amplifier kept off: {}",
+                defmt::Display2Format(&e)
+            );
+            lp.trip(Fault::Parameters(e));
+        }
+        ParamSource::Block { entries, crc } => {
+            defmt::info!("servo parameters: block of {=u16} entries, CRC {=u32:#010x}", entries, crc)
+        }
+        ParamSource::BuiltIn => {}
     }
+    let Some(queues) = cortex_m::singleton!(: LinkQueues = LinkQueues::new()) else {
+        defmt::error!("FAIL: link queues taken twice");
+        exit(false);
+    };
+    let (tick_ends, station_ends) = queues.split();
+    let mut station: Station<{ link::CAPTURE }> = Station::new(
+        StationConfig {
+            loop_hz: LOOP_HZ,
+            x_source: if cfg!(feature = "modern-x") {
+                XSource::Count
+            } else {
+                XSource::LegacyHalfMil
+            },
+            spindle_source: SpindleSource::Encoder,
+            table,
+            design,
+            params: param_source,
+        },
+        station_ends,
+    );
     let mut dac = Ad5791::new(DacSpi::new());
     if dac.init().is_err() {
         lp.trip(Fault::Bus(Device::AmplifierDac));
@@ -419,6 +500,7 @@ fn main() -> ! {
     );
     let run = Run {
         lp,
+        tap: TickTap::new(tick_ends),
         plant,
         gauge: Ad4020::new(GaugeSpi),
         dac,
@@ -447,12 +529,23 @@ fn main() -> ! {
         NVIC::unmask(Interrupt::TIMER1);
     }
     // The operator's arm: the loop runs its sign check on the slide model,
-    // then engages bumpless (the amplifier never enables on its own).
-    SHARED.request(Request::Arm);
+    // then engages bumpless (the amplifier never enables on its own). In a
+    // link session the host arms.
+    if !session {
+        SHARED.request(Request::Arm);
+    }
     TIMER0_LOOP.start_periodic(PCLK_HZ / LOOP_HZ);
     // Not a multiple of the loop period: the event handler runs at every
     // phase of the loop tick and is preempted by it.
     TIMER1_EVENTS.start_periodic(PCLK_HZ / LOOP_HZ * 2 + 377);
+    if session {
+        defmt::info!("link session: frames on UART0, until QEMU stops");
+        let mut uart = link::Uart0::new();
+        loop {
+            station.poll(&link::TAP, &SHARED, &mut uart);
+            cortex_m::asm::wfi();
+        }
+    }
 
     // Give up after 100 000 idle wake-ups (the run needs ~6000).
     let mut waits = 0u32;
@@ -475,8 +568,10 @@ fn main() -> ! {
     };
     for t in s.trace.iter() {
         defmt::info!(
-            "tick {=u32}: table {=i32}  command {=i32}  position {=i32}  dac {=i32}",
+            "tick {=u32}: X {=i32} phi {=u32} table {=i32}  command {=i32}  position {=i32}  dac {=i32}",
             t.tick,
+            t.x_bits,
+            t.phi,
             t.table,
             t.command,
             t.position,
@@ -484,6 +579,8 @@ fn main() -> ! {
         );
     }
     let mut ok = true;
+    // A refused (or missing) table: the checks become "held at null".
+    let refused = matches!(s.fault_before, Some(Fault::Table(_)));
 
     let swing = s.table_max.saturating_sub(s.table_min);
     defmt::info!(
@@ -497,7 +594,20 @@ fn main() -> ! {
         MIN_SWING,
         s.fault_before
     );
-    if s.fault_before.is_some() || s.track_max_error > TRACK_BOUND || swing < MIN_SWING {
+    if refused {
+        let held = s.table_min == 0 && s.table_max == 0 && s.track_max_error <= TRACK_BOUND;
+        defmt::info!(
+            "refused table: table command {=i32}..{=i32}, slide within {=u32} codes of the null command (bound {=u32})",
+            s.table_min,
+            s.table_max,
+            s.track_max_error,
+            TRACK_BOUND
+        );
+        if !held {
+            defmt::error!("FAIL: the slide was not held at null with the table refused");
+            ok = false;
+        }
+    } else if s.fault_before.is_some() || s.track_max_error > TRACK_BOUND || swing < MIN_SWING {
         defmt::error!("FAIL: the loop did not follow the table's command");
         ok = false;
     }
@@ -524,8 +634,7 @@ fn main() -> ! {
     if accepted != scheduled
         || ignored != dups
         || SHARED.coefficient_generation() != scheduled
-        || s.coeff_x_bits != last_x.to_bits()
-        || s.coeff_null
+        || (!refused && (s.coeff_x_bits != last_x.to_bits() || s.coeff_null))
     {
         defmt::error!("FAIL: X events not handled as scripted");
         ok = false;
