@@ -268,6 +268,21 @@ pub enum ParamSource {
     Refused(ParamError),
 }
 
+impl core::fmt::Display for ParamSource {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ParamSource::BuiltIn => f.write_str("built-in (no parameter block in flash)"),
+            ParamSource::Block { entries, crc } => {
+                write!(f, "parameter block of {entries} entries, CRC {crc:#010x}")
+            }
+            ParamSource::Refused(e) => write!(
+                f,
+                "parameter block REFUSED ({e}): amplifier kept off until a good block is written"
+            ),
+        }
+    }
+}
+
 fn u16_at(b: &[u8], at: usize) -> u16 {
     u16::from_le_bytes([b[at], b[at + 1]])
 }

@@ -253,10 +253,10 @@ pub struct TableIdentity {
 impl core::fmt::Display for TableIdentity {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         let inch = |bits: i32| f64::from(bits) / f64::from(1u32 << 24);
-        let nin = |v: i64| v as f64 * 1e-9;
+        let nin = |v: i64| v as f64 / 1e9;
         write!(
             f,
-            "c = {} in, S_y = {} in, tool radius {} in; {} {} terms, {} nodes, X {} .. {} in (step {} in), null beyond {} in; {} bytes, CRC {:#010x}",
+            "c = {} in, S_y = {} in, tool radius {} in; {} {} terms, {} nodes, X {:.6} .. {:.6} in (step {:.6} in), null beyond {:.6} in; {} bytes, CRC {:#010x}",
             nin(self.geometry.c_nin),
             nin(self.geometry.s_y_nin),
             nin(self.geometry.tool_radius_nin),

@@ -94,7 +94,9 @@ pub enum Trigger {
     Immediate,
     /// The tick a fault latches.
     Fault,
-    /// The first tick with |command − position| ≥ `level` gauge codes.
+    /// The first tick on which |command − position| reaches `level` gauge
+    /// codes from below (an edge: a level already exceeded when the
+    /// capture is armed must first fall below it).
     FollowingError { level: u32 },
 }
 
@@ -265,6 +267,34 @@ pub enum Refusal {
     Range,
     /// The loop tick did not answer (it is not running).
     LoopSilent,
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Refusal::Frame(e) => write!(f, "the firmware refused the frame: {e}"),
+            Refusal::ArmFault(fault) => write!(
+                f,
+                "arm refused: a fault that keeps the amplifier off is latched ({fault}); clear it first"
+            ),
+            Refusal::ClearCause(fault) => write!(
+                f,
+                "clear refused: the cause is still present or the loop is armed ({fault}); disarm and remove the cause first"
+            ),
+            Refusal::NoFault => f.write_str("clear: no fault is latched"),
+            Refusal::Param(e) => write!(f, "parameter refused: {e}"),
+            Refusal::Armed => f.write_str(
+                "parameters change only while the loop is disarmed (the loop would restart from a new state): disarm first",
+            ),
+            Refusal::CaptureSize { capacity } => write!(
+                f,
+                "capture refused: samples must be 1..={capacity} and the pre-trigger count below them"
+            ),
+            Refusal::CaptureNotDone => f.write_str("no complete capture to read"),
+            Refusal::Range => f.write_str("asked beyond the recorded samples or fault records"),
+            Refusal::LoopSilent => f.write_str("the loop tick did not answer: it is not running"),
+        }
+    }
 }
 
 /// What the firmware answers.

@@ -276,6 +276,8 @@ pub struct TickTap {
     pre: u32,
     trigger: u32,
     level: u32,
+    /// |error| was at or above the level on the last recorded tick.
+    over: bool,
 }
 
 fn phase(p: Phase) -> LoopPhase {
@@ -302,6 +304,7 @@ impl TickTap {
             pre: 0,
             trigger: 0,
             level: 0,
+            over: true,
         }
     }
 
@@ -378,6 +381,8 @@ impl TickTap {
             self.pre = sc.pre.load(Ordering::Relaxed);
             self.trigger = sc.trigger.load(Ordering::Relaxed);
             self.level = sc.level.load(Ordering::Relaxed);
+            // A level already exceeded at the arming is no crossing.
+            self.over = true;
         }
         let ph = st & PH_MASK;
         if ph != PH_ARMED && ph != PH_TRIGGERED {
@@ -401,11 +406,14 @@ impl TickTap {
         self.written = self.written.wrapping_add(1);
         let gen = st & !PH_MASK;
         if ph == PH_ARMED {
+            let over = error.unsigned_abs() >= self.level;
             let hit = match self.trigger {
                 TRIG_FAULT => fault_latched,
-                TRIG_FERR => error.unsigned_abs() >= self.level,
+                // Crossing the level from below, like a scope's edge.
+                TRIG_FERR => over && !self.over,
                 _ => true,
             };
+            self.over = over;
             if !hit {
                 return;
             }

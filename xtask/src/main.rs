@@ -22,7 +22,9 @@
 mod elf;
 mod fuzz;
 mod isr_cost;
+mod link;
 mod nopanic;
+mod regions;
 
 use clap::{Parser, Subcommand};
 use std::env;
@@ -72,6 +74,22 @@ enum Cmd {
     NoPanic,
     /// Build and run the cargo-fuzz targets (nightly toolchain, cargo-fuzz).
     Fuzz(fuzz::Args),
+    /// Talk to the firmware's host link: status, faults, arm, disarm,
+    /// clear, set/get/params, capture (docs/BOARD.md).
+    Link(link::Args),
+    /// Run the QEMU image as a link session on a Unix socket (for `link`).
+    QemuLink(link::SessionArgs),
+    /// Check a coefficient table and write it to the NUCLEO's table region
+    /// with probe-rs (no rebuild).
+    FlashTable(regions::FlashArgs),
+    /// Check a servo parameter block and write it to the NUCLEO's
+    /// parameter region with probe-rs.
+    FlashParams(regions::FlashArgs),
+    /// Write a servo parameter block file.
+    ParamBlock(regions::ParamBlockArgs),
+    /// The QEMU table-region runs and the host-link end-to-end test of
+    /// `cargo xtask test`, alone.
+    LinkTest,
 }
 
 fn main() -> ExitCode {
@@ -83,6 +101,12 @@ fn main() -> ExitCode {
         Cmd::IsrCost(args) => isr_cost::run(&args),
         Cmd::NoPanic => cmd_no_panic(),
         Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
+        Cmd::Link(args) => link::run(&args),
+        Cmd::QemuLink(args) => link::run_session(&args),
+        Cmd::FlashTable(args) => regions::flash_table(&args),
+        Cmd::FlashParams(args) => regions::flash_params(&args),
+        Cmd::ParamBlock(args) => regions::param_block(&args),
+        Cmd::LinkTest => cmd_link_test(),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -344,9 +368,54 @@ fn build_qemu() -> Result<()> {
     )
 }
 
-/// The QEMU command line, the same as the runner in boards/qemu/.cargo.
+/// The default coefficient table's file (what the QEMU runs load into
+/// the table region unless told otherwise).
+pub fn default_table_path() -> PathBuf {
+    root().join("tables/default.zsct")
+}
+
+/// What QEMU's loader writes into the image's flash regions
+/// (`boards/qemu/memory.x`).
+pub struct QemuRegions<'a> {
+    pub table: Option<&'a Path>,
+    pub params: Option<&'a Path>,
+}
+
+/// The QEMU command line, the same as the runner in boards/qemu/.cargo,
+/// with the default table in the table region.
 pub fn qemu_command(elf: &Path) -> Command {
+    let table = default_table_path();
+    qemu_command_with(
+        elf,
+        &QemuRegions {
+            table: Some(&table),
+            params: None,
+        },
+        "null",
+        "enable=on,target=native",
+    )
+}
+
+/// [`qemu_command`] with other region contents, UART0 (`-serial`) and
+/// semihosting configuration.
+pub fn qemu_command_with(
+    elf: &Path,
+    regions: &QemuRegions,
+    serial: &str,
+    semihosting: &str,
+) -> Command {
     let mut cmd = Command::new("qemu-system-arm");
+    for (file, addr) in [
+        (regions.table, regions::QEMU.table_addr),
+        (regions.params, regions::QEMU.params_addr),
+    ] {
+        if let Some(f) = file {
+            let mut arg = std::ffi::OsString::from("loader,file=");
+            arg.push(f);
+            arg.push(format!(",addr={addr:#x},force-raw=on"));
+            cmd.arg("-device").arg(arg);
+        }
+    }
     cmd.args([
         "-machine",
         "mps2-an386",
@@ -356,9 +425,9 @@ pub fn qemu_command(elf: &Path) -> Command {
         "-monitor",
         "none",
         "-serial",
-        "null",
+        serial,
         "-semihosting-config",
-        "enable=on,target=native",
+        semihosting,
         "-icount",
         "shift=0,sleep=off",
         "-kernel",
@@ -391,9 +460,21 @@ fn wait_timeout(
 
 /// Runs the QEMU image with its log decoded; returns (exit code, log lines).
 fn run_qemu() -> Result<(u8, Vec<String>)> {
+    run_qemu_with(Some(&default_table_path()))
+}
+
+/// [`run_qemu`] with `table` (or nothing) in the table region.
+pub fn run_qemu_with(table: Option<&Path>) -> Result<(u8, Vec<String>)> {
     let elf = qemu_elf();
-    step("QEMU run: qemu-system-arm -machine mps2-an386 | defmt-print");
-    let mut qemu = qemu_command(&elf)
+    step(&format!(
+        "QEMU run: qemu-system-arm -machine mps2-an386 | defmt-print; table region: {}",
+        table.map_or("empty".into(), |t| t.display().to_string())
+    ));
+    let regions = QemuRegions {
+        table,
+        params: None,
+    };
+    let mut qemu = qemu_command_with(&elf, &regions, "null", "enable=on,target=native")
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
@@ -483,6 +564,18 @@ fn cmd_qemu(bless: bool) -> Result<u8> {
         check_snapshot(&lines, bless)?;
     }
     Ok(code)
+}
+
+fn cmd_link_test() -> Result<u8> {
+    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])?;
+    build_qemu()?;
+    let (code, lines) = run_qemu()?;
+    if code != 0 {
+        return Err(format!("the QEMU image exited with status {code}"));
+    }
+    let n = regions::qemu_table_checks(&lines)? + link::end_to_end()?;
+    eprintln!("{n} passed, 0 failed");
+    Ok(0)
 }
 
 fn cmd_size() -> Result<u8> {
@@ -623,6 +716,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         check_no_panic()?;
     }
     let mut qemu_code = None;
+    let mut board_checks = 0u64;
     if qemu_possible {
         let (code, lines) = run_qemu()?;
         if code != 0 {
@@ -630,6 +724,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
+        board_checks += u64::from(regions::qemu_table_checks(&lines)?);
+        board_checks += u64::from(link::end_to_end()?);
     }
 
     // A short fuzz run of every target: a finding fails the run (after the
@@ -681,6 +777,11 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             None => "NOT RUN",
         }
     );
+    if qemu_code.is_some() {
+        eprintln!(
+            "QEMU table region and host link end to end: {board_checks} checks passed"
+        );
+    }
     eprintln!("fuzz: {fuzz_line}");
     let code = if fuzz_failed > 0 {
         1
@@ -697,7 +798,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     // last libtest line above is a doc-test run that may count zero.
     eprintln!(
         "tests: {} passed, {} failed, {ignored} skipped",
-        passed + fuzz_passed,
+        passed + fuzz_passed + board_checks,
         failed + fuzz_failed
     );
     Ok(code)
@@ -724,6 +825,15 @@ mod tests {
             &["isr-cost"],
             &["no-panic"],
             &["fuzz", "--seconds", "1"],
+            &["link", "status"],
+            &["link", "--connect", "unix:/tmp/s", "faults"],
+            &["link", "set", "bandwidth_hz", "40"],
+            &["link", "capture", "--samples", "10", "--trigger", "fault", "--csv", "c.csv"],
+            &["qemu-link"],
+            &["link-test"],
+            &["flash-table", "t.zsct"],
+            &["flash-params", "p.zspb", "--dry-run"],
+            &["param-block", "--set", "damping=1", "--out", "p.zspb"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();
@@ -770,6 +880,24 @@ mod tests {
         assert_eq!(
             parse(&["test", "--fuzz-seconds", "-1"]).err(),
             Some(ErrorKind::UnknownArgument)
+        );
+        assert_eq!(
+            parse(&["link", "capture", "--samples", "0", "--trigger", "fault", "--csv", "c"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["link", "capture", "--samples", "9", "--trigger", "often", "--csv", "c"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["link", "set", "damping", "much"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(parse(&["link", "reboot"]).err(), Some(ErrorKind::InvalidSubcommand));
+        assert_eq!(parse(&["flash-table"]).err(), Some(ErrorKind::MissingRequiredArgument));
+        assert_eq!(
+            parse(&["param-block", "--out", "p"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
         );
     }
 

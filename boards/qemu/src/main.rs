@@ -337,7 +337,12 @@ fn TIMER1() {
     let Some(e) = EVENTS.as_mut() else {
         return;
     };
-    let k = WORLD_TICK.load(Ordering::Acquire).min(EVENTS_UNTIL);
+    // A link session keeps the spindle turning (index pulses) forever.
+    let k = if SESSION.load(Ordering::Relaxed) {
+        WORLD_TICK.load(Ordering::Acquire)
+    } else {
+        WORLD_TICK.load(Ordering::Acquire).min(EVENTS_UNTIL)
+    };
     let now = u64::from(k) * u64::from(CLOCK_PER_TICK);
     loop {
         let x_at = (e.next_x < x_events())
