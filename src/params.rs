@@ -44,81 +44,254 @@ pub struct Param {
     pub max: f64,
     /// Whole numbers only (bins, shifts).
     pub integer: bool,
-    get: fn(&ServoDesign) -> f64,
-    set: fn(&mut ServoDesign, f64),
 }
 
 impl Param {
     /// The parameter's value in `d`.
     pub fn get(&self, d: &ServoDesign) -> f64 {
-        (self.get)(d)
+        field_get(self.id, d)
+    }
+    fn set(&self, d: &mut ServoDesign, v: f64) {
+        field_set(self.id, d, v);
     }
 }
 
-macro_rules! param {
-    ($id:expr, $name:literal, $unit:literal, $min:expr, $max:expr, $($field:ident).+) => {
-        Param {
-            id: $id,
-            name: $name,
-            unit: $unit,
-            min: $min,
-            max: $max,
-            integer: false,
-            get: |d| d.$($field).+,
-            set: |d, v| d.$($field).+ = v,
+// The table and the two accessors from one list, so that they cannot
+// disagree. Accessors are `match`es, not function pointers: an indirect
+// call in the link's service would make `cargo xtask no-panic` assume it
+// reaches every function whose address the image holds.
+macro_rules! params {
+    ($(($id:literal, $name:literal, $unit:literal, $min:expr, $max:expr, $kind:ident, $($field:ident).+)),+ $(,)?) => {
+        pub const PARAMS: [Param; [$($id),+].len()] = [
+            $(Param {
+                id: $id,
+                name: $name,
+                unit: $unit,
+                min: $min,
+                max: $max,
+                integer: params!(@integer $kind),
+            }),+
+        ];
+
+        fn field_get(id: u16, d: &ServoDesign) -> f64 {
+            match id {
+                $($id => params!(@get $kind, d.$($field).+),)+
+                _ => f64::NAN,
+            }
+        }
+
+        fn field_set(id: u16, d: &mut ServoDesign, v: f64) {
+            match id {
+                $($id => params!(@set $kind, d.$($field).+, v),)+
+                _ => {}
+            }
         }
     };
-    ($id:expr, $name:literal, $unit:literal, $min:expr, $max:expr, $($field:ident).+, integer) => {
-        Param {
-            id: $id,
-            name: $name,
-            unit: $unit,
-            min: $min,
-            max: $max,
-            integer: true,
-            get: |d| f64::from(d.$($field).+),
-            set: |d, v| d.$($field).+ = v as u32,
-        }
-    };
+    (@integer real) => { false };
+    (@integer whole) => { true };
+    (@get real, $e:expr) => { $e };
+    (@get whole, $e:expr) => { f64::from($e) };
+    (@set real, $e:expr, $v:ident) => { $e = $v };
+    (@set whole, $e:expr, $v:ident) => { $e = $v as u32 };
 }
 
-/// Every settable parameter. The ids are the wire and block format: never
-/// renumber one, only add. The limits are the design's own where it has
-/// static ones (`ServoDesign::config`), narrowed to the machine where the
-/// brief sets a bound (the amplifier's 8 A, the gauge's ±0.010 in); the
-/// design's rate-dependent checks (bandwidth below rate/20, observer below
-/// rate/10, notch below Nyquist) run on top, with their own reasons.
-pub const PARAMS: [Param; 30] = [
-    param!(1, "bandwidth_hz", "Hz", 1.0, 1000.0, bandwidth_hz),
-    param!(2, "damping", "", 0.1, 5.0, damping),
-    param!(3, "bandwidth_fast_hz", "Hz", 1.0, 1000.0, bandwidth_fast_hz),
-    param!(4, "observer_hz", "Hz", 1.0, 2000.0, observer_hz),
-    param!(5, "observer_fast_hz", "Hz", 1.0, 2000.0, observer_fast_hz),
-    param!(6, "observer_switch_uin", "uin", 1.0, 10_000.0, observer_switch_uin),
-    param!(7, "observer_hold_ms", "ms", 0.0, 10_000.0, observer_hold_ms),
-    param!(8, "hum_notch_hz", "Hz", 1.0, 9_999.0, hum_notch_hz),
-    param!(9, "hum_notch_q", "(0 = off)", 0.0, 100.0, hum_notch_q),
-    param!(10, "mode_notch_hz", "Hz", 1.0, 9_999.0, mode_notch_hz),
-    param!(11, "mode_notch_q", "(0 = off)", 0.0, 100.0, mode_notch_q),
-    param!(12, "learning_gain", "per rev (0 = off)", 0.0, 0.95, learning_gain),
-    param!(13, "learning_lead_bins", "bins of 1/256 rev", 3.0, 32.0, learning_lead_bins, integer),
-    param!(14, "learning_q_shift", "", 1.0, 3.0, learning_q_shift, integer),
-    param!(15, "slew_in_per_s", "in/s", 0.001, 10.0, slew_in_per_s),
-    param!(16, "slew_accel_in_per_s2", "in/s^2", 0.01, 1000.0, slew_accel_in_per_s2),
-    param!(17, "command_limit_in", "in", 0.0001, 0.010, command_limit_in),
-    param!(18, "current_limit_a", "A", 0.1, 8.0, current_limit_a),
-    param!(19, "current_limit_ms", "ms", 0.1, 1000.0, current_limit_ms),
-    param!(20, "following_error_in", "in", 0.000_001, 0.010, following_error_in),
-    param!(21, "following_error_ms", "ms", 0.0, 1000.0, following_error_ms),
-    param!(22, "sign_check_v", "V (0 = no check)", 0.0, 2.0, sign_check_v),
-    param!(23, "sign_check_ms", "ms", 0.1, 20.0, sign_check_ms),
-    param!(24, "motor_kf_lbf_per_a", "lbf/A", 0.1, 100.0, slide.kf_lbf_per_a),
-    param!(25, "motor_kb_v_s_per_in", "V s/in", 0.01, 10.0, slide.kb_v_s_per_in),
-    param!(26, "coil_r_ohm", "ohm", 0.1, 100.0, slide.r_ohm),
-    param!(27, "mass_lbf_s2_per_in", "lbf s^2/in", 0.001, 1.0, slide.mass_lbf_s2_per_in),
-    param!(28, "air_film_b_lbf_s_per_in", "lbf s/in", 0.01, 1000.0, slide.b_lbf_s_per_in),
-    param!(29, "amp_gain", "V/V", 0.1, 100.0, slide.amp_gain),
-    param!(30, "gauge_v_per_in", "V/in", 1.0, 100_000.0, slide.gauge_v_per_in),
+// Every settable parameter. The ids are the wire and block format: never
+// renumber one, only add. The limits are the design's own where it has
+// static ones (`ServoDesign::config`), narrowed to the machine where the
+// brief sets a bound (the amplifier's 8 A, the gauge's ±0.010 in); the
+// design's rate-dependent checks (bandwidth below rate/20, observer below
+// rate/10, notch below Nyquist) run on top, with their own reasons.
+params![
+    (1, "bandwidth_hz", "Hz", 1.0, 1000.0, real, bandwidth_hz),
+    (2, "damping", "", 0.1, 5.0, real, damping),
+    (
+        3,
+        "bandwidth_fast_hz",
+        "Hz",
+        1.0,
+        1000.0,
+        real,
+        bandwidth_fast_hz
+    ),
+    (4, "observer_hz", "Hz", 1.0, 2000.0, real, observer_hz),
+    (
+        5,
+        "observer_fast_hz",
+        "Hz",
+        1.0,
+        2000.0,
+        real,
+        observer_fast_hz
+    ),
+    (
+        6,
+        "observer_switch_uin",
+        "uin",
+        1.0,
+        10_000.0,
+        real,
+        observer_switch_uin
+    ),
+    (
+        7,
+        "observer_hold_ms",
+        "ms",
+        0.0,
+        10_000.0,
+        real,
+        observer_hold_ms
+    ),
+    (8, "hum_notch_hz", "Hz", 1.0, 9_999.0, real, hum_notch_hz),
+    (9, "hum_notch_q", "(0 = off)", 0.0, 100.0, real, hum_notch_q),
+    (10, "mode_notch_hz", "Hz", 1.0, 9_999.0, real, mode_notch_hz),
+    (
+        11,
+        "mode_notch_q",
+        "(0 = off)",
+        0.0,
+        100.0,
+        real,
+        mode_notch_q
+    ),
+    (
+        12,
+        "learning_gain",
+        "per rev (0 = off)",
+        0.0,
+        0.95,
+        real,
+        learning_gain
+    ),
+    (
+        13,
+        "learning_lead_bins",
+        "bins of 1/256 rev",
+        3.0,
+        32.0,
+        whole,
+        learning_lead_bins
+    ),
+    (
+        14,
+        "learning_q_shift",
+        "",
+        1.0,
+        3.0,
+        whole,
+        learning_q_shift
+    ),
+    (
+        15,
+        "slew_in_per_s",
+        "in/s",
+        0.001,
+        10.0,
+        real,
+        slew_in_per_s
+    ),
+    (
+        16,
+        "slew_accel_in_per_s2",
+        "in/s^2",
+        0.01,
+        1000.0,
+        real,
+        slew_accel_in_per_s2
+    ),
+    (
+        17,
+        "command_limit_in",
+        "in",
+        0.0001,
+        0.010,
+        real,
+        command_limit_in
+    ),
+    (18, "current_limit_a", "A", 0.1, 8.0, real, current_limit_a),
+    (
+        19,
+        "current_limit_ms",
+        "ms",
+        0.1,
+        1000.0,
+        real,
+        current_limit_ms
+    ),
+    (
+        20,
+        "following_error_in",
+        "in",
+        0.000_001,
+        0.010,
+        real,
+        following_error_in
+    ),
+    (
+        21,
+        "following_error_ms",
+        "ms",
+        0.0,
+        1000.0,
+        real,
+        following_error_ms
+    ),
+    (
+        22,
+        "sign_check_v",
+        "V (0 = no check)",
+        0.0,
+        2.0,
+        real,
+        sign_check_v
+    ),
+    (23, "sign_check_ms", "ms", 0.1, 20.0, real, sign_check_ms),
+    (
+        24,
+        "motor_kf_lbf_per_a",
+        "lbf/A",
+        0.1,
+        100.0,
+        real,
+        slide.kf_lbf_per_a
+    ),
+    (
+        25,
+        "motor_kb_v_s_per_in",
+        "V s/in",
+        0.01,
+        10.0,
+        real,
+        slide.kb_v_s_per_in
+    ),
+    (26, "coil_r_ohm", "ohm", 0.1, 100.0, real, slide.r_ohm),
+    (
+        27,
+        "mass_lbf_s2_per_in",
+        "lbf s^2/in",
+        0.001,
+        1.0,
+        real,
+        slide.mass_lbf_s2_per_in
+    ),
+    (
+        28,
+        "air_film_b_lbf_s_per_in",
+        "lbf s/in",
+        0.01,
+        1000.0,
+        real,
+        slide.b_lbf_s_per_in
+    ),
+    (29, "amp_gain", "V/V", 0.1, 100.0, real, slide.amp_gain),
+    (
+        30,
+        "gauge_v_per_in",
+        "V/in",
+        1.0,
+        100_000.0,
+        real,
+        slide.gauge_v_per_in
+    ),
 ];
 
 /// The parameter with wire id `id`.
@@ -159,20 +332,32 @@ pub enum ParamError {
     /// No parameter has this id.
     Unknown(u16),
     /// The value lies outside the parameter's limits (or is not finite).
-    OutOfRange { id: u16, value: Value },
+    OutOfRange {
+        id: u16,
+        value: Value,
+    },
     /// A whole-number parameter given a fraction.
-    NotInteger { id: u16, value: Value },
+    NotInteger {
+        id: u16,
+        value: Value,
+    },
     /// Each value is within its limits but the design refuses them
     /// together (its reason names the fields and the rule).
     Design(DesignError),
     /// The block is shorter than its header or its entries.
-    BlockTruncated { needed: u32, got: u32 },
+    BlockTruncated {
+        needed: u32,
+        got: u32,
+    },
     BlockMagic,
     BlockVersion(u16),
     BlockReserved,
     /// More entries than there are parameters.
     BlockTooMany(u16),
-    BlockCrc { stored: u32, computed: u32 },
+    BlockCrc {
+        stored: u32,
+        computed: u32,
+    },
     /// The same parameter twice in one block.
     BlockDuplicate(u16),
 }
@@ -251,7 +436,7 @@ pub fn set(
     let p = by_id(id).ok_or(ParamError::Unknown(id))?;
     check(p, value)?;
     let mut d = *design;
-    (p.set)(&mut d, value);
+    p.set(&mut d, value);
     let cfg = d.config().map_err(ParamError::Design)?;
     Ok((d, cfg))
 }
@@ -356,7 +541,7 @@ pub fn load_region(
         }
         seen |= bit;
         check(p, value)?;
-        (p.set)(&mut d, value);
+        p.set(&mut d, value);
     }
     let cfg = d.config().map_err(ParamError::Design)?;
     Ok((
@@ -432,7 +617,11 @@ mod tests {
             assert!((1..64).contains(&p.id), "{}", p.name);
             assert!(PARAMS[..i].iter().all(|q| q.id != p.id && q.name != p.name));
             let v = p.get(&d);
-            assert!(check(p, v).is_ok(), "{} default {v} outside its limits", p.name);
+            assert!(
+                check(p, v).is_ok(),
+                "{} default {v} outside its limits",
+                p.name
+            );
             assert_eq!(by_name(p.name).map(|q| q.id), Some(p.id));
         }
     }
@@ -445,7 +634,7 @@ mod tests {
         for p in PARAMS.iter() {
             let v = if p.get(&d) == p.max { p.min } else { p.max };
             let mut e = d;
-            (p.set)(&mut e, v);
+            p.set(&mut e, v);
             assert_eq!(p.get(&e), v, "{}", p.name);
             for q in PARAMS.iter().filter(|q| q.id != p.id) {
                 assert_eq!(q.get(&e), q.get(&d), "setting {} moved {}", p.name, q.name);
@@ -467,13 +656,20 @@ mod tests {
         );
         let words = std::format!("{e}");
         assert!(
-            words.contains("following_error_in = 0.02 in is outside its limits 0.000001 .. 0.01 in"),
+            words
+                .contains("following_error_in = 0.02 in is outside its limits 0.000001 .. 0.01 in"),
             "{words}"
         );
-        assert!(matches!(set(&d, id, f64::NAN), Err(ParamError::OutOfRange { .. })));
+        assert!(matches!(
+            set(&d, id, f64::NAN),
+            Err(ParamError::OutOfRange { .. })
+        ));
         assert_eq!(set(&d, 99, 1.0).unwrap_err(), ParamError::Unknown(99));
         let lead = by_name("learning_lead_bins").unwrap().id;
-        assert!(matches!(set(&d, lead, 4.5), Err(ParamError::NotInteger { .. })));
+        assert!(matches!(
+            set(&d, lead, 4.5),
+            Err(ParamError::NotInteger { .. })
+        ));
         let (d2, cfg) = set(&d, lead, 5.0).unwrap();
         assert_eq!(d2.learning_lead_bins, 5);
         assert_eq!(cfg.learning_lead_bins, 5);
@@ -523,17 +719,26 @@ mod tests {
         let b = brief();
         assert_eq!(
             load_region(&good[..20], &b).unwrap_err(),
-            ParamError::BlockTruncated { needed: 28, got: 20 }
+            ParamError::BlockTruncated {
+                needed: 28,
+                got: 20
+            }
         );
         let mut m = good.clone();
         m[0] = b'X';
         assert_eq!(load_region(&m, &b).unwrap_err(), ParamError::BlockMagic);
         let mut m = good.clone();
         m[4] = 2;
-        assert_eq!(load_region(&m, &b).unwrap_err(), ParamError::BlockVersion(2));
+        assert_eq!(
+            load_region(&m, &b).unwrap_err(),
+            ParamError::BlockVersion(2)
+        );
         let mut m = good.clone();
         m[20] ^= 1;
-        assert!(matches!(load_region(&m, &b), Err(ParamError::BlockCrc { .. })));
+        assert!(matches!(
+            load_region(&m, &b),
+            Err(ParamError::BlockCrc { .. })
+        ));
         // Every single-bit flip is caught.
         for at in 0..good.len() {
             for bit in 0..8 {

@@ -160,7 +160,9 @@ impl Fault {
 impl core::fmt::Display for Fault {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Fault::Table(TableError::Missing) => write!(f, "{}: {}", self.reason(), TableError::Missing),
+            Fault::Table(TableError::Missing) => {
+                write!(f, "{}: {}", self.reason(), TableError::Missing)
+            }
             Fault::Table(e) => write!(f, "{}: {e}", self.reason()),
             Fault::Parameters(e) => write!(f, "{}: {e}", self.reason()),
             _ => f.write_str(self.reason()),

@@ -461,7 +461,10 @@ impl<'a> CoeffTable<'a> {
             terms: h.terms,
             node_count: h.node_count,
             x0_bits: self.node_x(0).to_bits(),
-            dx_bits: self.node_x(1).to_bits().wrapping_sub(self.node_x(0).to_bits()),
+            dx_bits: self
+                .node_x(1)
+                .to_bits()
+                .wrapping_sub(self.node_x(0).to_bits()),
             x_null_bits: self.x_null().to_bits(),
             len: h.image_len() as u32,
             crc: self.image_crc,
@@ -784,7 +787,10 @@ mod tests {
         let n = img.len() as u32;
         assert_eq!(
             CoeffTable::parse_region(&img[..100]),
-            Err(TableError::Truncated { needed: n, got: 100 })
+            Err(TableError::Truncated {
+                needed: n,
+                got: 100
+            })
         );
         // Garbage is not "missing": it is refused for what it is.
         let mut junk = region.clone();

@@ -12,7 +12,7 @@ use zslide::link::proto::{
     XSource, MAX_FRAME,
 };
 use zslide::link::station::{LinkIo, Station, StationConfig};
-use zslide::link::tap::{LinkQueues, TapShared, TickTap};
+use zslide::link::tap::{TapShared, TickTap};
 use zslide::params::{self, ParamError, ParamSource};
 use zslide::safety::{Device, Fault};
 use zslide::servo::{ServoConfig, ServoDesign};
@@ -95,24 +95,19 @@ impl Rig {
     fn new() -> Self {
         let cfg: ServoConfig = design().config().unwrap();
         let (lp, _) = Firmware::new(cfg).into_parts();
-        let queues: &'static mut LinkQueues = Box::leak(Box::new(LinkQueues::new()));
-        let (tick_ends, station_ends) = queues.split();
-        let station = Station::new(
-            StationConfig {
-                loop_hz: 20_000,
-                x_source: XSource::None,
-                spindle_source: SpindleSource::None,
-                table: Err(TableError::Missing),
-                design: design(),
-                params: ParamSource::BuiltIn,
-            },
-            station_ends,
-        );
+        let station = Station::new(StationConfig {
+            loop_hz: 20_000,
+            x_source: XSource::None,
+            spindle_source: SpindleSource::None,
+            table: Err(TableError::Missing),
+            design: design(),
+            params: ParamSource::BuiltIn,
+        });
         Self {
             lp,
             shared: Box::leak(Box::new(Shared::new())),
             tap_shared: Box::leak(Box::new(TapShared::new())),
-            tap: TickTap::new(tick_ends),
+            tap: TickTap::new(),
             station,
             pipe: Pipe::default(),
             gauge: at(0),
@@ -213,7 +208,10 @@ fn status_arm_disarm_and_parameters_within_and_outside_limits() {
     assert!(r.status().amplifier_enabled);
     // Armed: parameters stay as they are.
     assert_eq!(
-        r.ask(Request::Set { id: fe, value: 0.002 }),
+        r.ask(Request::Set {
+            id: fe,
+            value: 0.002
+        }),
         Reply::Refused(Refusal::Armed)
     );
     assert_eq!(r.lp.config().following_error_code, 5242);
@@ -280,7 +278,10 @@ fn fault_capture_fault_log_and_clear() {
     // last good sample (the over-range one is not a position).
     assert!(samples[..10].iter().all(|s| s.position == 1234));
     assert!(samples.iter().all(|s| s.error == s.command - s.position));
-    assert!(samples[10..].iter().all(|s| s.output == 0), "amplifier off after the fault");
+    assert!(
+        samples[10..].iter().all(|s| s.output == 0),
+        "amplifier off after the fault"
+    );
     assert_eq!(
         r.ask(Request::CaptureRead { from: 50 }),
         Reply::Refused(Refusal::Range)
@@ -365,7 +366,9 @@ fn following_error_and_immediate_triggers() {
     assert!(s[19].error.unsigned_abs() < level);
     // Consecutive ticks: the command moves at most one slew step a tick
     // (0.25 in/s = 655 codes per tick).
-    assert!(s.windows(2).all(|w| (w[1].command - w[0].command).abs() <= 656));
+    assert!(s
+        .windows(2)
+        .all(|w| (w[1].command - w[0].command).abs() <= 656));
 
     assert!(matches!(
         r.ask(Request::CaptureStart {
@@ -415,7 +418,10 @@ fn malformed_frames_are_refused_counted_and_harmless() {
     };
     // Garbage (no valid COBS chain / CRC).
     let e = refused(&mut r, &[0x01, 0x02, 0x03, 0xFF, 0x00]);
-    assert!(matches!(e, FrameError::BadCobs | FrameError::BadCrc { .. } | FrameError::Short));
+    assert!(matches!(
+        e,
+        FrameError::BadCobs | FrameError::BadCrc { .. } | FrameError::Short
+    ));
     // Truncated.
     let mut t = good[..good.len() - 3].to_vec();
     t.push(0);
@@ -437,7 +443,10 @@ fn malformed_frames_are_refused_counted_and_harmless() {
         o.push(0);
         o
     };
-    assert_eq!(refused(&mut r, &raw(&[1, 9, 99])), FrameError::UnknownCommand(99));
+    assert_eq!(
+        refused(&mut r, &raw(&[1, 9, 99])),
+        FrameError::UnknownCommand(99)
+    );
     assert_eq!(refused(&mut r, &raw(&[7, 9, 0])), FrameError::BadVersion(7));
     assert_eq!(refused(&mut r, &raw(&[1, 9, 0, 5])), FrameError::Malformed);
     // Oversize: dropped up to its delimiter.

@@ -13,13 +13,13 @@ use super::proto::{
     Refusal, Reply, Request, SpindleSource, Status, XSource, FAULTS_PER_FRAME, FAULT_LOG,
     MAX_FRAME, MAX_REQUEST, REQUEST_KINDS, SAMPLES_PER_FRAME,
 };
-use super::tap::{Snapshot, StationEnds, TapShared, REQ_CAPTURE, REQ_CONFIG, REQ_SNAPSHOT};
+use super::tap::{Snapshot, TapShared, REQ_CAPTURE, REQ_CONFIG, REQ_SNAPSHOT};
 use crate::handoff::{Request as LoopRequest, Shared};
 use crate::params::{self, ParamSource};
 use crate::safety::{Fault, Reaction};
 use crate::servo::ServoDesign;
 use crate::table::{TableError, TableIdentity};
-use heapless::HistoryBuf;
+use heapless::Deque;
 
 /// The transport: bytes in and out, never blocking (RTT channels on the
 /// NUCLEO, the CMSDK UART in QEMU).
@@ -64,12 +64,14 @@ enum Waiting {
         design: ServoDesign,
     },
     /// A snapshot to decide whether a set may go ahead (disarmed?).
-    SetCheck { id: u16, value: f64 },
+    SetCheck {
+        id: u16,
+        value: f64,
+    },
 }
 
 pub struct Station<const N: usize> {
     cfg: StationConfig,
-    ends: StationEnds,
     rx: [u8; MAX_REQUEST],
     rx_len: usize,
     /// Dropping an oversize frame until its delimiter.
@@ -79,16 +81,17 @@ pub struct Station<const N: usize> {
     tx_sent: usize,
     waiting: Option<(u16, Waiting, u32)>,
     last: Option<Snapshot>,
-    log: HistoryBuf<FaultRecord, FAULT_LOG>,
+    /// The fault log: the last [`FAULT_LOG`] records (a ring: the oldest
+    /// goes when a new one comes).
+    log: Deque<FaultRecord, FAULT_LOG>,
     logged: u32,
     frames: FrameCounters,
 }
 
 impl<const N: usize> Station<N> {
-    pub fn new(cfg: StationConfig, ends: StationEnds) -> Self {
+    pub fn new(cfg: StationConfig) -> Self {
         Self {
             cfg,
-            ends,
             rx: [0; MAX_REQUEST],
             rx_len: 0,
             rx_skip: false,
@@ -97,7 +100,7 @@ impl<const N: usize> Station<N> {
             tx_sent: 0,
             waiting: None,
             last: None,
-            log: HistoryBuf::new(),
+            log: Deque::new(),
             logged: 0,
             frames: FrameCounters::default(),
         }
@@ -115,7 +118,7 @@ impl<const N: usize> Station<N> {
 
     /// The fault log, oldest first.
     pub fn fault_log(&self) -> impl Iterator<Item = &FaultRecord> {
-        self.log.oldest_ordered()
+        self.log.iter()
     }
 
     /// Fault records logged since boot.
@@ -125,10 +128,14 @@ impl<const N: usize> Station<N> {
 
     /// One background pass: log fault changes, answer a request whose
     /// snapshot came, send what is pending, take at most one new request.
+    /// Never inlined: `cargo xtask no-panic` holds it, from its symbol, to
+    /// the interrupt handlers' rule (no panic path), although it runs in
+    /// thread mode: bytes from the host must never stop the firmware.
+    #[inline(never)]
     pub fn poll(&mut self, tap: &TapShared<N>, shared: &Shared, io: &mut impl LinkIo) {
-        self.drain_faults();
+        self.drain_faults(tap);
         if let Some((seq, w, waited)) = self.waiting {
-            match self.ends.snapshots.dequeue() {
+            match tap.snapshots.dequeue() {
                 Some(s) => {
                     self.last = Some(s);
                     self.waiting = None;
@@ -182,9 +189,11 @@ impl<const N: usize> Station<N> {
                 self.frames.empty += 1;
                 continue;
             }
-            let mut frame = [0u8; MAX_REQUEST];
-            frame[..len].copy_from_slice(&self.rx[..len]);
-            match proto::decode::<Request>(&mut frame[..len], REQUEST_KINDS) {
+            let mut frame = self.rx;
+            let Some(frame) = frame.get_mut(..len) else {
+                return;
+            };
+            match proto::decode::<Request>(frame, REQUEST_KINDS) {
                 Ok((seq, req)) => {
                     self.frames.ok += 1;
                     self.handle(seq, req, tap, shared);
@@ -206,10 +215,10 @@ impl<const N: usize> Station<N> {
         }
     }
 
-    fn drain_faults(&mut self) {
-        while let Some(e) = self.ends.faults.dequeue() {
+    fn drain_faults(&mut self, tap: &TapShared<N>) {
+        while let Some(e) = tap.faults.dequeue() {
             // A clear is logged with the fault it cleared.
-            let record = match (e.fault, self.log.recent()) {
+            let record = match (e.fault, self.log.back()) {
                 (Some(f), _) => Some(FaultRecord {
                     tick: e.tick,
                     fault: f,
@@ -223,7 +232,10 @@ impl<const N: usize> Station<N> {
                 _ => None,
             };
             if let Some(r) = record {
-                self.log.write(r);
+                if self.log.is_full() {
+                    self.log.pop_front();
+                }
+                let _ = self.log.push_back(r);
                 self.logged = self.logged.wrapping_add(1);
             }
         }
@@ -242,7 +254,7 @@ impl<const N: usize> Station<N> {
 
     fn wait(&mut self, seq: u16, w: Waiting, tap: &TapShared<N>) {
         // A snapshot left from before belongs to no request now.
-        while self.ends.snapshots.dequeue().is_some() {}
+        while tap.snapshots.dequeue().is_some() {}
         tap.request(REQ_SNAPSHOT);
         self.waiting = Some((seq, w, 0));
     }
@@ -318,7 +330,7 @@ impl<const N: usize> Station<N> {
                 let mut records = heapless::Vec::new();
                 for r in self
                     .log
-                    .oldest_ordered()
+                    .iter()
                     .skip(usize::from(from))
                     .take(FAULTS_PER_FRAME)
                 {
@@ -359,7 +371,7 @@ impl<const N: usize> Station<N> {
     fn answer(&mut self, seq: u16, w: Waiting, s: &Snapshot, tap: &TapShared<N>, shared: &Shared) {
         // The snapshot came from the tick that took the request: a fault it
         // latched is in the queue by now.
-        self.drain_faults();
+        self.drain_faults(tap);
         let r = match w {
             Waiting::Status => Reply::Status(self.status(s, tap, shared)),
             Waiting::Armed => match s.fault {
@@ -381,7 +393,7 @@ impl<const N: usize> Station<N> {
                 } else {
                     match params::set(&self.cfg.design, id, value) {
                         Err(e) => Reply::Refused(Refusal::Param(e)),
-                        Ok((design, cfg)) => match self.ends.configs.enqueue(cfg) {
+                        Ok((design, cfg)) => match tap.configs.enqueue(cfg) {
                             Ok(()) => {
                                 tap.request(REQ_CONFIG);
                                 self.wait(

@@ -13,16 +13,18 @@
 //! * the capture ring, once the tick marks it done,
 //!
 //! and hands the tick new servo configurations through a third queue
-//! ([`REQ_CONFIG`]), applied only while disarmed. The queues are heapless
-//! single-producer single-consumer rings (atomics, no lock, no masking);
-//! the board makes them `'static` once at boot ([`LinkQueues`]).
+//! ([`REQ_CONFIG`]), applied only while disarmed. The queues are heapless's
+//! lock-free bounded queues (Vyukov's, atomics only, no masking; `&self`
+//! methods on a `static`, and the index wraps by a constant mask: no
+//! division, no panic path, which `cargo xtask no-panic` checks). They live
+//! in [`TapShared`] with the capture ring, so a board needs one `static`.
 
 use super::proto::{CaptureState, LoopPhase, Sample, Trigger};
 use crate::looptick::LoopState;
 use crate::safety::Fault;
 use crate::servo::{Phase, ServoConfig};
 use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
-use heapless::spsc::{Consumer, Producer, Queue};
+use heapless::mpmc::Queue;
 
 /// Request bits of [`TapShared::requests`].
 pub const REQ_SNAPSHOT: u32 = 1;
@@ -59,64 +61,8 @@ pub struct FaultEvent {
 }
 
 /// Fault changes the queue holds between two background passes (more are
-/// counted as lost, never block the tick).
+/// lost, never block the tick).
 pub const FAULT_QUEUE: usize = 16;
-
-/// The three queues between the tick and the background. The board keeps
-/// one in a `'static` place (e.g. a `static_cell::StaticCell`) and splits
-/// it with [`LinkQueues::split`].
-pub struct LinkQueues {
-    faults: Queue<FaultEvent, FAULT_QUEUE>,
-    snapshots: Queue<Snapshot, 2>,
-    configs: Queue<ServoConfig, 2>,
-}
-
-impl LinkQueues {
-    pub const fn new() -> Self {
-        Self {
-            faults: Queue::new(),
-            snapshots: Queue::new(),
-            configs: Queue::new(),
-        }
-    }
-
-    /// The tick's ends and the background's ends.
-    pub fn split(&'static mut self) -> (TickEnds, StationEnds) {
-        let (fp, fc) = self.faults.split();
-        let (sp, sc) = self.snapshots.split();
-        let (cp, cc) = self.configs.split();
-        (
-            TickEnds {
-                faults: fp,
-                snapshots: sp,
-                configs: cc,
-            },
-            StationEnds {
-                faults: fc,
-                snapshots: sc,
-                configs: cp,
-            },
-        )
-    }
-}
-
-impl Default for LinkQueues {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-pub struct TickEnds {
-    faults: Producer<'static, FaultEvent>,
-    snapshots: Producer<'static, Snapshot>,
-    configs: Consumer<'static, ServoConfig>,
-}
-
-pub struct StationEnds {
-    pub(crate) faults: Consumer<'static, FaultEvent>,
-    pub(crate) snapshots: Consumer<'static, Snapshot>,
-    pub(crate) configs: Producer<'static, ServoConfig>,
-}
 
 /// Capture phases in the low bits of [`Scope::state`] (0: idle); the arming's
 /// generation above them, so that the tick tells a new arming from the
@@ -154,11 +100,17 @@ pub struct Scope<const N: usize> {
 pub struct TapShared<const N: usize> {
     requests: AtomicU32,
     pub(crate) scope: Scope<N>,
+    pub(crate) faults: Queue<FaultEvent, FAULT_QUEUE>,
+    pub(crate) snapshots: Queue<Snapshot, 2>,
+    pub(crate) configs: Queue<ServoConfig, 2>,
 }
 
 impl<const N: usize> TapShared<N> {
     pub const fn new() -> Self {
-        assert!(N.is_power_of_two() && N <= 1 << 15, "capture ring: a power of two");
+        assert!(
+            N.is_power_of_two() && N <= 1 << 15,
+            "capture ring: a power of two"
+        );
         Self {
             requests: AtomicU32::new(0),
             scope: Scope {
@@ -172,6 +124,9 @@ impl<const N: usize> TapShared<N> {
                 before: AtomicU32::new(0),
                 trigger_tick: AtomicU32::new(0),
             },
+            faults: Queue::new(),
+            snapshots: Queue::new(),
+            configs: Queue::new(),
         }
     }
 
@@ -260,10 +215,8 @@ impl<const N: usize> Scope<N> {
     }
 }
 
-/// The tick's own part of the link: its queue ends and what it remembers
-/// between ticks.
+/// The tick's own part of the link: what it remembers between ticks.
 pub struct TickTap {
-    ends: TickEnds,
     fault: Option<Fault>,
     configs_applied: u32,
     configs_refused: u32,
@@ -290,10 +243,15 @@ fn phase(p: Phase) -> LoopPhase {
     }
 }
 
+impl Default for TickTap {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl TickTap {
-    pub fn new(ends: TickEnds) -> Self {
+    pub const fn new() -> Self {
         Self {
-            ends,
             fault: None,
             configs_applied: 0,
             configs_refused: 0,
@@ -318,7 +276,7 @@ impl TickTap {
             self.fault = fault;
             // A full queue (the background stopped draining) loses the
             // event, never the tick; the log counts what it got.
-            let _ = self.ends.faults.enqueue(FaultEvent {
+            let _ = sh.faults.enqueue(FaultEvent {
                 tick: lp.ticks(),
                 fault,
             });
@@ -332,7 +290,7 @@ impl TickTap {
         }
         if req & REQ_CONFIG != 0 {
             sh.requests.fetch_and(!REQ_CONFIG, Ordering::Relaxed);
-            while let Some(cfg) = self.ends.configs.dequeue() {
+            while let Some(cfg) = sh.configs.dequeue() {
                 if lp.reconfigure(cfg) {
                     self.configs_applied = self.configs_applied.wrapping_add(1);
                 } else {
@@ -343,7 +301,7 @@ impl TickTap {
         if req & REQ_SNAPSHOT != 0 {
             sh.requests.fetch_and(!REQ_SNAPSHOT, Ordering::Relaxed);
             let sp = lp.setpoint_state();
-            let _ = self.ends.snapshots.enqueue(Snapshot {
+            let _ = sh.snapshots.enqueue(Snapshot {
                 ticks: lp.ticks(),
                 phase: phase(lp.servo().phase()),
                 amplifier_enabled: lp.amplifier_enable(),
@@ -396,9 +354,9 @@ impl TickTap {
         if let Some(slot) = sc.ring.get(at) {
             let phi = lp.setpoint_state().angle().map_or(0, |a| a.0);
             let x = lp.coefficients().x().to_bits();
-            for (w, v) in slot
-                .iter()
-                .zip([command, position, error, lp.output_code(), phi as i32, x])
+            for (w, v) in
+                slot.iter()
+                    .zip([command, position, error, lp.output_code(), phi as i32, x])
             {
                 w.store(v, Ordering::Relaxed);
             }

@@ -21,7 +21,8 @@ use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 use zslide::link::proto::{
-    self, CaptureInfo, CaptureState, FaultRecord, FrameError, LoopPhase, Refusal, Reply, Request, Sample, Status, Trigger, MAX_FRAME,
+    self, CaptureInfo, CaptureState, FaultRecord, FrameError, LoopPhase, Refusal, Reply, Request,
+    Sample, Status, Trigger, MAX_FRAME,
 };
 use zslide::params;
 
@@ -162,9 +163,7 @@ impl Client {
                 .map_err(|e| e.to_string())?;
             Stream::Unix(s)
         } else {
-            return Err(format!(
-                "{addr:?}: expected tcp:HOST:PORT or unix:PATH"
-            ));
+            return Err(format!("{addr:?}: expected tcp:HOST:PORT or unix:PATH"));
         };
         Ok(Self {
             s,
@@ -336,19 +335,23 @@ pub fn status_text(s: &Status) -> String {
     if let Some(f) = s.clear_refused {
         t += &format!("last clear refused: {f}\n");
     }
-    let x = s
-        .x_bits
-        .map_or("unknown (no X yet)".into(), |b| format!("{:.6} in", inch(b)));
-    let phi = s
-        .phi
-        .map_or("not referenced (no index yet)".into(), |p| format!("{:.3} deg", deg(p)));
+    let x = s.x_bits.map_or("unknown (no X yet)".into(), |b| {
+        format!("{:.6} in", inch(b))
+    });
+    let phi = s.phi.map_or("not referenced (no index yet)".into(), |p| {
+        format!("{:.3} deg", deg(p))
+    });
     let rpm = s.phi_step_q8.map_or("unknown".into(), |q| {
         let turns_per_tick = q as f64 / 256.0 / 4_294_967_296.0;
         format!("{:.2} rpm", turns_per_tick * f64::from(s.loop_hz) * 60.0)
     });
     t += &format!(
         "X {x}{}; phi {phi}; spindle {rpm}\n",
-        if s.null_command { " (command null)" } else { "" }
+        if s.null_command {
+            " (command null)"
+        } else {
+            ""
+        }
     );
     t += &format!(
         "command {:.3} uin ({} codes), position {:.3} uin, error {:.3} uin, table command {:.3} uin, output {:.5} V\n",
@@ -415,12 +418,7 @@ pub fn capture_csv(info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> Stri
     t
 }
 
-fn plot_capture(
-    stem: &Path,
-    info: &CaptureInfo,
-    samples: &[Sample],
-    loop_hz: u32,
-) -> Result<()> {
+fn plot_capture(stem: &Path, info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> Result<()> {
     use host_sim::plot::{write_images, Series};
     let t = |i: usize| (i as f64 - f64::from(info.before_trigger)) * 1e3 / f64::from(loop_hz);
     let series = |label: &str, f: fn(&Sample) -> i32| Series {
@@ -456,9 +454,8 @@ fn plot_capture(
 
 /// Runs one CLI command on a connection; its report goes to `out`.
 pub fn execute(c: &mut Client, cmd: &LinkCmd, out: &mut impl Write) -> Result<()> {
-    let mut say = |s: String| -> Result<()> {
-        writeln!(out, "{}", s.trim_end()).map_err(|e| e.to_string())
-    };
+    let mut say =
+        |s: String| -> Result<()> { writeln!(out, "{}", s.trim_end()).map_err(|e| e.to_string()) };
     let param = |name: &str| {
         params::by_name(name).ok_or_else(|| {
             let names: Vec<&str> = params::PARAMS.iter().map(|p| p.name).collect();
@@ -628,10 +625,10 @@ pub fn start_session(socket: &Path, table: &Path, params: Option<&Path>) -> Resu
         &format!("unix:{},server=on,wait=on", socket.display()),
         "enable=on,target=native,arg=zslide,arg=link",
     )
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .spawn()
-        .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
+    .stdin(Stdio::null())
+    .stdout(Stdio::null())
+    .spawn()
+    .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
     let s = Session {
         qemu,
         socket: socket.to_path_buf(),
@@ -649,10 +646,7 @@ pub fn start_session(socket: &Path, table: &Path, params: Option<&Path>) -> Resu
 pub fn run_session(args: &SessionArgs) -> Result<u8> {
     crate::require_for_qemu()?;
     crate::build_qemu_image()?;
-    let table = args
-        .table
-        .clone()
-        .unwrap_or_else(crate::default_table_path);
+    let table = args.table.clone().unwrap_or_else(crate::default_table_path);
     let mut s = start_session(&args.socket, &table, args.params.as_deref())?;
     eprintln!(
         "QEMU link session on {} (table {}); in another shell:\n  cargo xtask link --connect unix:{} status\nCtrl-C stops it.",
@@ -703,7 +697,10 @@ fn wait_for(c: &mut Client, what: &str, f: impl Fn(&Status) -> bool) -> Result<S
             return Ok(s);
         }
         if start.elapsed() > Duration::from_secs(30) {
-            return Err(format!("{what}: not within 30 s; status:\n{}", status_text(&s)));
+            return Err(format!(
+                "{what}: not within 30 s; status:\n{}",
+                status_text(&s)
+            ));
         }
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -743,9 +740,18 @@ pub fn end_to_end() -> Result<u32> {
     let want = zslide::table::CoeffTable::parse(&file)
         .map_err(|e| e.to_string())?
         .identity();
-    check(s.phase == LoopPhase::Disarmed && !s.amplifier_enabled, "status: not disarmed at boot")?;
-    check(s.table == Ok(want), "status: the table identity is not the file's")?;
-    check(out.contains(&format!("CRC {:#010x}", want.crc)), "status text lacks the table CRC")?;
+    check(
+        s.phase == LoopPhase::Disarmed && !s.amplifier_enabled,
+        "status: not disarmed at boot",
+    )?;
+    check(
+        s.table == Ok(want),
+        "status: the table identity is not the file's",
+    )?;
+    check(
+        out.contains(&format!("CRC {:#010x}", want.crc)),
+        "status text lacks the table CRC",
+    )?;
     check(
         matches!(s.params, params::ParamSource::Block { entries: 1, .. }),
         "status: the parameter block was not read",
@@ -754,18 +760,35 @@ pub fn end_to_end() -> Result<u32> {
         cli(&mut c, "get hum_notch_q")?.contains("hum_notch_q = 10 "),
         "the parameter block's value is not in force",
     )?;
-    wait_for(&mut c, "the spindle referenced", |s| s.phi.is_some() && s.x_bits.is_some())?;
+    wait_for(&mut c, "the spindle referenced", |s| {
+        s.phi.is_some() && s.x_bits.is_some()
+    })?;
 
     // Parameters out of and within their limits.
-    expect_refused(&mut c, "set following_error_in 0.5", "outside its limits 0.000001 .. 0.01 in")?;
-    expect_refused(&mut c, "set learning_lead_bins 3.5", "must be a whole number")?;
-    expect_refused(&mut c, "set bandwidth_hz 1000", "bandwidth_hz: must be > 0 and below rate_hz / 20")?;
+    expect_refused(
+        &mut c,
+        "set following_error_in 0.5",
+        "outside its limits 0.000001 .. 0.01 in",
+    )?;
+    expect_refused(
+        &mut c,
+        "set learning_lead_bins 3.5",
+        "must be a whole number",
+    )?;
+    expect_refused(
+        &mut c,
+        "set bandwidth_hz 1000",
+        "bandwidth_hz: must be > 0 and below rate_hz / 20",
+    )?;
     // A following-error limit of 1 µin with no persistence: the first
     // tick that tracks worse than that trips the fault.
     cli(&mut c, "set following_error_in 0.000001")?;
     cli(&mut c, "set following_error_ms 0")?;
     let got = cli(&mut c, "get following_error_in")?;
-    check(got.contains("following_error_in = 0.000001 in"), "get after set")?;
+    check(
+        got.contains("following_error_in = 0.000001 in"),
+        "get after set",
+    )?;
 
     // A capture armed on the fault, then arm: the fault triggers it.
     let csv = dir.join("fault.csv");
@@ -782,7 +805,9 @@ pub fn end_to_end() -> Result<u32> {
     }
     let armed = cli(&mut c, "arm")?;
     check(armed.contains("armed"), "arm")?;
-    let s = wait_for(&mut c, "the 1 µin following-error fault", |s| s.fault.is_some())?;
+    let s = wait_for(&mut c, "the 1 µin following-error fault", |s| {
+        s.fault.is_some()
+    })?;
     check(
         s.fault == Some(zslide::safety::Fault::FollowingError),
         &format!("expected the following-error fault, got {:?}", s.fault),
@@ -797,7 +822,10 @@ pub fn end_to_end() -> Result<u32> {
             std::thread::sleep(Duration::from_millis(20));
         }
     };
-    check(info.state == CaptureState::Done, "the fault did not trigger the capture")?;
+    check(
+        info.state == CaptureState::Done,
+        "the fault did not trigger the capture",
+    )?;
     // The fault may come before the 200-tick window has filled (it trips
     // soon after the arm): the capture holds what there was, and all 400
     // ticks from the trigger on.
@@ -814,12 +842,16 @@ pub fn end_to_end() -> Result<u32> {
     let trig = samples[usize::from(info.before_trigger)];
     check(
         trig.error.unsigned_abs() > 52,
-        &format!("trigger sample error {} codes, not over the limit", trig.error),
+        &format!(
+            "trigger sample error {} codes, not over the limit",
+            trig.error
+        ),
     )?;
     let text = fs::read_to_string(&csv).map_err(|e| e.to_string())?;
     check(
         text.lines().count() == usize::from(info.recorded) + 1
-            && text.starts_with("t_s,tick,command_uin,position_uin,error_uin,output_v,phi_deg,x_in"),
+            && text
+                .starts_with("t_s,tick,command_uin,position_uin,error_uin,output_v,phi_deg,x_in"),
         "capture CSV",
     )?;
 
@@ -827,24 +859,42 @@ pub fn end_to_end() -> Result<u32> {
     let log = cli(&mut c, "faults")?;
     let (_, records) = c.fault_log()?;
     check(
-        records
-            .iter()
-            .any(|r| r.fault == zslide::safety::Fault::FollowingError && !r.cleared && r.tick == info.trigger_tick),
+        records.iter().any(|r| {
+            r.fault == zslide::safety::Fault::FollowingError
+                && !r.cleared
+                && r.tick == info.trigger_tick
+        }),
         "fault log: the following-error record at the trigger tick",
     )?;
-    check(log.contains("LATCHED following error beyond its limit"), "fault log words")?;
+    check(
+        log.contains("LATCHED following error beyond its limit"),
+        "fault log words",
+    )?;
 
     // Clear: refused while armed (the fault ramps to null with the loop
     // closed), accepted once disarmed.
     expect_refused(&mut c, "clear", "clear refused")?;
-    expect_refused(&mut c, "set following_error_in 0.004", "only while the loop is disarmed")?;
+    expect_refused(
+        &mut c,
+        "set following_error_in 0.004",
+        "only while the loop is disarmed",
+    )?;
     cli(&mut c, "disarm")?;
     wait_for(&mut c, "disarmed", |s| s.phase == LoopPhase::Disarmed)?;
     let cleared = cli(&mut c, "clear")?;
-    check(cleared.contains("cleared: following error beyond its limit"), "clear")?;
-    check(c.status()?.fault.is_none(), "fault still latched after the clear")?;
+    check(
+        cleared.contains("cleared: following error beyond its limit"),
+        "clear",
+    )?;
+    check(
+        c.status()?.fault.is_none(),
+        "fault still latched after the clear",
+    )?;
     let (_, records) = c.fault_log()?;
-    check(records.last().is_some_and(|r| r.cleared), "the clear is not in the log")?;
+    check(
+        records.last().is_some_and(|r| r.cleared),
+        "the clear is not in the log",
+    )?;
     expect_refused(&mut c, "clear", "no fault is latched")?;
 
     // Back to the built-in limits; arm; an immediate capture through the
@@ -863,24 +913,41 @@ pub fn end_to_end() -> Result<u32> {
         ),
     )?;
     check(
-        fs::read_to_string(&csv2).map_err(|e| e.to_string())?.lines().count() == 401,
+        fs::read_to_string(&csv2)
+            .map_err(|e| e.to_string())?
+            .lines()
+            .count()
+            == 401,
         "immediate capture CSV",
     )?;
-    check(dir.join("immediate.svg").exists() && dir.join("immediate.png").exists(), "capture plot")?;
+    check(
+        dir.join("immediate.svg").exists() && dir.join("immediate.png").exists(),
+        "capture plot",
+    )?;
     let csv3 = dir.join("ferr.csv");
     cli(
         &mut c,
-        &format!("capture --samples 100 --pre 50 --trigger ferr:1 --csv {}", csv3.display()),
+        &format!(
+            "capture --samples 100 --pre 50 --trigger ferr:1 --csv {}",
+            csv3.display()
+        ),
     )?;
     let i3 = c.capture_info()?;
     let s3 = c.capture_read(i3.recorded)?;
     let t3 = s3[usize::from(i3.before_trigger)];
-    check(t3.error.unsigned_abs() >= 52, "following-error trigger sample below its level")?;
+    check(
+        t3.error.unsigned_abs() >= 52,
+        "following-error trigger sample below its level",
+    )?;
     check(
         s3[usize::from(i3.before_trigger) - 1].error.unsigned_abs() < 52,
         "the sample before the following-error trigger already over its level",
     )?;
-    expect_refused(&mut c, "capture --samples 2000 --trigger immediate --csv /dev/null", "samples must be 1..=1024")?;
+    expect_refused(
+        &mut c,
+        "capture --samples 2000 --trigger immediate --csv /dev/null",
+        "samples must be 1..=1024",
+    )?;
     cli(&mut c, "disarm")?;
 
     // Malformed frames, sent raw: each refused by name and counted; the
@@ -934,10 +1001,16 @@ pub fn end_to_end() -> Result<u32> {
     let refused = |f: proto::FrameCounters| {
         f.oversize + f.bad_cobs + f.bad_crc + f.bad_version + f.unknown_command + f.malformed
     };
-    check(refused(after) - refused(before) == 6, "malformed frames not counted")?;
+    check(
+        refused(after) - refused(before) == 6,
+        "malformed frames not counted",
+    )?;
     drop(session);
     let n = checks.0;
-    eprintln!("host link end to end: {n} checks passed (files in {})", dir.display());
+    eprintln!(
+        "host link end to end: {n} checks passed (files in {})",
+        dir.display()
+    );
     Ok(n)
 }
 

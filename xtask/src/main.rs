@@ -778,9 +778,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
     );
     if qemu_code.is_some() {
-        eprintln!(
-            "QEMU table region and host link end to end: {board_checks} checks passed"
-        );
+        eprintln!("QEMU table region and host link end to end: {board_checks} checks passed");
     }
     eprintln!("fuzz: {fuzz_line}");
     let code = if fuzz_failed > 0 {
@@ -828,7 +826,16 @@ mod tests {
             &["link", "status"],
             &["link", "--connect", "unix:/tmp/s", "faults"],
             &["link", "set", "bandwidth_hz", "40"],
-            &["link", "capture", "--samples", "10", "--trigger", "fault", "--csv", "c.csv"],
+            &[
+                "link",
+                "capture",
+                "--samples",
+                "10",
+                "--trigger",
+                "fault",
+                "--csv",
+                "c.csv",
+            ],
             &["qemu-link"],
             &["link-test"],
             &["flash-table", "t.zsct"],
@@ -882,19 +889,45 @@ mod tests {
             Some(ErrorKind::UnknownArgument)
         );
         assert_eq!(
-            parse(&["link", "capture", "--samples", "0", "--trigger", "fault", "--csv", "c"]).err(),
+            parse(&[
+                "link",
+                "capture",
+                "--samples",
+                "0",
+                "--trigger",
+                "fault",
+                "--csv",
+                "c"
+            ])
+            .err(),
             Some(ErrorKind::ValueValidation)
         );
         assert_eq!(
-            parse(&["link", "capture", "--samples", "9", "--trigger", "often", "--csv", "c"]).err(),
+            parse(&[
+                "link",
+                "capture",
+                "--samples",
+                "9",
+                "--trigger",
+                "often",
+                "--csv",
+                "c"
+            ])
+            .err(),
             Some(ErrorKind::ValueValidation)
         );
         assert_eq!(
             parse(&["link", "set", "damping", "much"]).err(),
             Some(ErrorKind::ValueValidation)
         );
-        assert_eq!(parse(&["link", "reboot"]).err(), Some(ErrorKind::InvalidSubcommand));
-        assert_eq!(parse(&["flash-table"]).err(), Some(ErrorKind::MissingRequiredArgument));
+        assert_eq!(
+            parse(&["link", "reboot"]).err(),
+            Some(ErrorKind::InvalidSubcommand)
+        );
+        assert_eq!(
+            parse(&["flash-table"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
+        );
         assert_eq!(
             parse(&["param-block", "--out", "p"]).err(),
             Some(ErrorKind::MissingRequiredArgument)

@@ -147,7 +147,9 @@ fn download(args: &FlashArgs, addr: u32) -> Result<u8> {
     eprintln!("==> {}", show(&cmd));
     let mut cmd = cmd;
     let status = cmd.status().map_err(|e| {
-        format!("cannot start probe-rs ({e}): install it with `cargo install probe-rs-tools --locked`")
+        format!(
+            "cannot start probe-rs ({e}): install it with `cargo install probe-rs-tools --locked`"
+        )
     })?;
     if status.success() {
         eprintln!("written; reset the board (the firmware reads the region at boot)");
@@ -179,8 +181,9 @@ pub fn parse_setting(s: &str) -> Result<(u16, f64)> {
     let (name, value) = s
         .split_once('=')
         .ok_or_else(|| format!("{s:?}: expected NAME=VALUE"))?;
-    let p = params::by_name(name.trim())
-        .ok_or_else(|| format!("{name:?}: no such servo parameter (`cargo xtask link params` lists them)"))?;
+    let p = params::by_name(name.trim()).ok_or_else(|| {
+        format!("{name:?}: no such servo parameter (`cargo xtask link params` lists them)")
+    })?;
     let v: f64 = value
         .trim()
         .parse()
@@ -198,7 +201,11 @@ pub fn param_block(args: &ParamBlockArgs) -> Result<u8> {
     let n = params::encode_block(&entries, &ServoDesign::brief(LOOP_HZ), &mut out)
         .map_err(|e| format!("parameter block refused: {e}"))?;
     fs::write(&args.out, &out[..n]).map_err(|e| format!("{}: {e}", args.out.display()))?;
-    eprintln!("{}: {n} bytes, {} parameters", args.out.display(), entries.len());
+    eprintln!(
+        "{}: {n} bytes, {} parameters",
+        args.out.display(),
+        entries.len()
+    );
     Ok(0)
 }
 
@@ -236,7 +243,10 @@ fn recompute(file: &Path, trace: &[(u32, i32, u32, i32)]) -> Result<()> {
             continue; // before the first index: null command
         }
         let z = gen
-            .z(zslide::units::XInches::from_bits(x), zslide::units::SpindleAngle(phi))
+            .z(
+                zslide::units::XInches::from_bits(x),
+                zslide::units::SpindleAngle(phi),
+            )
             .map_err(|f| format!("tick {tick}: {f}"))?;
         let want = zslide::firmware::gauge_code_from_z(z);
         if (want - code).abs() > 1 {
@@ -261,7 +271,10 @@ pub fn qemu_table_checks(default_log: &[String]) -> Result<u32> {
     recompute(&default, &a)?;
     let (code, log) = crate::run_qemu_with(Some(&other))?;
     if code != 0 {
-        return Err(format!("the QEMU image with {} exited {code}", other.display()));
+        return Err(format!(
+            "the QEMU image with {} exited {code}",
+            other.display()
+        ));
     }
     let b = traced(&log);
     recompute(&other, &b)?;
@@ -304,13 +317,16 @@ pub fn qemu_table_checks(default_log: &[String]) -> Result<u32> {
         return Err(format!("host refusal lacks the file or the words: {host}"));
     }
     for (table, words) in [
-        (Some(&corrupt), "the coefficients are corrupt: their CRC says"),
+        (
+            Some(&corrupt),
+            "the coefficients are corrupt: their CRC says",
+        ),
         (None, "no coefficient table in the table region"),
     ] {
         let (code, log) = crate::run_qemu_with(table.map(PathBuf::as_path))?;
-        let said = log
-            .iter()
-            .any(|l| l.contains("coefficient table refused, slide held at null") && l.contains(words));
+        let said = log.iter().any(|l| {
+            l.contains("coefficient table refused, slide held at null") && l.contains(words)
+        });
         let held = log
             .iter()
             .any(|l| l.contains("refused table: table command 0..0"));
@@ -338,7 +354,13 @@ mod tests {
             .lines()
             .find(|l| l.trim_start().starts_with(name) && l.contains("ORIGIN"))
             .unwrap_or_else(|| panic!("{name} not in memory.x"));
-        let origin = line.split("ORIGIN = ").nth(1).unwrap().split(',').next().unwrap();
+        let origin = line
+            .split("ORIGIN = ")
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .next()
+            .unwrap();
         let len = line.split("LENGTH = ").nth(1).unwrap().trim();
         let origin = u32::from_str_radix(origin.trim().trim_start_matches("0x"), 16).unwrap();
         let len = match len.strip_suffix('K') {
@@ -353,10 +375,21 @@ mod tests {
     fn the_regions_are_those_of_both_memory_x() {
         for (file, r) in [("memory.x", NUCLEO), ("boards/qemu/memory.x", QEMU)] {
             let text = fs::read_to_string(crate::root().join(file)).unwrap();
-            assert_eq!(region_of(&text, "ZSCT"), (r.table_addr, r.table_len), "{file}");
-            assert_eq!(region_of(&text, "ZSPB"), (r.params_addr, r.params_len), "{file}");
+            assert_eq!(
+                region_of(&text, "ZSCT"),
+                (r.table_addr, r.table_len),
+                "{file}"
+            );
+            assert_eq!(
+                region_of(&text, "ZSPB"),
+                (r.params_addr, r.params_len),
+                "{file}"
+            );
             let flash = region_of(&text, "FLASH");
-            assert!(flash.0 + flash.1 <= r.table_addr.min(r.params_addr), "{file}");
+            assert!(
+                flash.0 + flash.1 <= r.table_addr.min(r.params_addr),
+                "{file}"
+            );
         }
         // Each NUCLEO region is one whole 128 KiB sector of bank 2.
         for a in [NUCLEO.table_addr, NUCLEO.params_addr] {
@@ -379,7 +412,8 @@ mod tests {
             )
         );
         let with_probe = probe_rs_download(&good, NUCLEO.params_addr, Some("0483:374e"));
-        assert!(show(&with_probe).contains("--probe 0483:374e --binary-format bin --base-address 0x081c0000"));
+        assert!(show(&with_probe)
+            .contains("--probe 0483:374e --binary-format bin --base-address 0x081c0000"));
 
         let dir = root.join("target/regions-test");
         fs::create_dir_all(&dir).unwrap();
@@ -390,7 +424,10 @@ mod tests {
         let p = dir.join("bad-header.zsct");
         fs::write(&p, &bytes).unwrap();
         let e = check_table_file(&p, &NUCLEO).unwrap_err();
-        assert!(e.contains("bad-header.zsct: table refused: the header is corrupt"), "{e}");
+        assert!(
+            e.contains("bad-header.zsct: table refused: the header is corrupt"),
+            "{e}"
+        );
         // A valid image whose command has the wrong sign: the sign check.
         let t = CoeffTable::parse(zslide::DEFAULT_TABLE).unwrap();
         let mut h = *t.header();
@@ -403,7 +440,10 @@ mod tests {
         let p = dir.join("negated.zsct");
         fs::write(&p, &img).unwrap();
         let e = check_table_file(&p, &NUCLEO).unwrap_err();
-        assert!(e.contains("negated.zsct: table refused: the command is positive somewhere"), "{e}");
+        assert!(
+            e.contains("negated.zsct: table refused: the command is positive somewhere"),
+            "{e}"
+        );
         // Too large for the region.
         h.node_count = 8192;
         h.dx_raw = 1 << 14; // 0.001 in: 8.19 in of grid
@@ -435,14 +475,24 @@ mod tests {
             out: dir.join("q.zspb"),
         })
         .unwrap_err();
-        assert!(e.contains("current_limit_a = 9 A is outside its limits 0.1 .. 8 A"), "{e}");
-        assert!(parse_setting("bandwith_hz=3").unwrap_err().contains("no such servo parameter"));
-        assert!(parse_setting("bandwidth_hz").unwrap_err().contains("NAME=VALUE"));
+        assert!(
+            e.contains("current_limit_a = 9 A is outside its limits 0.1 .. 8 A"),
+            "{e}"
+        );
+        assert!(parse_setting("bandwith_hz=3")
+            .unwrap_err()
+            .contains("no such servo parameter"));
+        assert!(parse_setting("bandwidth_hz")
+            .unwrap_err()
+            .contains("NAME=VALUE"));
         let mut bytes = fs::read(&out).unwrap();
         bytes[20] ^= 1;
         fs::write(dir.join("r.zspb"), &bytes).unwrap();
         let e = check_params_file(&dir.join("r.zspb"), &NUCLEO).unwrap_err();
-        assert!(e.contains("r.zspb: parameter block refused: the parameter block is corrupt"), "{e}");
+        assert!(
+            e.contains("r.zspb: parameter block refused: the parameter block is corrupt"),
+            "{e}"
+        );
     }
 
     #[test]

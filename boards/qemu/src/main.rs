@@ -61,7 +61,7 @@ use zslide::firmware::{
 use zslide::hw::EncoderSample;
 use zslide::link::proto::{SpindleSource, XSource};
 use zslide::link::station::{Station, StationConfig};
-use zslide::link::tap::{LinkQueues, TickTap};
+use zslide::link::tap::TickTap;
 use zslide::params::{self, ParamSource};
 use zslide::safety::{Device, Fault};
 use zslide::servo::ServoDesign;
@@ -462,30 +462,26 @@ fn main() -> ! {
             lp.trip(Fault::Parameters(e));
         }
         ParamSource::Block { entries, crc } => {
-            defmt::info!("servo parameters: block of {=u16} entries, CRC {=u32:#010x}", entries, crc)
+            defmt::info!(
+                "servo parameters: block of {=u16} entries, CRC {=u32:#010x}",
+                entries,
+                crc
+            )
         }
         ParamSource::BuiltIn => {}
     }
-    let Some(queues) = cortex_m::singleton!(: LinkQueues = LinkQueues::new()) else {
-        defmt::error!("FAIL: link queues taken twice");
-        exit(false);
-    };
-    let (tick_ends, station_ends) = queues.split();
-    let mut station: Station<{ link::CAPTURE }> = Station::new(
-        StationConfig {
-            loop_hz: LOOP_HZ,
-            x_source: if cfg!(feature = "modern-x") {
-                XSource::Count
-            } else {
-                XSource::LegacyHalfMil
-            },
-            spindle_source: SpindleSource::Encoder,
-            table,
-            design,
-            params: param_source,
+    let mut station: Station<{ link::CAPTURE }> = Station::new(StationConfig {
+        loop_hz: LOOP_HZ,
+        x_source: if cfg!(feature = "modern-x") {
+            XSource::Count
+        } else {
+            XSource::LegacyHalfMil
         },
-        station_ends,
-    );
+        spindle_source: SpindleSource::Encoder,
+        table,
+        design,
+        params: param_source,
+    });
     let mut dac = Ad5791::new(DacSpi::new());
     if dac.init().is_err() {
         lp.trip(Fault::Bus(Device::AmplifierDac));
@@ -505,7 +501,7 @@ fn main() -> ! {
     );
     let run = Run {
         lp,
-        tap: TickTap::new(tick_ends),
+        tap: TickTap::new(),
         plant,
         gauge: Ad4020::new(GaugeSpi),
         dac,
