@@ -106,6 +106,16 @@ pub struct TapShared<const N: usize> {
 }
 
 impl<const N: usize> TapShared<N> {
+    // heapless deprecates `mpmc::Queue::new` because an operation preempted
+    // half-way can make the *other* side's operation fail until it
+    // resumes (never a panic or a torn item). Here each queue has one
+    // producer and one consumer on one core, and that can only happen to
+    // an enqueue into a full queue (it would reuse the cell a preempted
+    // dequeue holds): the configuration is enqueued whole before the tick
+    // is told to look (`REQ_CONFIG`), the background drains the snapshot
+    // queue before it asks for one, and a fault change is lost only
+    // after 16 unread ones, as it would be anyway.
+    #[allow(deprecated)]
     pub const fn new() -> Self {
         assert!(
             N.is_power_of_two() && N <= 1 << 15,
