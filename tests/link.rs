@@ -12,7 +12,7 @@ use zslide::link::proto::{
     XSource, MAX_FRAME,
 };
 use zslide::link::station::{LinkIo, Station, StationConfig};
-use zslide::link::tap::{TapShared, TickTap};
+use zslide::link::tap::{Scope, TapShared, TickTap};
 use zslide::params::{self, ParamError, ParamSource};
 use zslide::safety::{Device, Fault};
 use zslide::servo::{ServoConfig, ServoDesign};
@@ -75,7 +75,7 @@ impl LinkIo for Pipe {
 struct Rig {
     lp: LoopState,
     shared: &'static Shared,
-    tap_shared: &'static TapShared<CAP>,
+    tap_shared: &'static TapShared<'static, CAP>,
     tap: TickTap,
     station: Station<CAP>,
     pipe: Pipe,
@@ -106,7 +106,7 @@ impl Rig {
         Self {
             lp,
             shared: Box::leak(Box::new(Shared::new())),
-            tap_shared: Box::leak(Box::new(TapShared::new())),
+            tap_shared: Box::leak(Box::new(TapShared::new(Box::leak(Box::new(Scope::new()))))),
             tap: TickTap::new(),
             station,
             pipe: Pipe::default(),

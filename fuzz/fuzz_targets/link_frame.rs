@@ -17,7 +17,7 @@ use zslide::firmware::{Firmware, Shared, TickInput};
 use zslide::hw::{AmplifierDac, BusError, GaugeAdc, GaugeSample};
 use zslide::link::proto::{self, Reply, Request, SpindleSource, XSource, MAX_FRAME, REQUEST_KINDS};
 use zslide::link::station::{LinkIo, Station, StationConfig};
-use zslide::link::tap::{TapShared, TickTap};
+use zslide::link::tap::{Scope, TapShared, TickTap};
 use zslide::params::ParamSource;
 use zslide::servo::ServoDesign;
 use zslide::table::TableError;
@@ -80,7 +80,8 @@ fuzz_target!(|data: &[u8]| {
     d.sign_check_v = 0.0;
     let (mut lp, _) = Firmware::new(d.config().unwrap()).into_parts();
     let shared = Shared::new();
-    let tap_shared: TapShared<64> = TapShared::new();
+    let scope: Box<Scope<64>> = Box::new(Scope::new());
+    let tap_shared: TapShared<64> = TapShared::new(&scope);
     let mut tap = TickTap::new();
     let mut station: Station<64> = Station::new(StationConfig {
         loop_hz: 20_000,
@@ -132,5 +133,4 @@ fuzz_target!(|data: &[u8]| {
     let counted = c.ok + c.empty + c.oversize + c.bad_cobs + c.bad_crc + c.bad_version
         + c.unknown_command + c.malformed;
     assert_eq!(counted, delimiters, "frames not all counted: {c:?}");
-    let _: Option<Reply> = None;
 });

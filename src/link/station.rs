@@ -132,7 +132,7 @@ impl<const N: usize> Station<N> {
     /// the interrupt handlers' rule (no panic path), although it runs in
     /// thread mode: bytes from the host must never stop the firmware.
     #[inline(never)]
-    pub fn poll(&mut self, tap: &TapShared<N>, shared: &Shared, io: &mut impl LinkIo) {
+    pub fn poll(&mut self, tap: &TapShared<'_, N>, shared: &Shared, io: &mut impl LinkIo) {
         self.drain_faults(tap);
         if let Some((seq, w, waited)) = self.waiting {
             match tap.snapshots.dequeue() {
@@ -215,7 +215,7 @@ impl<const N: usize> Station<N> {
         }
     }
 
-    fn drain_faults(&mut self, tap: &TapShared<N>) {
+    fn drain_faults(&mut self, tap: &TapShared<'_, N>) {
         while let Some(e) = tap.faults.dequeue() {
             // A clear is logged with the fault it cleared.
             let record = match (e.fault, self.log.back()) {
@@ -252,14 +252,14 @@ impl<const N: usize> Station<N> {
         self.tx_sent = 0;
     }
 
-    fn wait(&mut self, seq: u16, w: Waiting, tap: &TapShared<N>) {
+    fn wait(&mut self, seq: u16, w: Waiting, tap: &TapShared<'_, N>) {
         // A snapshot left from before belongs to no request now.
         while tap.snapshots.dequeue().is_some() {}
         tap.request(REQ_SNAPSHOT);
         self.waiting = Some((seq, w, 0));
     }
 
-    fn handle(&mut self, seq: u16, req: Request, tap: &TapShared<N>, shared: &Shared) {
+    fn handle(&mut self, seq: u16, req: Request, tap: &TapShared<'_, N>, shared: &Shared) {
         match req {
             Request::Status => self.wait(seq, Waiting::Status, tap),
             Request::Arm => {
@@ -347,7 +347,7 @@ impl<const N: usize> Station<N> {
         }
     }
 
-    fn capture_info(&self, tap: &TapShared<N>) -> CaptureInfo {
+    fn capture_info(&self, tap: &TapShared<'_, N>) -> CaptureInfo {
         let sc = &tap.scope;
         let state = sc.state();
         let (recorded, before, tick) = if state == CaptureState::Done {
@@ -368,7 +368,14 @@ impl<const N: usize> Station<N> {
     }
 
     /// The answer to a request, from the snapshot taken after it.
-    fn answer(&mut self, seq: u16, w: Waiting, s: &Snapshot, tap: &TapShared<N>, shared: &Shared) {
+    fn answer(
+        &mut self,
+        seq: u16,
+        w: Waiting,
+        s: &Snapshot,
+        tap: &TapShared<'_, N>,
+        shared: &Shared,
+    ) {
         // The snapshot came from the tick that took the request: a fault it
         // latched is in the queue by now.
         self.drain_faults(tap);
@@ -432,7 +439,7 @@ impl<const N: usize> Station<N> {
         self.reply(seq, &r);
     }
 
-    fn status(&self, s: &Snapshot, tap: &TapShared<N>, shared: &Shared) -> Status {
+    fn status(&self, s: &Snapshot, tap: &TapShared<'_, N>, shared: &Shared) -> Status {
         Status {
             ticks: s.ticks,
             loop_hz: self.cfg.loop_hz,

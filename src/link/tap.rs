@@ -97,15 +97,17 @@ pub struct Scope<const N: usize> {
 
 /// What the background shares with the tick besides the queues: the
 /// request word and the capture ring. `const`-constructible for a `static`.
-pub struct TapShared<const N: usize> {
+pub struct TapShared<'s, const N: usize> {
     requests: AtomicU32,
-    pub(crate) scope: Scope<N>,
+    /// The capture ring, a `static` of its own: all zeros, so it costs no
+    /// flash (`.bss`), where the queues' initial state does (`.data`).
+    pub(crate) scope: &'s Scope<N>,
     pub(crate) faults: Queue<FaultEvent, FAULT_QUEUE>,
     pub(crate) snapshots: Queue<Snapshot, 2>,
     pub(crate) configs: Queue<ServoConfig, 2>,
 }
 
-impl<const N: usize> TapShared<N> {
+impl<'s, const N: usize> TapShared<'s, N> {
     // heapless deprecates `mpmc::Queue::new` because an operation preempted
     // half-way can make the *other* side's operation fail until it
     // resumes (never a panic or a torn item). Here each queue has one
@@ -116,24 +118,10 @@ impl<const N: usize> TapShared<N> {
     // queue before it asks for one, and a fault change is lost only
     // after 16 unread ones, as it would be anyway.
     #[allow(deprecated)]
-    pub const fn new() -> Self {
-        assert!(
-            N.is_power_of_two() && N <= 1 << 15,
-            "capture ring: a power of two"
-        );
+    pub const fn new(scope: &'s Scope<N>) -> Self {
         Self {
             requests: AtomicU32::new(0),
-            scope: Scope {
-                ring: [const { [const { AtomicI32::new(0) }; 6] }; N],
-                state: AtomicU32::new(0),
-                trigger: AtomicU32::new(0),
-                level: AtomicU32::new(0),
-                samples: AtomicU32::new(0),
-                pre: AtomicU32::new(0),
-                start: AtomicU32::new(0),
-                before: AtomicU32::new(0),
-                trigger_tick: AtomicU32::new(0),
-            },
+            scope,
             faults: Queue::new(),
             snapshots: Queue::new(),
             configs: Queue::new(),
@@ -145,13 +133,25 @@ impl<const N: usize> TapShared<N> {
     }
 }
 
-impl<const N: usize> Default for TapShared<N> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl<const N: usize> Scope<N> {
+    pub const fn new() -> Self {
+        assert!(
+            N.is_power_of_two() && N <= 1 << 15,
+            "capture ring: a power of two"
+        );
+        Self {
+            ring: [const { [const { AtomicI32::new(0) }; 6] }; N],
+            state: AtomicU32::new(0),
+            trigger: AtomicU32::new(0),
+            level: AtomicU32::new(0),
+            samples: AtomicU32::new(0),
+            pre: AtomicU32::new(0),
+            start: AtomicU32::new(0),
+            before: AtomicU32::new(0),
+            trigger_tick: AtomicU32::new(0),
+        }
+    }
+
     /// Arms a capture (any state: a new arming replaces the old one).
     pub(crate) fn arm(&self, samples: u16, pre: u16, trigger: Trigger) {
         let (kind, level) = match trigger {
@@ -277,9 +277,22 @@ impl TickTap {
     }
 
     /// After each loop tick, in the loop-tick handler (module docs).
-    /// Never inlined, so that `cargo xtask isr-cost` counts it apart.
+    /// Never inlined, so that `cargo xtask isr-cost` counts it apart; the
+    /// common tick (no fault change, nothing asked) is a comparison and a
+    /// load, the rest is out of line.
     #[inline(never)]
-    pub fn after_tick<const N: usize>(&mut self, sh: &TapShared<N>, lp: &mut LoopState) {
+    pub fn after_tick<const N: usize>(&mut self, sh: &TapShared<'_, N>, lp: &mut LoopState) {
+        // Relaxed: what the request bits announce (queue cells, the capture
+        // settings) is read with its own acquire in `serve`.
+        let req = sh.requests.load(Ordering::Relaxed);
+        if req != 0 || lp.fault() != self.fault {
+            self.serve(sh, lp, req);
+        }
+    }
+
+    #[inline(never)]
+    #[cold]
+    fn serve<const N: usize>(&mut self, sh: &TapShared<'_, N>, lp: &mut LoopState, req: u32) {
         let fault = lp.fault();
         let latched = fault != self.fault;
         if latched {
@@ -291,12 +304,8 @@ impl TickTap {
                 fault,
             });
         }
-        let req = sh.requests.load(Ordering::Acquire);
-        if req == 0 {
-            return;
-        }
         if req & REQ_CAPTURE != 0 {
-            self.record(&sh.scope, lp, latched && fault.is_some(), &sh.requests);
+            self.record(sh.scope, lp, latched && fault.is_some(), &sh.requests);
         }
         if req & REQ_CONFIG != 0 {
             sh.requests.fetch_and(!REQ_CONFIG, Ordering::Relaxed);

@@ -11,13 +11,16 @@
 
 use cortex_m_semihosting::nr;
 use zslide::link::station::LinkIo;
-use zslide::link::tap::TapShared;
+use zslide::link::tap::{Scope, TapShared};
 
 /// Capture ring: 1024 loop ticks (51 ms at 20 kHz), 24 KiB of RAM.
 pub const CAPTURE: usize = 1024;
 
+/// The capture ring (zeros: `.bss`).
+static SCOPE: Scope<CAPTURE> = Scope::new();
+
 /// The loop tick's and the background's shared link state.
-pub static TAP: TapShared<CAPTURE> = TapShared::new();
+pub static TAP: TapShared<'static, CAPTURE> = TapShared::new(&SCOPE);
 
 extern "C" {
     static __zsct_start: u8;
