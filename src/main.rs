@@ -205,7 +205,7 @@ mod app {
             ParamSource::Refused(e) => {
                 defmt::error!(
                     "servo parameter block refused, amplifier kept off: {}",
-                    defmt::Display2Format(&e)
+                    e
                 );
                 lp.trip(Fault::Parameters(e));
             }

@@ -457,7 +457,7 @@ fn main() -> ! {
         ParamSource::Refused(e) => {
             defmt::error!(
                 "servo parameter block refused, amplifier kept off: {}",
-                defmt::Display2Format(&e)
+                e
             );
             lp.trip(Fault::Parameters(e));
         }
