@@ -203,10 +203,7 @@ mod app {
         }
         match param_source {
             ParamSource::Refused(e) => {
-                defmt::error!(
-                    "servo parameter block refused, amplifier kept off: {}",
-                    e
-                );
+                defmt::error!("servo parameter block refused, amplifier kept off: {}", e);
                 lp.trip(Fault::Parameters(e));
             }
             ParamSource::Block { entries, crc } => defmt::info!(

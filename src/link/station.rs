@@ -48,8 +48,11 @@ pub struct StationConfig {
     pub params: ParamSource,
 }
 
-/// A request waiting for the tick's snapshot.
+/// A request waiting for the tick's snapshot. (One at a time, in the
+/// station: the large variant costs its size once, there is no heap to box
+/// it in.)
 #[derive(Clone, Copy)]
+#[allow(clippy::large_enum_variant)]
 enum Waiting {
     Status,
     Armed,

@@ -23,6 +23,7 @@ use super::proto::{CaptureState, LoopPhase, Sample, Trigger};
 use crate::looptick::LoopState;
 use crate::safety::Fault;
 use crate::servo::{Phase, ServoConfig};
+use core::mem::Discriminant;
 use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
 use heapless::mpmc::Queue;
 
@@ -133,6 +134,12 @@ impl<'s, const N: usize> TapShared<'s, N> {
     }
 }
 
+impl<const N: usize> Default for Scope<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl<const N: usize> Scope<N> {
     pub const fn new() -> Self {
         assert!(
@@ -227,7 +234,8 @@ impl<const N: usize> Scope<N> {
 
 /// The tick's own part of the link: what it remembers between ticks.
 pub struct TickTap {
-    fault: Option<Fault>,
+    /// The latched fault's kind as last seen (see [`kind`]).
+    fault: Option<Discriminant<Fault>>,
     configs_applied: u32,
     configs_refused: u32,
     // Capture in progress: the state word it belongs to, samples written,
@@ -241,6 +249,18 @@ pub struct TickTap {
     level: u32,
     /// |error| was at or above the level on the last recorded tick.
     over: bool,
+}
+
+/// The kind of the latched fault: what the tap compares every tick (a tag
+/// load, where comparing whole faults calls `Fault::eq`). It misses no
+/// change the loop makes: a latched fault is replaced only by a more
+/// severe one, always of another kind, and the detail of a kind with one
+/// (`Table`, `Parameters`) is fixed at boot, so within one kind only a
+/// clear and a new latch in the same tick could pass unseen (a `Bus`
+/// fault of another converter): the status still shows it, only its log
+/// record would be missing.
+fn kind(f: Option<Fault>) -> Option<Discriminant<Fault>> {
+    f.as_ref().map(core::mem::discriminant)
 }
 
 fn phase(p: Phase) -> LoopPhase {
@@ -285,18 +305,25 @@ impl TickTap {
         // Relaxed: what the request bits announce (queue cells, the capture
         // settings) is read with its own acquire in `serve`.
         let req = sh.requests.load(Ordering::Relaxed);
-        if req != 0 || lp.fault() != self.fault {
-            self.serve(sh, lp, req);
+        if req == 0 {
+            if kind(lp.fault()) == self.fault {
+                return;
+            }
+        } else if req == REQ_CAPTURE && kind(lp.fault()) == self.fault {
+            // A capture running and nothing else: the recording, inline.
+            self.record(sh.scope, lp, false, &sh.requests);
+            return;
         }
+        self.serve(sh, lp, req);
     }
 
     #[inline(never)]
     #[cold]
     fn serve<const N: usize>(&mut self, sh: &TapShared<'_, N>, lp: &mut LoopState, req: u32) {
         let fault = lp.fault();
-        let latched = fault != self.fault;
+        let latched = kind(fault) != self.fault;
         if latched {
-            self.fault = fault;
+            self.fault = kind(fault);
             // A full queue (the background stopped draining) loses the
             // event, never the tick; the log counts what it got.
             let _ = sh.faults.enqueue(FaultEvent {
@@ -370,15 +397,14 @@ impl TickTap {
         let position = lp.position_code();
         let error = command.saturating_sub(position);
         let at = self.written as usize & (N - 1);
-        if let Some(slot) = sc.ring.get(at) {
-            let phi = lp.setpoint_state().angle().map_or(0, |a| a.0);
-            let x = lp.coefficients().x().to_bits();
-            for (w, v) in
-                slot.iter()
-                    .zip([command, position, error, lp.output_code(), phi as i32, x])
-            {
-                w.store(v, Ordering::Relaxed);
-            }
+        if let Some([c, p, e, o, a, x]) = sc.ring.get(at) {
+            c.store(command, Ordering::Relaxed);
+            p.store(position, Ordering::Relaxed);
+            e.store(error, Ordering::Relaxed);
+            o.store(lp.output_code(), Ordering::Relaxed);
+            let phi = lp.setpoint_state().angle().map_or(0, |v| v.0);
+            a.store(phi as i32, Ordering::Relaxed);
+            x.store(lp.coefficients().x().to_bits(), Ordering::Relaxed);
         }
         self.written = self.written.wrapping_add(1);
         let gen = st & !PH_MASK;

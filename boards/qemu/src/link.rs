@@ -64,8 +64,9 @@ pub fn session_requested() -> bool {
     // replaced by the command line's.
     let mut block = [buf.as_mut_ptr() as usize, buf.len() - 1];
     // SAFETY: the semihosting call writes at most `block[1]` bytes into
-    // `buf` and updates `block[1]`; both live until the call returns.
-    let r = unsafe { cortex_m_semihosting::syscall(nr::GET_CMDLINE, &mut block) };
+    // `buf` and updates `block[1]`, through the pointers it is given (taken
+    // from `&mut` borrows); both live until the call returns.
+    let r = unsafe { cortex_m_semihosting::syscall1(nr::GET_CMDLINE, block.as_mut_ptr() as usize) };
     if r != 0 {
         return false;
     }
@@ -131,6 +132,67 @@ impl LinkIo for Uart0 {
             wr(DATA, u32::from(b));
             n += 1;
         }
+        n
+    }
+}
+
+/// A scripted host inside the checked run: it hands the station one
+/// request frame at a time and collects the reply, so that the run arms a
+/// capture at boot (the loop tick records 1024 samples while it is being
+/// checked, and `cargo xtask isr-cost` counts the recording) and reads
+/// samples back at the end.
+pub struct Script {
+    tx: [u8; zslide::link::proto::MAX_REQUEST],
+    tx_len: usize,
+    tx_at: usize,
+    rx: heapless::Vec<u8, { zslide::link::proto::MAX_FRAME }>,
+    seq: u16,
+}
+
+impl Script {
+    pub const fn new() -> Self {
+        Self {
+            tx: [0; zslide::link::proto::MAX_REQUEST],
+            tx_len: 0,
+            tx_at: 0,
+            rx: heapless::Vec::new(),
+            seq: 0,
+        }
+    }
+
+    /// Queues `req` for the station.
+    pub fn send(&mut self, req: &zslide::link::proto::Request) {
+        self.seq = self.seq.wrapping_add(1);
+        let mut out = [0u8; zslide::link::proto::MAX_REQUEST];
+        let n = zslide::link::proto::encode(self.seq, req, &mut out).map_or(0, <[u8]>::len);
+        self.tx[..n].copy_from_slice(&out[..n]);
+        self.tx_len = n;
+        self.tx_at = 0;
+        self.rx.clear();
+    }
+
+    /// The reply to the last request, once complete.
+    pub fn reply(&mut self) -> Option<zslide::link::proto::Reply> {
+        if self.rx.last() != Some(&0) {
+            return None;
+        }
+        let n = self.rx.len() - 1;
+        let r = zslide::link::proto::decode(&mut self.rx[..n], u32::MAX).ok();
+        self.rx.clear();
+        r.filter(|(seq, _)| *seq == self.seq).map(|(_, r)| r)
+    }
+}
+
+impl LinkIo for Script {
+    fn read(&mut self, buf: &mut [u8]) -> usize {
+        let n = (self.tx_len - self.tx_at).min(buf.len());
+        buf[..n].copy_from_slice(&self.tx[self.tx_at..self.tx_at + n]);
+        self.tx_at += n;
+        n
+    }
+    fn write(&mut self, bytes: &[u8]) -> usize {
+        let n = bytes.len().min(self.rx.capacity() - self.rx.len());
+        let _ = self.rx.extend_from_slice(&bytes[..n]);
         n
     }
 }

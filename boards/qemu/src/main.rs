@@ -5,7 +5,8 @@
 //! * CMSDK timer 0 (IRQ 8, highest priority) is the loop tick: the synthetic
 //!   spindle encoder is sampled, `LoopState::loop_tick` reads the gauge
 //!   through the real `Ad4020` driver, evaluates the command of
-//!   `zslide::DEFAULT_TABLE` and writes the real `Ad5791` driver; the slide
+//!   the table in the table region (`memory.x`, loaded by QEMU's
+//!   `-device loader`) and writes the real `Ad5791` driver; the slide
 //!   model (`plant.rs`, behind `SpiDevice`s that speak the chips' frames)
 //!   then moves one tick.
 //! * CMSDK timer 1 (IRQ 9, lower priority) plays the machine's events up to
@@ -59,7 +60,9 @@ use zslide::firmware::{
     SpindleMode, SpindleReading, TickInput, XMode,
 };
 use zslide::hw::EncoderSample;
-use zslide::link::proto::{SpindleSource, XSource};
+use zslide::link::proto::{
+    CaptureState, Reply, Request as HostRequest, SpindleSource, Trigger, XSource,
+};
 use zslide::link::station::{Station, StationConfig};
 use zslide::link::tap::TickTap;
 use zslide::params::{self, ParamSource};
@@ -455,10 +458,7 @@ fn main() -> ! {
     }
     match param_source {
         ParamSource::Refused(e) => {
-            defmt::error!(
-                "servo parameter block refused, amplifier kept off: {}",
-                e
-            );
+            defmt::error!("servo parameter block refused, amplifier kept off: {}", e);
             lp.trip(Fault::Parameters(e));
         }
         ParamSource::Block { entries, crc } => {
@@ -548,9 +548,18 @@ fn main() -> ! {
         }
     }
 
+    // The scripted host arms a capture of the first 1024 ticks: the loop
+    // runs (and is checked, and its cost counted) with the tap recording.
+    let mut host = link::Script::new();
+    host.send(&HostRequest::CaptureStart {
+        samples: link::CAPTURE as u16,
+        pre: 0,
+        trigger: Trigger::Immediate,
+    });
     // Give up after 100 000 idle wake-ups (the run needs ~6000).
     let mut waits = 0u32;
     while !DONE.load(Ordering::Acquire) {
+        station.poll(&link::TAP, &SHARED, &mut host);
         waits += 1;
         if waits > 100_000 {
             defmt::error!(
@@ -668,6 +677,44 @@ fn main() -> ! {
         defmt::error!("FAIL: wrong reaction to the gauge bus error");
         ok = false;
     }
+    // 5. The capture holds what the loop did: at a traced tick inside it,
+    // the recorded command, output, X and φ are the traced ones.
+    let mut ask = |r: HostRequest| {
+        host.send(&r);
+        (0..100).find_map(|_| {
+            station.poll(&link::TAP, &SHARED, &mut host);
+            host.reply()
+        })
+    };
+    let captured = match ask(HostRequest::CaptureInfo) {
+        Some(Reply::Capture(c)) if c.state == CaptureState::Done => Some(c),
+        _ => None,
+    };
+    let probe = s.trace.iter().find(|t| t.tick == 800);
+    let same = match (captured, probe) {
+        (Some(c), Some(t)) => {
+            match ask(HostRequest::CaptureRead {
+                from: (t.tick - c.trigger_tick) as u16,
+            }) {
+                Some(Reply::Samples { samples, .. }) => samples.first().is_some_and(|x| {
+                    (x.command, x.output, x.x_bits, x.phi) == (t.command, t.output, t.x_bits, t.phi)
+                }),
+                _ => false,
+            }
+        }
+        _ => false,
+    };
+    defmt::info!(
+        "capture: {=u16} loop ticks from tick {=u32} recorded while the loop ran; at tick 800 it holds the traced command, output, X and phi: {=bool}",
+        captured.map_or(0, |c| c.recorded),
+        captured.map_or(0, |c| c.trigger_tick),
+        same
+    );
+    if !same || captured.map(|c| c.recorded) != Some(link::CAPTURE as u16) {
+        defmt::error!("FAIL: the capture does not hold the loop's samples");
+        ok = false;
+    }
+
     let isr = ISR_COUNT.load(Ordering::Relaxed);
     defmt::info!(
         "loop-tick interrupt ran {=u32} times, firmware counted {=u32} (expected {=u32})",
