@@ -160,14 +160,10 @@ mod app {
         // design; a refused block leaves the built-in design in the loop
         // and the amplifier off (`Fault::Parameters`, never cleared).
         let base = ServoDesign::brief(timers::LOOP_HZ);
-        let (design, loop_cfg, param_source) =
-            match params::load_region(link::params_region(), &base) {
-                Ok(p) => p,
-                Err(e) => match base.config() {
-                    Ok(c) => (base, c, ParamSource::Refused(e)),
-                    Err(_) => boot_failure("servo design refused"),
-                },
-            };
+        let Ok((design, loop_cfg, param_source)) = params::at_boot(link::params_region(), &base)
+        else {
+            boot_failure("servo design refused");
+        };
         // The table region is parsed and sign-checked here; a missing or
         // refused table leaves the firmware latched in Fault::Table with
         // the slide held at null (no built-in fallback: docs/BOARD.md).

@@ -562,6 +562,20 @@ pub fn load_region(
     ))
 }
 
+/// The parameters a board boots with: the region's block on `base`; with a
+/// refused block, `base` itself and the refusal (the board then latches
+/// `Fault::Parameters`). `Err` only when `base` itself does not design (a
+/// programming error: the board refuses to start).
+pub fn at_boot(
+    region: &[u8],
+    base: &ServoDesign,
+) -> Result<(ServoDesign, ServoConfig, ParamSource), DesignError> {
+    match load_region(region, base) {
+        Ok(p) => Ok(p),
+        Err(e) => Ok((*base, base.config()?, ParamSource::Refused(e))),
+    }
+}
+
 /// Writes a parameter block of `entries` (id, value) into `out`; returns
 /// the bytes written. Every value is checked as the firmware will check it
 /// (limits, then the design on top of `base`), so a block this writes is
@@ -718,6 +732,19 @@ mod tests {
             assert_eq!(src, ParamSource::BuiltIn);
             assert_eq!(d, brief());
         }
+    }
+
+    /// A refused block boots the built-in design with the refusal, for
+    /// the board to latch; never the block's values.
+    #[test]
+    fn a_refused_block_boots_the_built_in_design_and_says_why() {
+        let fe = by_name("following_error_in").unwrap().id;
+        let mut img = block(&[(fe, 0.002)]);
+        img[20] ^= 1;
+        let (d, cfg, src) = at_boot(&img, &brief()).unwrap();
+        assert_eq!(d, brief());
+        assert_eq!(cfg, brief().config().unwrap());
+        assert!(matches!(src, ParamSource::Refused(ParamError::BlockCrc { .. })));
     }
 
     #[test]

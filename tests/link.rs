@@ -168,12 +168,12 @@ fn pid(name: &str) -> u16 {
 fn status_arm_disarm_and_parameters_within_and_outside_limits() {
     let mut r = Rig::new();
     let s = r.status();
-    assert_eq!(s.phase, LoopPhase::Disarmed);
-    assert!(!s.amplifier_enabled);
+    assert_eq!(s.state.phase, LoopPhase::Disarmed);
+    assert!(!s.state.amplifier_enabled);
     assert_eq!(s.table, Err(TableError::Missing));
     // The bench firmware has no table and latches nothing for it.
-    assert_eq!(s.fault, None);
-    assert!(s.ticks > 0);
+    assert_eq!(s.state.fault, None);
+    assert!(s.state.ticks > 0);
 
     // Parameters: out of limits refused with the limits; in limits
     // applied to the loop's integer configuration (0.0001 in = 5242 codes).
@@ -205,7 +205,7 @@ fn status_arm_disarm_and_parameters_within_and_outside_limits() {
         Reply::Phase(p) => assert_ne!(p, LoopPhase::Disarmed),
         x => panic!("{x:?}"),
     }
-    assert!(r.status().amplifier_enabled);
+    assert!(r.status().state.amplifier_enabled);
     // Armed: parameters stay as they are.
     assert_eq!(
         r.ask(Request::Set {
@@ -222,7 +222,7 @@ fn status_arm_disarm_and_parameters_within_and_outside_limits() {
     for _ in 0..2000 {
         r.step();
     }
-    assert_eq!(r.status().phase, LoopPhase::Disarmed);
+    assert_eq!(r.status().state.phase, LoopPhase::Disarmed);
 }
 
 /// A fault-triggered capture holds the pre-trigger window and the rest,
@@ -295,7 +295,7 @@ fn fault_capture_fault_log_and_clear() {
     );
     r.gauge = at(1000);
     assert_eq!(r.ask(Request::Clear), Reply::Cleared(Fault::GaugeRange));
-    assert_eq!(r.status().fault, None);
+    assert_eq!(r.status().state.fault, None);
     assert_eq!(r.ask(Request::Clear), Reply::Refused(Refusal::NoFault));
 
     match r.ask(Request::Faults { from: 0 }) {
@@ -484,7 +484,7 @@ mod prop {
             }
             r.pipe.from_fw.clear();
             let s = r.status();
-            prop_assert_eq!(s.phase, LoopPhase::Disarmed);
+            prop_assert_eq!(s.state.phase, LoopPhase::Disarmed);
         }
     }
 }

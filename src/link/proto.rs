@@ -140,15 +140,12 @@ pub struct FrameCounters {
     pub malformed: u32,
 }
 
-/// The firmware's state, assembled from one loop-tick snapshot and the
-/// background's own records.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Status {
+/// What the loop tick reports when asked (`tap`): one consistent snapshot
+/// of the loop, taken right after a loop tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LoopSnapshot {
     /// Loop ticks since boot (wrapping).
     pub ticks: u32,
-    pub loop_hz: u32,
-    pub x_source: XSource,
-    pub spindle_source: SpindleSource,
     pub phase: LoopPhase,
     pub amplifier_enabled: bool,
     pub fault: Option<Fault>,
@@ -166,6 +163,20 @@ pub struct Status {
     pub position: i32,
     pub output: i32,
     pub table_command: i32,
+    /// Servo configurations (new parameters) the tick applied, and refused
+    /// because the loop was armed by then.
+    pub configs_applied: u32,
+    pub configs_refused: u32,
+}
+
+/// The firmware's state: the loop tick's snapshot and the background's own
+/// records.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    pub state: LoopSnapshot,
+    pub loop_hz: u32,
+    pub x_source: XSource,
+    pub spindle_source: SpindleSource,
     pub table: Result<TableIdentity, TableError>,
     pub params: ParamSource,
     pub x_accepted: u32,

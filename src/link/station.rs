@@ -8,12 +8,13 @@
 //! is answered on a later pass, once the tick's snapshot has arrived: a
 //! reply always reflects the loop after the request took effect.
 
+use super::proto::LoopSnapshot as Snapshot;
 use super::proto::{
     self, CaptureInfo, CaptureState, FaultPage, FaultRecord, FrameCounters, FrameError, LoopPhase,
     Refusal, Reply, Request, SpindleSource, Status, XSource, FAULTS_PER_FRAME, FAULT_LOG,
     MAX_FRAME, MAX_REQUEST, REQUEST_KINDS, SAMPLES_PER_FRAME,
 };
-use super::tap::{Snapshot, TapShared, REQ_CAPTURE, REQ_CONFIG, REQ_SNAPSHOT};
+use super::tap::{TapShared, REQ_CAPTURE, REQ_CONFIG, REQ_SNAPSHOT};
 use crate::handoff::{Request as LoopRequest, Shared};
 use crate::params::{self, ParamSource};
 use crate::safety::{Fault, Reaction};
@@ -444,22 +445,10 @@ impl<const N: usize> Station<N> {
 
     fn status(&self, s: &Snapshot, tap: &TapShared<'_, N>, shared: &Shared) -> Status {
         Status {
-            ticks: s.ticks,
+            state: *s,
             loop_hz: self.cfg.loop_hz,
             x_source: self.cfg.x_source,
             spindle_source: self.cfg.spindle_source,
-            phase: s.phase,
-            amplifier_enabled: s.amplifier_enabled,
-            fault: s.fault,
-            clear_refused: s.clear_refused,
-            x_bits: s.x_bits,
-            null_command: s.null_command,
-            phi: s.phi,
-            phi_step_q8: s.phi_step_q8,
-            command: s.command,
-            position: s.position,
-            output: s.output,
-            table_command: s.table_command,
             table: self.cfg.table,
             params: self.cfg.params,
             x_accepted: shared.x_accepted(),

@@ -19,7 +19,7 @@
 //! division, no panic path, which `cargo xtask no-panic` checks). They live
 //! in [`TapShared`] with the capture ring, so a board needs one `static`.
 
-use super::proto::{CaptureState, LoopPhase, Sample, Trigger};
+use super::proto::{CaptureState, LoopPhase, LoopSnapshot as Snapshot, Sample, Trigger};
 use crate::looptick::LoopState;
 use crate::safety::Fault;
 use crate::servo::{Phase, ServoConfig};
@@ -31,28 +31,6 @@ use heapless::mpmc::Queue;
 pub const REQ_SNAPSHOT: u32 = 1;
 pub const REQ_CONFIG: u32 = 2;
 pub const REQ_CAPTURE: u32 = 4;
-
-/// What the loop tick saw, for a status report.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Snapshot {
-    pub ticks: u32,
-    pub phase: LoopPhase,
-    pub amplifier_enabled: bool,
-    pub fault: Option<Fault>,
-    pub clear_refused: Option<Fault>,
-    pub x_bits: Option<i32>,
-    pub null_command: bool,
-    pub phi: Option<u32>,
-    pub phi_step_q8: Option<i64>,
-    pub command: i32,
-    pub position: i32,
-    pub output: i32,
-    pub table_command: i32,
-    /// Configurations the tick has applied (new parameters) and refused
-    /// (the loop was armed by then).
-    pub configs_applied: u32,
-    pub configs_refused: u32,
-}
 
 /// A change of the latched fault (`None`: cleared) at a loop tick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

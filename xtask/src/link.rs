@@ -314,40 +314,43 @@ fn uin(codes: i32) -> f64 {
 
 pub fn status_text(s: &Status) -> String {
     let mut t = String::new();
-    let secs = f64::from(s.ticks) / f64::from(s.loop_hz.max(1));
+    let secs = f64::from(s.state.ticks) / f64::from(s.loop_hz.max(1));
     t += &format!(
         "loop: {} ({}), {} Hz, tick {} ({secs:.3} s); X from {:?}, spindle from {:?}\n",
-        phase_words(s.phase),
-        if s.amplifier_enabled {
+        phase_words(s.state.phase),
+        if s.state.amplifier_enabled {
             "amplifier enabled"
         } else {
             "amplifier off"
         },
         s.loop_hz,
-        s.ticks,
+        s.state.ticks,
         s.x_source,
         s.spindle_source
     );
-    t += &match s.fault {
+    t += &match s.state.fault {
         Some(f) => format!("fault: {f} ({:?})\n", f.reaction()),
         None => "fault: none\n".into(),
     };
-    if let Some(f) = s.clear_refused {
+    if let Some(f) = s.state.clear_refused {
         t += &format!("last clear refused: {f}\n");
     }
-    let x = s.x_bits.map_or("unknown (no X yet)".into(), |b| {
+    let x = s.state.x_bits.map_or("unknown (no X yet)".into(), |b| {
         format!("{:.6} in", inch(b))
     });
-    let phi = s.phi.map_or("not referenced (no index yet)".into(), |p| {
-        format!("{:.3} deg", deg(p))
-    });
-    let rpm = s.phi_step_q8.map_or("unknown".into(), |q| {
+    let phi = s
+        .state
+        .phi
+        .map_or("not referenced (no index yet)".into(), |p| {
+            format!("{:.3} deg", deg(p))
+        });
+    let rpm = s.state.phi_step_q8.map_or("unknown".into(), |q| {
         let turns_per_tick = q as f64 / 256.0 / 4_294_967_296.0;
         format!("{:.2} rpm", turns_per_tick * f64::from(s.loop_hz) * 60.0)
     });
     t += &format!(
         "X {x}{}; phi {phi}; spindle {rpm}\n",
-        if s.null_command {
+        if s.state.null_command {
             " (command null)"
         } else {
             ""
@@ -355,12 +358,12 @@ pub fn status_text(s: &Status) -> String {
     );
     t += &format!(
         "command {:.3} uin ({} codes), position {:.3} uin, error {:.3} uin, table command {:.3} uin, output {:.5} V\n",
-        uin(s.command),
-        s.command,
-        uin(s.position),
-        uin(s.command.saturating_sub(s.position)),
-        uin(s.table_command),
-        f64::from(s.output) * V_PER_CODE
+        uin(s.state.command),
+        s.state.command,
+        uin(s.state.position),
+        uin(s.state.command.saturating_sub(s.state.position)),
+        uin(s.state.table_command),
+        f64::from(s.state.output) * V_PER_CODE
     );
     t += &match s.table {
         Ok(id) => format!("table: {id}\n"),
@@ -741,7 +744,7 @@ pub fn end_to_end() -> Result<u32> {
         .map_err(|e| e.to_string())?
         .identity();
     check(
-        s.phase == LoopPhase::Disarmed && !s.amplifier_enabled,
+        s.state.phase == LoopPhase::Disarmed && !s.state.amplifier_enabled,
         "status: not disarmed at boot",
     )?;
     check(
@@ -761,7 +764,7 @@ pub fn end_to_end() -> Result<u32> {
         "the parameter block's value is not in force",
     )?;
     wait_for(&mut c, "the spindle referenced", |s| {
-        s.phi.is_some() && s.x_bits.is_some()
+        s.state.phi.is_some() && s.state.x_bits.is_some()
     })?;
 
     // Parameters out of and within their limits.
@@ -806,11 +809,14 @@ pub fn end_to_end() -> Result<u32> {
     let armed = cli(&mut c, "arm")?;
     check(armed.contains("armed"), "arm")?;
     let s = wait_for(&mut c, "the 1 µin following-error fault", |s| {
-        s.fault.is_some()
+        s.state.fault.is_some()
     })?;
     check(
-        s.fault == Some(zslide::safety::Fault::FollowingError),
-        &format!("expected the following-error fault, got {:?}", s.fault),
+        s.state.fault == Some(zslide::safety::Fault::FollowingError),
+        &format!(
+            "expected the following-error fault, got {:?}",
+            s.state.fault
+        ),
     )?;
     let info = {
         let start = Instant::now();
@@ -880,14 +886,14 @@ pub fn end_to_end() -> Result<u32> {
         "only while the loop is disarmed",
     )?;
     cli(&mut c, "disarm")?;
-    wait_for(&mut c, "disarmed", |s| s.phase == LoopPhase::Disarmed)?;
+    wait_for(&mut c, "disarmed", |s| s.state.phase == LoopPhase::Disarmed)?;
     let cleared = cli(&mut c, "clear")?;
     check(
         cleared.contains("cleared: following error beyond its limit"),
         "clear",
     )?;
     check(
-        c.status()?.fault.is_none(),
+        c.status()?.state.fault.is_none(),
         "fault still latched after the clear",
     )?;
     let (_, records) = c.fault_log()?;
@@ -902,7 +908,7 @@ pub fn end_to_end() -> Result<u32> {
     cli(&mut c, "set following_error_in 0.004")?;
     cli(&mut c, "set following_error_ms 2")?;
     cli(&mut c, "arm")?;
-    wait_for(&mut c, "engaged", |s| s.phase == LoopPhase::Engaged)?;
+    wait_for(&mut c, "engaged", |s| s.state.phase == LoopPhase::Engaged)?;
     let csv2 = dir.join("immediate.csv");
     cli(
         &mut c,

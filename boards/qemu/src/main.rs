@@ -387,15 +387,9 @@ fn main() -> ! {
     // Servo parameters: the parameter region's block on the built-in
     // design, or the built-in design with the block's refusal latched.
     let base = ServoDesign::brief(LOOP_HZ);
-    let (design, loop_cfg, param_source) = match params::load_region(link::params_region(), &base) {
-        Ok(p) => p,
-        Err(e) => match base.config() {
-            Ok(c) => (base, c, ParamSource::Refused(e)),
-            Err(_) => {
-                defmt::error!("FAIL: servo design refused");
-                exit(false);
-            }
-        },
+    let Ok((design, loop_cfg, param_source)) = params::at_boot(link::params_region(), &base) else {
+        defmt::error!("FAIL: servo design refused");
+        exit(false);
     };
     let cfg = FirmwareConfig {
         loop_cfg,
