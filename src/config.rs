@@ -74,7 +74,25 @@ pub(crate) const SIGN_ANGLES: u32 = 16;
 /// table's command range and 16 angles: Z ≤ 0 (within 1 µin,
 /// the truncation and quantisation slack). Runs once, at construction.
 pub fn load_table(bytes: &'static [u8]) -> Result<CommandGen<'static>, TableError> {
-    let table = CoeffTable::parse(bytes)?;
+    sign_checked(CoeffTable::parse(bytes)?)
+}
+
+/// [`load_table`] for a flash region that holds the table
+/// ([`CoeffTable::parse_region`]: an erased region is
+/// [`TableError::Missing`]).
+pub fn load_table_region(region: &'static [u8]) -> Result<CommandGen<'static>, TableError> {
+    sign_checked(CoeffTable::parse_region(region)?)
+}
+
+/// The load checks of a table image at any lifetime (the host's
+/// `cargo xtask flash-table` refuses what the firmware would refuse).
+pub fn check_table(bytes: &[u8]) -> Result<CoeffTable<'_>, TableError> {
+    let t = CoeffTable::parse(bytes)?;
+    sign_checked(t)?;
+    Ok(t)
+}
+
+fn sign_checked(table: CoeffTable<'_>) -> Result<CommandGen<'_>, TableError> {
     let gen = CommandGen::new(table);
     for n in 0..table.node_count() {
         let x = table.node_x(n);

@@ -38,7 +38,9 @@
 //! clears it when the loop is disarmed and the cause is gone.
 
 pub use crate::codes::{gauge_code_from_z, CODE_MAX, CODE_MIN};
-pub use crate::config::{load_table, ConfigError, FirmwareConfig, SpindleMode, XMode};
+pub use crate::config::{
+    load_table, load_table_region, ConfigError, FirmwareConfig, SpindleMode, XMode,
+};
 pub use crate::handoff::{Request, Shared};
 pub use crate::looptick::{LoopState, SpindleReading, TickInput};
 pub use crate::xevent::{EventState, NoCoefficientDac};
@@ -84,7 +86,23 @@ impl Firmware {
     /// firmware latched in [`Fault::Table`] with a null command (never a
     /// panic); a configuration the estimators refuse is a [`ConfigError`].
     pub fn with_table(table: &'static [u8], cfg: FirmwareConfig) -> Result<Self, ConfigError> {
-        let loaded = load_table(table);
+        Self::with_loaded(load_table(table), cfg)
+    }
+
+    /// [`Self::with_table`] for the table region of a board's flash
+    /// ([`load_table_region`]): an erased region is
+    /// `Fault::Table(TableError::Missing)`, never a built-in table.
+    pub fn with_table_region(
+        region: &'static [u8],
+        cfg: FirmwareConfig,
+    ) -> Result<Self, ConfigError> {
+        Self::with_loaded(load_table_region(region), cfg)
+    }
+
+    fn with_loaded(
+        loaded: Result<CommandGen<'static>, crate::table::TableError>,
+        cfg: FirmwareConfig,
+    ) -> Result<Self, ConfigError> {
         let gen = loaded.ok();
         let mut lp = LoopState::new(cfg.loop_cfg);
         lp.gen = gen;

@@ -457,7 +457,7 @@ impl LoopState {
                 }
                 Fault::AmplifierTrip => amplifier_fault,
                 // A refused table stays refused: only a new table clears it.
-                Fault::Table(_) => true,
+                Fault::Table(_) | Fault::Parameters(_) => true,
                 _ => false,
             };
         if present {
@@ -544,5 +544,24 @@ impl LoopState {
     }
     pub fn config(&self) -> &ServoConfig {
         self.servo.config()
+    }
+    /// The setpoint's angle history: the spindle angle of the last tick
+    /// and its smoothed step (the speed), for status reports.
+    pub fn setpoint_state(&self) -> &SetpointState {
+        &self.sp
+    }
+    /// X of the last coefficient set (`None` before the first).
+    pub fn last_x(&self) -> Option<XInches> {
+        self.last_coeff_x
+    }
+    /// Runs the loop on `cfg` from now on (new parameters from the host
+    /// link): only while disarmed, where replacing the servo (observer,
+    /// notch states, learned table) bumps nothing; returns whether it did.
+    pub fn reconfigure(&mut self, cfg: ServoConfig) -> bool {
+        if self.servo.phase() != Phase::Disarmed {
+            return false;
+        }
+        self.servo = Servo::new(cfg);
+        true
     }
 }

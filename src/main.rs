@@ -10,7 +10,7 @@
 //! | 0x00 | `TIM3` | loop tick, 20 kHz, TIM3 CC2 | `LoopState::loop_tick`: gauge, spindle angle, command, loop, DAC; watchdog |
 //! | 0x10 | `EXTI2` | legacy X half-mil interrupt, PG2 | `EventState::x_event` on the latched word |
 //! | 0x10 | `EXTI3` | spindle index, PG3 | `Shared::index_event` with the count and time |
-//! | thread | `main` loop | - | background: status and fault logging |
+//! | thread | `main` loop | - | background: host link (`zslide::link`, RTT), status and fault logging, arm button, watchdog |
 //!
 //! Each handler owns its part of the firmware outright (moved in once,
 //! before its interrupt is unmasked); they share only `SHARED`, atomics
@@ -29,7 +29,6 @@ mod app {
     use cortex_m::peripheral::NVIC;
     use cortex_m_rt::{entry, exception, ExceptionFrame};
     use critical_section::Mutex;
-    use defmt_rtt as _;
     use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI3, SPI4};
     use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686, ad5791::Ad5791};
     use zslide::firmware::{
@@ -37,13 +36,18 @@ mod app {
         SpindleReading, TickInput, XMode,
     };
     use zslide::hw::{Encoder, XLatch};
+    use zslide::link::proto::{SpindleSource, XSource};
+    use zslide::link::station::{Station, StationConfig};
+    use zslide::link::tap::TickTap;
+    use zslide::params::{self, ParamSource};
     use zslide::safety::{Device, Fault};
-    use zslide::servo::ServoConfig;
+    use zslide::servo::{ServoConfig, ServoDesign};
     use zslide::spindle::EncoderConfig;
     use zslide::units::SpindleAngle;
     use zslide::watchdog::FeedGate;
 
     use crate::board::gpio::Output;
+    use crate::board::link::{self, RttLink, TAP};
     use crate::board::spi::{self, NoCs, SpiDev};
     use crate::board::timers::SpindleEncoder;
     use crate::board::{self, clocks, pins, timers};
@@ -62,12 +66,9 @@ mod app {
     /// event also writes C00..C03 to the AD5686 and strobes LDAC.
     const COEFFICIENT_OUTPUT: bool = false;
 
-    fn config() -> FirmwareConfig {
+    fn config(loop_cfg: ServoConfig) -> FirmwareConfig {
         FirmwareConfig {
-            loop_cfg: match ServoConfig::at_rate(timers::LOOP_HZ) {
-                Ok(c) => c,
-                Err(_) => boot_failure("servo design refused"),
-            },
+            loop_cfg,
             spindle: SpindleMode::Encoder(EncoderConfig {
                 counts_per_rev: SPINDLE_CPR,
                 ticks_per_s: timers::CLOCK_HZ,
@@ -88,6 +89,7 @@ mod app {
     /// Everything the loop-tick handler owns.
     struct Loop {
         lp: LoopState,
+        tap: TickTap,
         gauge: Ad4020<SpiDev<SPI4, NoCs>>,
         dac: Ad5791<SpiDev<SPI1, Output>>,
         spindle: SpindleEncoder,
@@ -107,16 +109,15 @@ mod app {
     static HANDOFF: Mutex<Cell<Option<Loop>>> = Mutex::new(Cell::new(None));
     static HANDOFF_X: Mutex<Cell<Option<XHandler>>> = Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
-    /// The first fault the loop latched, published once for the background.
-    static FAULT: Mutex<Cell<Option<Fault>>> = Mutex::new(Cell::new(None));
-    static FAULT_PUBLISHED: AtomicBool = AtomicBool::new(false);
     /// The amplifier is enabled (the loop armed), for the arm button.
     static ARMED: AtomicBool = AtomicBool::new(false);
 
     #[entry]
     fn main() -> ! {
-        // Before anything else: the amplifier-enable pin low (its external
-        // pull-down already holds it there through reset).
+        // The amplifier-enable pin is low from reset (its external
+        // pull-down holds it); RTT first, so that every log line reaches
+        // the probe.
+        let rtt = link::init_rtt();
         let Some(dp) = Peripherals::take() else {
             boot_failure("device peripherals taken twice");
         };
@@ -155,15 +156,67 @@ mod app {
         let gauge_spi = SpiDev::new(dp.SPI4, 0, spi::Mode::Mode0, NoCs);
         let quad_spi = SpiDev::new(dp.SPI3, 1, spi::Mode::Mode1, Output(pins::QUAD_DAC_SYNC));
 
-        // The table is parsed and sign-checked here; a refused one leaves
-        // the firmware latched in Fault::Table with the slide nulled.
-        let Ok(fw) = Firmware::with_table(zslide::DEFAULT_TABLE, config()) else {
+        // Servo parameters: the parameter region's block on the built-in
+        // design; a refused block leaves the built-in design in the loop
+        // and the amplifier off (`Fault::Parameters`, never cleared).
+        let base = ServoDesign::brief(timers::LOOP_HZ);
+        let Ok((design, loop_cfg, param_source)) = params::at_boot(link::params_region(), &base)
+        else {
+            boot_failure("servo design refused");
+        };
+        // The table region is parsed and sign-checked here; a missing or
+        // refused table leaves the firmware latched in Fault::Table with
+        // the slide held at null (no built-in fallback: docs/BOARD.md).
+        let Ok(fw) = Firmware::with_table_region(link::table_region(), config(loop_cfg)) else {
             boot_failure("firmware configuration refused");
         };
+        let table = match fw.command_gen() {
+            Some(g) => {
+                let id = g.interpolator().table().identity();
+                defmt::info!(
+                    "coefficient table: c {=i64} nin, S_y {=i64} nin, tool radius {=i64} nin; {=u8} terms, {=u32} nodes; {=u32} bytes, CRC {=u32:#010x}",
+                    id.geometry.c_nin,
+                    id.geometry.s_y_nin,
+                    id.geometry.tool_radius_nin,
+                    id.terms,
+                    id.node_count,
+                    id.len,
+                    id.crc
+                );
+                Ok(id)
+            }
+            None => match fw.fault() {
+                Some(Fault::Table(e)) => Err(e),
+                _ => Err(zslide::table::TableError::Missing),
+            },
+        };
         let (mut lp, ev) = fw.into_parts();
-        if let Some(f) = lp.fault() {
-            defmt::error!("coefficient table refused: {}", f);
+        if let Err(e) = table {
+            defmt::error!(
+                "coefficient table refused, slide held at null: {}",
+                defmt::Display2Format(&e)
+            );
         }
+        match param_source {
+            ParamSource::Refused(e) => {
+                defmt::error!("servo parameter block refused, amplifier kept off: {}", e);
+                lp.trip(Fault::Parameters(e));
+            }
+            ParamSource::Block { entries, crc } => defmt::info!(
+                "servo parameters: block of {=u16} entries, CRC {=u32:#010x}",
+                entries,
+                crc
+            ),
+            ParamSource::BuiltIn => defmt::info!("servo parameters: built-in"),
+        }
+        let station = Station::new(StationConfig {
+            loop_hz: timers::LOOP_HZ,
+            x_source: XSource::LegacyHalfMil,
+            spindle_source: SpindleSource::Encoder,
+            table,
+            design,
+            params: param_source,
+        });
         let mut dac = Ad5791::new(amp_spi);
         // Zero code, output released, control register read back.
         if dac.init().is_err() {
@@ -176,6 +229,7 @@ mod app {
         timers::start_spindle_encoder(&dp.TIM4);
         let lp = Loop {
             lp,
+            tap: TickTap::new(),
             gauge: Ad4020::new(gauge_spi),
             dac,
             spindle: SpindleEncoder::new(),
@@ -200,7 +254,7 @@ mod app {
             NVIC::unmask(Interrupt::EXTI3);
         }
 
-        background()
+        background(station, rtt)
     }
 
     /// A boot that cannot go on (a refused configuration, say): not a
@@ -218,10 +272,13 @@ mod app {
         }
     }
 
-    /// Thread mode, the lowest priority: reports, then sleeps.
-    fn background() -> ! {
+    /// Thread mode, the lowest priority: the host link, reports, the arm
+    /// button and the watchdog, then sleeps until the next interrupt (the
+    /// loop tick wakes it 20 000 times a second).
+    fn background(mut station: Station<{ link::CAPTURE }>, mut rtt: RttLink) -> ! {
         let mut last_report = timers::micros();
-        let mut reported_fault = false;
+        // Fault-log records reported so far.
+        let mut reported = 0u32;
         // The arm button, debounced: a level held 20 ms is a press.
         let (mut button, mut since) = (false, timers::micros());
         // Fed here, below every handler, and only when the loop tick ran
@@ -232,6 +289,8 @@ mod app {
             if gate.may_feed(TICKS.load(Ordering::Relaxed)) {
                 timers::feed_watchdog();
             }
+            station.poll(&TAP, &SHARED, &mut rtt);
+            let latched = station.fault_log().last().is_some_and(|r| !r.cleared);
             let level = pins::ARM_BUTTON.is_high();
             let now = timers::micros();
             if level != button && now.wrapping_sub(since) >= 20_000 {
@@ -243,10 +302,8 @@ mod app {
                     if ARMED.load(Ordering::Relaxed) {
                         SHARED.request(Request::Disarm);
                         defmt::info!("disarm requested");
-                    } else if FAULT_PUBLISHED.load(Ordering::Acquire) {
+                    } else if latched {
                         SHARED.request(Request::ClearFault);
-                        FAULT_PUBLISHED.store(false, Ordering::Release);
-                        reported_fault = false;
                         defmt::info!("fault clear requested");
                     } else {
                         SHARED.request(Request::Arm);
@@ -257,12 +314,24 @@ mod app {
             if level == button {
                 since = now;
             }
-            if !reported_fault && FAULT_PUBLISHED.load(Ordering::Acquire) {
-                let fault = critical_section::with(|cs| FAULT.borrow(cs).get());
-                if let Some(f) = fault {
-                    defmt::error!("fault {} -> {}", f, f.reaction());
+            // New fault-log records (the link's log, fed by the loop tick).
+            let logged = station.faults_logged();
+            if logged != reported {
+                let new = logged.wrapping_sub(reported) as usize;
+                let kept = station.fault_log().count();
+                for r in station.fault_log().skip(kept.saturating_sub(new)) {
+                    if r.cleared {
+                        defmt::info!("tick {=u32}: fault cleared: {}", r.tick, r.fault);
+                    } else {
+                        defmt::error!(
+                            "tick {=u32}: fault {} -> {}",
+                            r.tick,
+                            r.fault,
+                            r.fault.reaction()
+                        );
+                    }
                 }
-                reported_fault = true;
+                reported = logged;
             }
             let now = timers::micros();
             if now.wrapping_sub(last_report) >= 1_000_000 {
@@ -299,14 +368,10 @@ mod app {
         l.lp.loop_tick(&SHARED, &input, &mut l.gauge, &mut l.dac);
         let enable = l.lp.amplifier_enable();
         pins::AMP_ENABLE.set(enable);
+        // Fault changes, snapshots, capture: a few stores (zslide::link::tap).
+        l.tap.after_tick(&TAP, &mut l.lp);
         ARMED.store(enable, Ordering::Relaxed);
         TICKS.store(l.lp.ticks(), Ordering::Relaxed);
-        if let Some(f) = l.lp.fault() {
-            if !FAULT_PUBLISHED.load(Ordering::Relaxed) {
-                critical_section::with(|cs| FAULT.borrow(cs).set(Some(f)));
-                FAULT_PUBLISHED.store(true, Ordering::Release);
-            }
-        }
     }
 
     /// Legacy half-mil interrupt: the word latched at the edge, into the

@@ -1,10 +1,11 @@
 //! Faults and their reactions. Every fault the machine can detect has a name
 //! here, a defined reaction, and leaves the slide in a safe state.
 
+use crate::params::ParamError;
 use crate::table::TableError;
 
 /// A converter chip on a bus, for bus-error faults.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum Device {
     AmplifierDac,
@@ -13,11 +14,16 @@ pub enum Device {
 }
 
 /// Everything that stops a cut. Readable: `Debug`/`defmt` name the cause.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// (Serialisable: the host link carries faults as they are, and the host
+/// prints [`Fault::reason`] and the detail's words, `docs/BOARD.md`.)
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum Fault {
     /// The coefficient table was refused by the parser.
     Table(TableError),
+    /// The servo parameter block in flash was refused (`params`): the loop
+    /// is not run on parameters the machinist did not write.
+    Parameters(ParamError),
     /// X left the range the table covers (below the first node).
     XOutsideTable,
     /// Too many X events that changed nothing or jumped: a glitching counter.
@@ -64,7 +70,9 @@ pub enum Fault {
 }
 
 /// What the machine does about a fault.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum Reaction {
     /// Keep the loop closed, ramp the command to null, hold there.
@@ -96,6 +104,9 @@ impl Fault {
             | Fault::SignCheck
             | Fault::Watchdog
             | Fault::Panic => Reaction::DisableAmplifier,
+            // A loop on parameters nobody wrote could be unstable on this
+            // slide: the amplifier stays off until a good block is flashed.
+            Fault::Parameters(_) => Reaction::DisableAmplifier,
             // The centring slides have no null to ramp to: they stop where
             // they are (motor voltage zero), which is safe for the part.
             Fault::CentringTableStopped
@@ -109,7 +120,9 @@ impl Fault {
     /// The cause in words, for logs and the fault table.
     pub const fn reason(self) -> &'static str {
         match self {
+            Fault::Table(TableError::Missing) => "no coefficient table in flash",
             Fault::Table(_) => "coefficient table refused (format, CRC or sign check at load)",
+            Fault::Parameters(_) => "servo parameter block refused (format, CRC or a value outside its limits)",
             Fault::XOutsideTable => "X outside the range the coefficient table covers",
             Fault::XGlitchStorm => "X counter glitch storm (too many events that changed nothing or jumped)",
             Fault::XBadBcd => "X latch held a digit that is not BCD",
@@ -138,6 +151,21 @@ impl Fault {
             }
             Fault::CentringNoConvergence => "centring: the level was not reached in the allowed number of cycles",
             Fault::CentringSlideTimeout => "centring: a slide did not come to rest in the allowed time",
+        }
+    }
+}
+
+/// The cause in words with its detail (a refused table or parameter block
+/// says what is wrong with it): what the host link and the logs print.
+impl core::fmt::Display for Fault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Fault::Table(TableError::Missing) => {
+                write!(f, "{}: {}", self.reason(), TableError::Missing)
+            }
+            Fault::Table(e) => write!(f, "{}: {e}", self.reason()),
+            Fault::Parameters(e) => write!(f, "{}: {e}", self.reason()),
+            _ => f.write_str(self.reason()),
         }
     }
 }

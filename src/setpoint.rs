@@ -54,6 +54,16 @@ impl SetpointState {
         }
     }
 
+    /// The angle of the last tick (`None`: not known).
+    pub fn angle(&self) -> Option<SpindleAngle> {
+        self.last_phi
+    }
+
+    /// The smoothed angle step, binary angle per tick, Q8 (the speed).
+    pub fn step_q8(&self) -> Option<i64> {
+        self.dphi_q8
+    }
+
     /// Forgets the angle (no spindle angle this tick).
     pub fn lose_angle(&mut self) {
         self.last_phi = None;

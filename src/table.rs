@@ -33,6 +33,17 @@
 //! fraction bits (units of the length unit), node-major. Nothing may follow
 //! the payload: trailing bytes are an error, not silently ignored.
 //!
+//! # In a flash region
+//!
+//! The boards keep the table in a flash region of its own, written without
+//! rebuilding the firmware (`cargo xtask flash-table`, `docs/BOARD.md`).
+//! [`CoeffTable::parse_region`] reads such a region: the image is the
+//! prefix the header describes (what follows it is erased flash); a region
+//! whose whole header is erased (0xFF, flash) or zero (QEMU's RAM that no
+//! loader wrote) holds no table, [`TableError::Missing`]. There is no
+//! fallback to a built-in table: a machine must cut the part the machinist
+//! flashed or none (the decision and its reasons: `docs/BOARD.md`).
+//!
 //! Column `j` of a node means, for the two representations (φ of eq 2-5):
 //! * sin-power: `Z = Σ_j c_j sin^j φ` (eq 2-19 is the four-column case C00..C03);
 //! * harmonic: column 0 is `C_0`, then `C_k, S_k` pairs for k = 1.. :
@@ -50,7 +61,7 @@ pub const MAX_NODES: u32 = 8192;
 /// Largest number of columns: 0..=15 harmonics, or sin powers 0..=30.
 pub const MAX_TERMS: u8 = 31;
 
-const CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+pub(crate) const CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 
 /// CRC-32/ISO-HDLC (the zlib/PNG CRC), the table's checksum.
 pub fn crc32(bytes: &[u8]) -> u32 {
@@ -58,7 +69,7 @@ pub fn crc32(bytes: &[u8]) -> u32 {
 }
 
 /// How a node's columns combine with the spindle angle.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum Representation {
     /// `Z = Σ_j c_j sin^j φ` (eq 2-19).
@@ -68,9 +79,12 @@ pub enum Representation {
 }
 
 /// Why a byte image is not a usable table. Each is a distinct, named failure.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum TableError {
+    /// The table region holds no table: its header bytes are all erased
+    /// (0xFF) or all zero. Only [`CoeffTable::parse_region`] reports it.
+    Missing,
     /// Fewer bytes than the header, or than the header says the payload needs.
     Truncated {
         needed: u32,
@@ -121,6 +135,9 @@ pub enum TableError {
 impl core::fmt::Display for TableError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
+            TableError::Missing => f.write_str(
+                "no coefficient table in the table region (erased, or never written): write one with `cargo xtask flash-table FILE.zsct`",
+            ),
             TableError::Truncated { needed, got } => write!(
                 f,
                 "the image is cut short: {got} bytes where {needed} are needed"
@@ -194,7 +211,7 @@ pub struct TableHeader {
 
 /// Surface geometry the table was generated for, in nano-inches. Carried for
 /// traceability: a table always says which part it cuts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct Geometry {
     pub c_nin: i64,
@@ -207,6 +224,56 @@ pub struct Geometry {
 pub struct CoeffTable<'a> {
     header: TableHeader,
     payload: &'a [u8],
+    /// The header's own CRC (bytes 60..64): it covers the payload CRC too,
+    /// so it names the whole image.
+    image_crc: u32,
+}
+
+/// What a table is, in a few numbers: the part it cuts (geometry), its
+/// grid and series, and the CRC that names the image. The firmware
+/// reports it at boot and over the host link; `cargo xtask flash-table`
+/// prints the same for the file, so the two can be compared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct TableIdentity {
+    pub geometry: Geometry,
+    pub representation: Representation,
+    pub terms: u8,
+    pub node_count: u32,
+    /// X of node 0, grid step and null-zone start, I8F24 inches.
+    pub x0_bits: i32,
+    pub dx_bits: i32,
+    pub x_null_bits: i32,
+    /// Bytes of the image.
+    pub len: u32,
+    /// CRC-32 of the header (which holds the payload's CRC): the image's name.
+    pub crc: u32,
+}
+
+impl core::fmt::Display for TableIdentity {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let inch = |bits: i32| f64::from(bits) / f64::from(1u32 << 24);
+        let nin = |v: i64| v as f64 / 1e9;
+        write!(
+            f,
+            "c = {} in, S_y = {} in, tool radius {} in; {} {} terms, {} nodes, X {:.6} .. {:.6} in (step {:.6} in), null beyond {:.6} in; {} bytes, CRC {:#010x}",
+            nin(self.geometry.c_nin),
+            nin(self.geometry.s_y_nin),
+            nin(self.geometry.tool_radius_nin),
+            match self.representation {
+                Representation::SinPower => "sin-power",
+                Representation::Harmonic => "harmonic",
+            },
+            self.terms,
+            self.node_count,
+            inch(self.x0_bits),
+            inch(self.x0_bits.saturating_add(self.dx_bits.saturating_mul(self.node_count.saturating_sub(1) as i32))),
+            inch(self.dx_bits),
+            inch(self.x_null_bits),
+            self.len,
+            self.crc
+        )
+    }
 }
 
 fn u16_at(b: &[u8], at: usize) -> u16 {
@@ -346,6 +413,7 @@ impl<'a> CoeffTable<'a> {
             return Err(TableError::PayloadCrc { stored, computed });
         }
         Ok(Self {
+            image_crc: u32_at(bytes, 60),
             header: TableHeader {
                 representation,
                 terms,
@@ -359,6 +427,48 @@ impl<'a> CoeffTable<'a> {
             },
             payload,
         })
+    }
+
+    /// Reads the table a flash region holds (module docs): the image is
+    /// the prefix its header describes, the rest of the region is ignored.
+    /// A region whose header bytes are all erased or all zero holds no
+    /// table ([`TableError::Missing`]); anything else that is not a valid
+    /// image is refused exactly as [`Self::parse`] refuses it (a header
+    /// whose size fields are garbage is caught by its CRC first).
+    pub fn parse_region(region: &'a [u8]) -> Result<Self, TableError> {
+        if let Some(h) = region.get(..HEADER_LEN) {
+            if h.iter().all(|&b| b == 0xFF) || h.iter().all(|&b| b == 0) {
+                return Err(TableError::Missing);
+            }
+            let nodes = u32_at(region, 16);
+            let terms = region[9];
+            if nodes <= MAX_NODES && terms <= MAX_TERMS {
+                let len = HEADER_LEN + nodes as usize * usize::from(terms) * 4;
+                if let Some(image) = region.get(..len) {
+                    return Self::parse(image);
+                }
+            }
+        }
+        Self::parse(region)
+    }
+
+    /// The numbers that identify this table (geometry, grid, CRC).
+    pub fn identity(&self) -> TableIdentity {
+        let h = &self.header;
+        TableIdentity {
+            geometry: h.geometry,
+            representation: h.representation,
+            terms: h.terms,
+            node_count: h.node_count,
+            x0_bits: self.node_x(0).to_bits(),
+            dx_bits: self
+                .node_x(1)
+                .to_bits()
+                .wrapping_sub(self.node_x(0).to_bits()),
+            x_null_bits: self.x_null().to_bits(),
+            len: h.image_len() as u32,
+            crc: self.image_crc,
+        }
     }
 
     pub fn header(&self) -> &TableHeader {
@@ -650,6 +760,48 @@ mod tests {
         let mut m = good.clone();
         patch(&mut m, 40, &0i64.to_le_bytes());
         assert_eq!(CoeffTable::parse(&m), Err(TableError::BadGeometry));
+    }
+
+    /// A region holds the image and erased flash after it; an erased or
+    /// zeroed region holds no table; a region too small for the image the
+    /// header describes is cut short, by the numbers.
+    #[test]
+    fn a_region_is_read_up_to_the_image_its_header_describes() {
+        let h = header(9, 4);
+        let img = image(&h);
+        let mut region = img.clone();
+        region.extend([0xFFu8; 1000]);
+        let t = CoeffTable::parse_region(&region).unwrap();
+        assert_eq!(t, CoeffTable::parse(&img).unwrap());
+        let id = t.identity();
+        assert_eq!(id.len as usize, img.len());
+        assert_eq!(id.crc, u32_at(&img, 60));
+        assert_eq!((id.node_count, id.terms), (9, 4));
+        assert_eq!(id.dx_bits, 1 << 21);
+        for erased in [0xFFu8, 0] {
+            assert_eq!(
+                CoeffTable::parse_region(&[erased; 4096]),
+                Err(TableError::Missing)
+            );
+        }
+        let n = img.len() as u32;
+        assert_eq!(
+            CoeffTable::parse_region(&img[..100]),
+            Err(TableError::Truncated {
+                needed: n,
+                got: 100
+            })
+        );
+        // Garbage is not "missing": it is refused for what it is.
+        let mut junk = region.clone();
+        junk[0] = b'Q';
+        assert_eq!(CoeffTable::parse_region(&junk), Err(TableError::BadMagic));
+        let mut junk = region.clone();
+        junk[70] ^= 1;
+        assert!(matches!(
+            CoeffTable::parse_region(&junk),
+            Err(TableError::PayloadCrc { .. })
+        ));
     }
 
     #[test]

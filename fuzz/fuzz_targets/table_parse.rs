@@ -131,6 +131,8 @@ fn name(e: &TableError) -> &'static str {
         TableError::NullZoneOutsideGrid => "NullZoneOutsideGrid",
         TableError::BadGeometry => "BadGeometry",
         TableError::SignCheck => "SignCheck",
+        // Only `parse_region` reports an erased region.
+        TableError::Missing => "Missing",
     }
 }
 

@@ -117,6 +117,20 @@ pub fn write_plot(
     y_label: &str,
     series: &[Series],
 ) -> anyhow::Result<()> {
+    write_images(dir, name, title, x_label, y_label, series)?;
+    write_csv(dir, name, x_label, series)
+}
+
+/// Writes `<dir>/<name>.svg` and `.png` only (the caller writes its own
+/// data file: `cargo xtask link capture`).
+pub fn write_images(
+    dir: &Path,
+    name: &str,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> anyhow::Result<()> {
     register_font();
     let svg = dir.join(format!("{name}.svg"));
     draw(
@@ -136,7 +150,7 @@ pub fn write_plot(
         series,
     )
     .with_context(|| format!("writing {}", png.display()))?;
-    write_csv(dir, name, x_label, series)
+    Ok(())
 }
 
 fn csv_name(s: &str) -> String {

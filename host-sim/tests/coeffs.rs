@@ -410,6 +410,16 @@ fn committed_tables_are_the_generators() {
         assert_eq!(embedded, &committed[..]);
         flip_all_bytes_detected(&committed);
     }
+    // The second part of the QEMU table-swap run (not embedded anywhere).
+    let toml = std::fs::read_to_string(format!("{ROOT}/tables/short-focus.toml")).unwrap();
+    let spec = Config::from_toml(&toml).unwrap().to_spec().unwrap();
+    let img = coeffgen::generate(&spec).unwrap().image().unwrap();
+    let committed = std::fs::read(format!("{ROOT}/tables/short-focus.zsct")).unwrap();
+    assert!(
+        img == committed,
+        "tables/short-focus.zsct is stale: regenerate it (see tables/short-focus.toml)"
+    );
+    assert!(zslide::config::check_table(&committed).is_ok());
     let legacy = CoeffTable::parse(zslide::LEGACY4_TABLE).unwrap();
     assert_eq!(
         (legacy.representation(), legacy.terms()),

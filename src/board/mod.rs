@@ -4,6 +4,7 @@
 
 pub mod clocks;
 pub mod gpio;
+pub mod link;
 pub mod spi;
 pub mod timers;
 

@@ -462,7 +462,8 @@ fn invert3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
 }
 
 /// A design parameter out of its range (named for the `[servo]` field).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum DesignError {
     Rate,
     Slide,

@@ -20,7 +20,14 @@ use crate::{cargo, root, step, Result};
 
 /// The targets, in the order they run: the `[[bin]]` names of
 /// `fuzz/Cargo.toml` (a test checks the two lists agree).
-pub const TARGETS: [&str; 5] = ["table_parse", "xpos", "spindle", "scenario", "geometry"];
+pub const TARGETS: [&str; 6] = [
+    "table_parse",
+    "xpos",
+    "spindle",
+    "scenario",
+    "geometry",
+    "link_frame",
+];
 
 /// Seconds per target in `cargo xtask test`: enough to replay the corpus and
 /// mutate a few thousand inputs, small against the rest of the run.

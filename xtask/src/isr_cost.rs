@@ -19,12 +19,15 @@ use std::time::Instant;
 use crate::elf::{self, Symbol};
 
 /// What to measure: report name, and a predicate on symbol names.
-const TARGETS: [(&str, &str); 5] = [
+const TARGETS: [(&str, &str); 6] = [
     // The firmware's entry points (monomorphised in the QEMU image): the
     // loop tick with its converter drivers, the legacy X event, the index.
     ("loop_tick", "9LoopState9loop_tick"),
     ("x_event", "10EventState7x_event"),
     ("index_event", "10EventState11index_event"),
+    // The host link's part of the loop tick (zslide::link::tap), called by
+    // the board right after loop_tick: not inside the loop_tick count.
+    ("link_tap", "7TickTap10after_tick"),
     // The whole timer handlers: timer 0 = loop tick plus the slide model's
     // step (the simulated world, not firmware) and the board glue; timer 1 =
     // the synthetic machine's event playback around x_event/index_event.
@@ -81,15 +84,17 @@ pub struct Args {
 }
 
 /// Report names `--profile` accepts: each target in each variant.
-const REPORTS: [&str; 10] = [
+const REPORTS: [&str; 12] = [
     "loop_tick",
     "x_event",
     "index_event",
+    "link_tap",
     "TIMER0_handler_with_plant",
     "TIMER1_handler_with_machine",
     "loop_tick_modern",
     "x_event_modern",
     "index_event_modern",
+    "link_tap_modern",
     "TIMER0_handler_with_plant_modern",
     "TIMER1_handler_with_machine_modern",
 ];

@@ -25,7 +25,9 @@
 mod elf;
 mod fuzz;
 mod isr_cost;
+mod link;
 mod nopanic;
+mod regions;
 mod replay;
 mod trace;
 mod watchdog;
@@ -81,6 +83,22 @@ enum Cmd {
     /// A board's decoded defmt log with trace events as a VCD (the
     /// simulator's signal names).
     Trace2vcd(trace::Args),
+    /// Talk to the firmware's host link: status, faults, arm, disarm,
+    /// clear, set/get/params, capture (docs/BOARD.md).
+    Link(link::Args),
+    /// Run the QEMU image as a link session on a Unix socket (for `link`).
+    QemuLink(link::SessionArgs),
+    /// Check a coefficient table and write it to the NUCLEO's table region
+    /// with probe-rs (no rebuild).
+    FlashTable(regions::FlashArgs),
+    /// Check a servo parameter block and write it to the NUCLEO's
+    /// parameter region with probe-rs.
+    FlashParams(regions::FlashArgs),
+    /// Write a servo parameter block file.
+    ParamBlock(regions::ParamBlockArgs),
+    /// The QEMU table-region runs and the host-link end-to-end test of
+    /// `cargo xtask test`, alone.
+    LinkTest,
 }
 
 fn main() -> ExitCode {
@@ -93,6 +111,12 @@ fn main() -> ExitCode {
         Cmd::NoPanic => cmd_no_panic(),
         Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
         Cmd::Trace2vcd(args) => trace::run(&args),
+        Cmd::Link(args) => link::run(&args),
+        Cmd::QemuLink(args) => link::run_session(&args),
+        Cmd::FlashTable(args) => regions::flash_table(&args),
+        Cmd::FlashParams(args) => regions::flash_params(&args),
+        Cmd::ParamBlock(args) => regions::param_block(&args),
+        Cmd::LinkTest => cmd_link_test(),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -361,9 +385,54 @@ fn build_qemu() -> Result<()> {
     )
 }
 
-/// The QEMU command line, the same as the runner in boards/qemu/.cargo.
+/// The default coefficient table's file (what the QEMU runs load into
+/// the table region unless told otherwise).
+pub fn default_table_path() -> PathBuf {
+    root().join("tables/default.zsct")
+}
+
+/// What QEMU's loader writes into the image's flash regions
+/// (`boards/qemu/memory.x`).
+pub struct QemuRegions<'a> {
+    pub table: Option<&'a Path>,
+    pub params: Option<&'a Path>,
+}
+
+/// The QEMU command line, the same as the runner in boards/qemu/.cargo,
+/// with the default table in the table region.
 pub fn qemu_command(elf: &Path) -> Command {
+    let table = default_table_path();
+    qemu_command_with(
+        elf,
+        &QemuRegions {
+            table: Some(&table),
+            params: None,
+        },
+        "null",
+        "enable=on,target=native",
+    )
+}
+
+/// [`qemu_command`] with other region contents, UART0 (`-serial`) and
+/// semihosting configuration.
+pub fn qemu_command_with(
+    elf: &Path,
+    regions: &QemuRegions,
+    serial: &str,
+    semihosting: &str,
+) -> Command {
     let mut cmd = Command::new("qemu-system-arm");
+    for (file, addr) in [
+        (regions.table, regions::QEMU.table_addr),
+        (regions.params, regions::QEMU.params_addr),
+    ] {
+        if let Some(f) = file {
+            let mut arg = std::ffi::OsString::from("loader,file=");
+            arg.push(f);
+            arg.push(format!(",addr={addr:#x},force-raw=on"));
+            cmd.arg("-device").arg(arg);
+        }
+    }
     cmd.args([
         "-machine",
         "mps2-an386",
@@ -373,9 +442,9 @@ pub fn qemu_command(elf: &Path) -> Command {
         "-monitor",
         "none",
         "-serial",
-        "null",
+        serial,
         "-semihosting-config",
-        "enable=on,target=native",
+        semihosting,
         "-icount",
         "shift=0,sleep=off",
         "-kernel",
@@ -408,15 +477,32 @@ fn wait_timeout(
 
 /// Runs the QEMU image with its log decoded; returns (exit code, log lines).
 fn run_qemu() -> Result<(u8, Vec<String>)> {
-    step("QEMU run: qemu-system-arm -machine mps2-an386 | defmt-print");
-    run_qemu_with(&qemu_elf(), &[])
+    run_qemu_with(Some(&default_table_path()))
 }
 
-/// Runs `elf` under QEMU (with `extra` arguments) with its log decoded and
-/// shown; returns (exit code, log lines).
-pub fn run_qemu_with(elf: &Path, extra: &[&str]) -> Result<(u8, Vec<String>)> {
+/// [`run_qemu`] with `table` (or nothing) in the table region.
+pub fn run_qemu_with(table: Option<&Path>) -> Result<(u8, Vec<String>)> {
+    step(&format!(
+        "QEMU run: qemu-system-arm -machine mps2-an386 | defmt-print; table region: {}",
+        table.map_or("empty".into(), |t| t.display().to_string())
+    ));
+    let regions = QemuRegions {
+        table,
+        params: None,
+    };
+    run_qemu_elf(&qemu_elf(), &regions, &[])
+}
+
+/// Runs `elf` under QEMU with `regions` loaded and `extra` arguments (the
+/// replay image's recording loader, say), its log decoded and shown;
+/// returns (exit code, log lines).
+pub fn run_qemu_elf(
+    elf: &Path,
+    regions: &QemuRegions,
+    extra: &[&str],
+) -> Result<(u8, Vec<String>)> {
     let elf = elf.to_path_buf();
-    let mut qemu = qemu_command(&elf)
+    let mut qemu = qemu_command_with(&elf, regions, "null", "enable=on,target=native")
         .args(extra)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -511,6 +597,18 @@ fn cmd_qemu(bless: bool) -> Result<u8> {
         eprintln!("QEMU watchdog: {summary}");
     }
     Ok(code)
+}
+
+fn cmd_link_test() -> Result<u8> {
+    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])?;
+    build_qemu()?;
+    let (code, lines) = run_qemu()?;
+    if code != 0 {
+        return Err(format!("the QEMU image exited with status {code}"));
+    }
+    let n = regions::qemu_table_checks(&lines)? + link::end_to_end()?;
+    eprintln!("{n} passed, 0 failed");
+    Ok(0)
 }
 
 fn cmd_size() -> Result<u8> {
@@ -668,6 +766,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     let mut qemu_code = None;
     let mut replay_line = None;
     let mut watchdog_line = None;
+    let mut board_checks = 0u64;
     if qemu_possible {
         let (code, lines) = run_qemu()?;
         if code != 0 {
@@ -675,6 +774,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
+        board_checks += u64::from(regions::qemu_table_checks(&lines)?);
+        board_checks += u64::from(link::end_to_end()?);
         replay_line = Some(replay::check()?);
         watchdog_line = Some(watchdog::check()?);
     }
@@ -728,6 +829,9 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             None => "NOT RUN",
         }
     );
+    if qemu_code.is_some() {
+        eprintln!("QEMU table region and host link end to end: {board_checks} checks passed");
+    }
     eprintln!(
         "QEMU replay: {}",
         replay_line.as_deref().unwrap_or("NOT RUN")
@@ -752,7 +856,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     // last libtest line above is a doc-test run that may count zero.
     eprintln!(
         "tests: {} passed, {} failed, {ignored} skipped",
-        passed + fuzz_passed,
+        passed + fuzz_passed + board_checks,
         failed + fuzz_failed
     );
     Ok(code)
@@ -780,6 +884,24 @@ mod tests {
             &["no-panic"],
             &["fuzz", "--seconds", "1"],
             &["trace2vcd", "run.log", "--out", "run.vcd"],
+            &["link", "status"],
+            &["link", "--connect", "unix:/tmp/s", "faults"],
+            &["link", "set", "bandwidth_hz", "40"],
+            &[
+                "link",
+                "capture",
+                "--samples",
+                "10",
+                "--trigger",
+                "fault",
+                "--csv",
+                "c.csv",
+            ],
+            &["qemu-link"],
+            &["link-test"],
+            &["flash-table", "t.zsct"],
+            &["flash-params", "p.zspb", "--dry-run"],
+            &["param-block", "--set", "damping=1", "--out", "p.zspb"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();
@@ -826,6 +948,50 @@ mod tests {
         assert_eq!(
             parse(&["test", "--fuzz-seconds", "-1"]).err(),
             Some(ErrorKind::UnknownArgument)
+        );
+        assert_eq!(
+            parse(&[
+                "link",
+                "capture",
+                "--samples",
+                "0",
+                "--trigger",
+                "fault",
+                "--csv",
+                "c"
+            ])
+            .err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&[
+                "link",
+                "capture",
+                "--samples",
+                "9",
+                "--trigger",
+                "often",
+                "--csv",
+                "c"
+            ])
+            .err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["link", "set", "damping", "much"]).err(),
+            Some(ErrorKind::ValueValidation)
+        );
+        assert_eq!(
+            parse(&["link", "reboot"]).err(),
+            Some(ErrorKind::InvalidSubcommand)
+        );
+        assert_eq!(
+            parse(&["flash-table"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
+        );
+        assert_eq!(
+            parse(&["param-block", "--out", "p"]).err(),
+            Some(ErrorKind::MissingRequiredArgument)
         );
     }
 

@@ -8,7 +8,9 @@
 //! B, B<c>, CBZ/CBNZ leaving the function), starts from every handler in the
 //! vector table except Reset (boot code, thread mode) and HardFault (the
 //! last-resort fault path: it makes the outputs safe before anything else),
-//! and fails if any panicking function is reachable.
+//! and fails if any panicking function is reachable. One thread-mode
+//! function is held to the same rule: the host link's service
+//! (`Station::poll`), which takes whatever bytes a host sends.
 //!
 //! Indirect calls (BLX Rm, BX Rm other than LR, MOV PC / LDR PC) cannot be
 //! followed, so they are over-approximated: a reachable function that makes
@@ -301,11 +303,36 @@ pub fn handler_roots(img: &Image, g: &Graph) -> Result<Vec<(usize, usize)>, Stri
     Ok(roots)
 }
 
+/// Thread-mode functions held to the same rule as the handlers: the host
+/// link's service (`zslide::link::station::Station::poll`), which takes
+/// whatever bytes the host sends. Matched on the mangled name's path parts.
+const THREAD_ROOTS: [[&str; 2]; 1] = [["7station", "4poll"]];
+
+/// (0, function) for each [`THREAD_ROOTS`] function in the image.
+fn thread_roots(g: &Graph) -> Vec<(usize, usize)> {
+    (0..g.funcs.len())
+        .filter(|&f| {
+            THREAD_ROOTS
+                .iter()
+                .any(|parts| parts.iter().all(|p| g.funcs[f].name.contains(p)))
+        })
+        .map(|f| (0, f))
+        .collect()
+}
+
 /// Checks one image; Ok(summary) or Err(the panic paths found).
 pub fn check(path: &Path) -> Result<String, String> {
     let img = elf::image(path)?;
     let g = graph(&img);
-    let roots = handler_roots(&img, &g)?;
+    let mut roots = handler_roots(&img, &g)?;
+    let thread = thread_roots(&g);
+    if thread.is_empty() {
+        return Err(format!(
+            "{}: the host link's Station::poll is not in the image as a function",
+            path.display()
+        ));
+    }
+    roots.extend(thread);
     let mut bad = Vec::new();
     for &(v, r) in &roots {
         if let Some(path) = g.panic_path(r) {

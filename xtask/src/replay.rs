@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::{cargo, elf, root, run_qemu_with, step, target_dir, Result, TARGET};
+use crate::{cargo, elf, root, run_qemu_elf, step, target_dir, QemuRegions, Result, TARGET};
 
 /// The replay image.
 pub fn replay_elf() -> PathBuf {
@@ -111,7 +111,12 @@ fn play(recording: &Path) -> Result<(u8, Vec<String>)> {
         "loader,file={},addr={addr:#x},force-raw=on",
         recording.display()
     );
-    run_qemu_with(&elf_path, &["-device", &loader])
+    // The recording carries its own table; the table region stays empty.
+    let regions = QemuRegions {
+        table: None,
+        params: None,
+    };
+    run_qemu_elf(&elf_path, &regions, &["-device", &loader])
 }
 
 /// Records, replays (must be bit-exact), replays the altered recording

@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use crate::{run_qemu_with, step, target_dir, Result, TARGET};
+use crate::{run_qemu_elf, step, target_dir, QemuRegions, Result, TARGET};
 
 pub fn watchdog_elf() -> PathBuf {
     target_dir()
@@ -18,7 +18,12 @@ pub fn watchdog_elf() -> PathBuf {
 /// Runs the image; returns the summary line.
 pub fn check() -> Result<String> {
     step("QEMU watchdog: zslide-qemu-watchdog (a hang of each handler)");
-    let (code, lines) = run_qemu_with(&watchdog_elf(), &[])?;
+    // The image builds its firmware from the built-in table.
+    let regions = QemuRegions {
+        table: None,
+        params: None,
+    };
+    let (code, lines) = run_qemu_elf(&watchdog_elf(), &regions, &[])?;
     let caught = lines
         .iter()
         .filter(|l| l.contains("watchdog expired"))

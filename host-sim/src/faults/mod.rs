@@ -261,7 +261,7 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
                 max_excursion_uin: None,
                 excursion_before_uin: None,
                 safe_state: None,
-                reason: "not applicable: no host link yet".into(),
+                reason: "not applicable in the simulator: the link is tested with malformed frames in tests/link.rs and end to end in QEMU".into(),
                 time_to_safe_ms: None,
                 injected_at_s: None,
             },

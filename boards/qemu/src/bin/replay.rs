@@ -3,7 +3,7 @@
 //! firmware's own entry points and converter drivers
 //! (`zslide_replay::play_run`), every frame, LDAC level, amplifier enable,
 //! fault and X-event result compared with host-sim's. The recording is in
-//! the last MiB of the emulated flash (`memory.x`: `__replay_start`), put
+//! the last 448 KiB of the emulated flash (`memory.x`: `__replay_start`), put
 //! there by QEMU's loader (`cargo xtask qemu`).
 //!
 //! Logs one line per run and exits (semihosting) with status 0 only when
@@ -29,7 +29,7 @@ extern "C" {
 #[entry]
 fn main() -> ! {
     // SAFETY: `__replay_start` and `__replay_len` are defined by memory.x:
-    // the first is the start of the 1 MiB REPLAY region of the emulated
+    // the first is the start of the 448 KiB REPLAY region of the emulated
     // flash, the second's address is that region's length. The region is
     // not part of the image's sections, nothing writes it while the image
     // runs, and QEMU backs it with memory (zeros when no recording was
