@@ -292,9 +292,13 @@ mod app {
         let Some(l) = LOOP.as_mut() else {
             return;
         };
+        // The encoder first, then the clock: `now` is then never before
+        // the captured edge of the count read (an edge between the two
+        // reads would otherwise look 2³² ticks old, a stall).
+        let spindle = SpindleReading::Encoder(l.spindle.sample());
         let input = TickInput {
             now: timers::now_ticks(),
-            spindle: SpindleReading::Encoder(l.spindle.sample()),
+            spindle,
             x_count: 0,
             amplifier_fault: pins::AMP_FAULT.is_high(),
         };

@@ -454,10 +454,12 @@ impl FirmwareWorld {
         });
     }
 
-    /// The loop-tick interrupt: CNV (hardware, on the timer), the hw-trait
-    /// readings at this instant (clock, spindle encoder or tachometer, X
-    /// count), the firmware's loop tick through the drivers, then the
-    /// enable line.
+    /// The loop-tick interrupt, on the board's timing (`RigConfig`): the
+    /// loop-timer event is now; the gauge is sampled `adc_sample_ns` later
+    /// (CNV, hardware); the handler reads the clock, the spindle encoder or
+    /// tachometer and the X count `handler_entry_ns` after the event, runs
+    /// the firmware's loop tick through the drivers (its DAC frame ends
+    /// `dac_latency_ns` after the event), then sets the enable line.
     #[inline]
     pub fn tick(&mut self) {
         // The machine's physics runs whatever the MCU does.
@@ -467,7 +469,16 @@ impl FirmwareWorld {
         if self.cpu != Cpu::Running {
             return;
         }
+        let t_event = self.rig.time.get();
+        if self.rig.adc_sample_ns > 0 {
+            // No input change falls inside: the last DAC frame ended a
+            // period earlier at most (`loop.dac_latency_ns` ≤ period).
+            self.rig.advance_to(t_event + self.rig.adc_sample_ns);
+        }
         self.rig.cnv();
+        // The handler runs at its read instant (the DAC frame is timed
+        // from there, `Rig::new`).
+        self.rig.time.set(t_event + self.rig.handler_entry_ns);
         let mut input = TickInput::NONE;
         // The amplifier's fault line, as the board reads it.
         input.amplifier_fault = self.rig.amp.tripped();
@@ -505,12 +516,15 @@ impl FirmwareWorld {
         // With the 1983 loop driving, the firmware does not own the enable.
         let on = self.fw.amplifier_enable() || self.analog.is_some();
         if on != self.rig.enable.state.borrow().enable {
+            // The pin is written after the handler's DAC frame.
+            self.rig.time.set(t_event + self.rig.dac_latency_ns);
             let _ = if on {
                 self.enable.set_high()
             } else {
                 self.enable.set_low()
             };
         }
+        self.rig.time.set(t_event);
     }
 
     /// The half-mil interrupt: the latch was loaded at the edge; the

@@ -15,15 +15,19 @@
 //! count. What runs ahead: a change of spindle load (sag) reaches the model
 //! up to one window late (1 ms by default, against a 200 ms revolution).
 //!
-//! # Encoder edges
+//! # Encoder edges and the index, as the board captures them
 //! Encoder edges are not interrupts on the target: a timer in encoder mode
-//! counts them. What the edge timestamp is depends on the board
-//! (`zslide::spindle::EdgeStamps`, the firmware is told the same): with input capture, the last edge's time in hardware
-//! (`Captured`: the [`SimSpindleEncoder`] gives the exact edge time); the
-//! NUCLEO's code today reads the count at each loop tick and stamps a
-//! change with the read time (`AtRead`: the simulator does exactly that,
-//! so the firmware's 1/T estimator sees no better times than on the
-//! board).
+//! counts them, behind an input filter (`SpindleConfig::capture_delay_ns`:
+//! the count read at time t is the true count at t − delay). What the edge
+//! timestamp is depends on the board (`zslide::spindle::EdgeStamps`, the
+//! firmware is told the same): the NUCLEO captures every edge of both
+//! lines on its free-running clock (`Captured`: the stamp is
+//! ⌊(t_edge + delay)·f_clock⌋, `SpindleConfig::capture_ticks`, so the
+//! clock's resolution and the filter are both paid); a board without
+//! capture wiring stamps a changed count with the clock at the read
+//! (`AtRead`). The index is captured the same way (time on the clock,
+//! count on the encoder timer, `IndexPulse`). Nothing the firmware gets
+//! is earlier or finer than the board's registers.
 
 use super::spindle::{IndexPulse, Spindle, SpindleConfig};
 use super::xslide::{XInterrupt, XSlide, XSlideConfig};
@@ -47,7 +51,7 @@ struct Snap {
     t_ns: u64,
     turns: f64,
     rpm: f64,
-    last_edge_ticks: u32,
+    last_edge_ns: f64,
 }
 
 /// The spindle model run ahead of simulation time, with the grid states
@@ -72,7 +76,7 @@ impl SpindleLink {
             t_ns: 0,
             turns: model.turns(),
             rpm: model.rpm(),
-            last_edge_ticks: model.last_edge_ticks(),
+            last_edge_ns: model.last_edge_ns(),
         };
         Self {
             model,
@@ -104,7 +108,7 @@ impl SpindleLink {
                 t_ns: t,
                 turns: self.model.turns(),
                 rpm: self.model.rpm(),
-                last_edge_ticks: self.model.last_edge_ticks(),
+                last_edge_ns: self.model.last_edge_ns(),
             });
         }
         // A spurious pulse is drawn after the true one of the same step.
@@ -124,16 +128,25 @@ impl SpindleLink {
     }
 
     /// The grid states around `t_ns` (scanning ahead if needed), dropping
-    /// the ones no later read can need.
+    /// the ones no later read can need. Reads may trail the latest one by
+    /// up to a model step (the loop handler reads the spindle after its
+    /// event, the cut and the reports read at the event), so one step
+    /// behind it is kept.
     fn around(&mut self, t_ns: u64) -> (Snap, Snap) {
         while self.model.time_ns() < t_ns {
             self.scan();
         }
-        while self.hist.len() > 2 && self.hist.get(1).is_some_and(|s| s.t_ns <= t_ns) {
+        let keep_from = t_ns.saturating_sub(self.step_ns);
+        while self.hist.len() > 2 && self.hist.get(1).is_some_and(|s| s.t_ns <= keep_from) {
             self.hist.pop_front();
         }
-        let a = self.hist[0];
-        let b = self.hist.get(1).copied().unwrap_or(a);
+        let i = usize::from(self.hist.len() > 2 && self.hist[1].t_ns <= t_ns);
+        let a = self.hist[i];
+        debug_assert!(
+            a.t_ns <= t_ns,
+            "spindle read at {t_ns} ns, more than a step behind an earlier read"
+        );
+        let b = self.hist.get(i + 1).copied().unwrap_or(a);
         (a, b)
     }
 
@@ -161,8 +174,9 @@ impl SpindleLink {
         a.rpm + (b.rpm - a.rpm) * f
     }
 
-    /// The encoder counter and its captured last-edge timestamp at `t_ns`.
-    pub fn encoder_at(&mut self, t_ns: u64) -> EncoderSample {
+    /// The encoder's true count at `t_ns` and the exact time of the edge
+    /// that made it, ns.
+    pub fn encoder_at(&mut self, t_ns: u64) -> (u32, f64) {
         let (a, b) = self.around(t_ns);
         let cpr = self.cpr();
         let now = if b.t_ns == a.t_ns {
@@ -172,19 +186,15 @@ impl SpindleLink {
         };
         let count = |turns: f64| (turns * cpr).floor() as i64;
         let c_now = count(now);
-        let edge_ticks = if c_now == count(a.turns) || b.turns == a.turns {
-            a.last_edge_ticks
+        let edge_ns = if c_now == count(a.turns) || b.turns == a.turns {
+            a.last_edge_ns
         } else {
             // The last boundary crossed, placed as the model places events.
             let edge = c_now as f64 / cpr;
             let f = ((edge - a.turns) / (b.turns - a.turns)).clamp(0.0, 1.0);
-            let t = a.t_ns + ((b.t_ns - a.t_ns) as f64 * f) as u64;
-            self.model.ticks_at(t)
+            a.t_ns as f64 + (b.t_ns - a.t_ns) as f64 * f
         };
-        EncoderSample {
-            count: c_now as u32,
-            edge_ticks,
-        }
+        (c_now as u32, edge_ns)
     }
 
     /// The tachometer at `t_ns`: 1 mV quantisation, gain error, uniform
@@ -206,7 +216,12 @@ impl SpindleLink {
 /// devices read the same model).
 pub type SharedSpindle = Rc<RefCell<SpindleLink>>;
 
-/// `zslide::hw::Encoder` for the spindle encoder, read at simulation time.
+/// `zslide::hw::Encoder` for the spindle encoder, read at simulation time
+/// (the loop handler's read instant), as the board presents it: the
+/// counter behind the input filter (the count `capture_delay_ns` late), and
+/// either every edge captured on the clock (`Captured`: the NUCLEO's TIM2
+/// CH3/CH4 on both edges of A and B) or a change stamped with the clock at
+/// the read (`AtRead`: a board without capture wiring).
 #[derive(Clone)]
 pub struct SimSpindleEncoder {
     pub link: SharedSpindle,
@@ -220,15 +235,20 @@ impl Encoder for SimSpindleEncoder {
     fn sample(&mut self) -> EncoderSample {
         let t = self.time.get();
         let mut link = self.link.borrow_mut();
-        let s = link.encoder_at(t);
+        let cfg = link.model().config();
+        let (delay, tps) = (cfg.capture_delay_ns, cfg.ticks_per_s);
+        let (count, edge_ns) = link.encoder_at(t.saturating_sub(delay));
         match self.edges {
-            EdgeStamps::Captured => s,
+            EdgeStamps::Captured => EncoderSample {
+                count,
+                edge_ticks: link.model().config().capture_ticks(edge_ns),
+            },
             EdgeStamps::AtRead => match self.last {
-                Some(l) if l.count == s.count => l,
+                Some(l) if l.count == count => l,
                 _ => {
                     let l = EncoderSample {
-                        count: s.count,
-                        edge_ticks: link.model().ticks_at(t),
+                        count,
+                        edge_ticks: ticks_at(t, tps as u64),
                     };
                     self.last = Some(l);
                     l

@@ -29,6 +29,11 @@ pub struct RigConfig {
     pub dac_latency_ns: u64,
     /// Rate of the firmware's free-running clock, Hz.
     pub clock_hz: u64,
+    /// Loop-tick event to the gauge's sampling instant, ns.
+    pub adc_sample_ns: u64,
+    /// Loop-tick event to the handler's reads (clock, spindle, X), ns;
+    /// ≥ `adc_sample_ns`, ≤ `dac_latency_ns`.
+    pub handler_entry_ns: u64,
 }
 
 impl RigConfig {
@@ -41,6 +46,8 @@ impl RigConfig {
             seed,
             dac_latency_ns: 0,
             clock_hz: 100_000_000,
+            adc_sample_ns: 0,
+            handler_entry_ns: 0,
         }
     }
     /// Same motor and slide, low-noise gauge.
@@ -64,6 +71,12 @@ pub struct Rig {
     pub quad: SimAd5686,
     pub enable: SimAmpEnablePin,
     pub clock_hz: u64,
+    /// Loop-tick event to the gauge's sampling instant and to the
+    /// handler's reads, ns (`RigConfig`).
+    pub adc_sample_ns: u64,
+    pub handler_entry_ns: u64,
+    /// Loop-tick event to the end of the DAC frame, ns (`RigConfig`).
+    pub dac_latency_ns: u64,
     /// Amplifier input now applied, V.
     pub v_in: f64,
     /// External (cutting) force now applied along +Z, lbf.
@@ -80,7 +93,10 @@ impl Rig {
     pub fn new(cfg: RigConfig) -> Self {
         let time: SimTime = Rc::new(Cell::new(0));
         let dac = SimAd5791::new(time.clone());
-        dac.state.borrow_mut().latency_ns = cfg.dac_latency_ns;
+        // The DAC frame is timed from the handler's reads (the simulated
+        // clock stands there while the handler runs).
+        let handler_entry_ns = cfg.handler_entry_ns.min(cfg.dac_latency_ns);
+        dac.state.borrow_mut().latency_ns = cfg.dac_latency_ns - handler_entry_ns;
         Self {
             slide: ZSlide::new(cfg.slide),
             amp: Amplifier::new(cfg.amplifier),
@@ -90,6 +106,9 @@ impl Rig {
             quad: SimAd5686::new(),
             enable: SimAmpEnablePin::new(time.clone()),
             clock_hz: cfg.clock_hz,
+            adc_sample_ns: cfg.adc_sample_ns.min(handler_entry_ns),
+            handler_entry_ns,
+            dac_latency_ns: cfg.dac_latency_ns,
             time,
             t_ns: 0,
             v_in: 0.0,
