@@ -29,9 +29,87 @@ pub fn round_i32(x: f64) -> i32 {
     round_i64(x).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
+/// `x.floor() as i64` (saturating, NaN → 0), bit for bit: `floor` is a
+/// software routine on the baseline target too.
+#[inline]
+pub fn floor_i64(x: f64) -> i64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let t = x as i64;
+        if (t as f64) > x {
+            t - 1
+        } else {
+            t
+        }
+    } else {
+        x.floor() as i64
+    }
+}
+
+/// `x.rem_euclid(1.0)`, bit for bit (the sign of a zero included), without
+/// the software `fmod` the std form calls: below 2⁵² the fraction
+/// `x − trunc(x)` is exact and is what `fmod(x, 1)` returns, with `x`'s sign.
+#[inline]
+pub fn frac(x: f64) -> f64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let r = (x - (x as i64) as f64).copysign(x);
+        if r < 0.0 {
+            r + 1.0
+        } else {
+            r
+        }
+    } else {
+        x.rem_euclid(1.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{round_i32, round_i64};
+    use super::{floor_i64, frac, round_i32, round_i64};
+
+    #[test]
+    fn floor_and_frac_equal_std_bit_for_bit() {
+        let mut cases = vec![
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            -3.0,
+            0.5,
+            -0.5,
+            1e-300,
+            -1e-300,
+            -1e-20,
+            0.999_999_999_999_999_9,
+            -0.999_999_999_999_999_9,
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            4_503_599_627_370_496.0,
+            -4_503_599_627_370_497.0,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        let mut x = -70.0f64;
+        while x < 70.0 {
+            cases.extend([x, x.next_up(), x.next_down()]);
+            x += 0.0625;
+        }
+        let mut g = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..100_000 {
+            g = g.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            cases.push(f64::from_bits(g) % 1e6);
+        }
+        for x in cases {
+            assert_eq!(floor_i64(x), x.floor() as i64, "floor x = {x:e}");
+            let (a, b) = (frac(x), x.rem_euclid(1.0));
+            assert!(
+                a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                "frac x = {x:e}: {a:e} vs {b:e}"
+            );
+        }
+    }
 
     #[test]
     fn equals_std_round_at_the_edges() {

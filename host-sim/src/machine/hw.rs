@@ -61,6 +61,9 @@ pub struct SpindleLink {
     step_ns: u64,
     window_ns: u64,
     hist: VecDeque<Snap>,
+    /// The grid step [a, b) that answered the last read: the next reads
+    /// (several a tick, ticks 50 µs apart, steps 250 µs) mostly fall in it.
+    seg: (Snap, Snap),
     pending: VecDeque<IndexPulse>,
     scratch: Vec<IndexPulse>,
     tach_rng: ChaCha8Rng,
@@ -83,6 +86,7 @@ impl SpindleLink {
             step_ns: step_ns.max(1),
             window_ns: window_ns.max(step_ns.max(1)),
             hist: VecDeque::from([first]),
+            seg: (first, first),
             pending: VecDeque::new(),
             scratch: Vec::new(),
             tach_rng,
@@ -132,7 +136,17 @@ impl SpindleLink {
     /// up to a model step (the loop handler reads the spindle after its
     /// event, the cut and the reports read at the event), so one step
     /// behind it is kept.
+    #[inline]
     fn around(&mut self, t_ns: u64) -> (Snap, Snap) {
+        let (a, b) = self.seg;
+        if a.t_ns <= t_ns && t_ns < b.t_ns {
+            return self.seg;
+        }
+        self.around_slow(t_ns)
+    }
+
+    #[inline(never)]
+    fn around_slow(&mut self, t_ns: u64) -> (Snap, Snap) {
         while self.model.time_ns() < t_ns {
             self.scan();
         }
@@ -147,6 +161,7 @@ impl SpindleLink {
             "spindle read at {t_ns} ns, more than a step behind an earlier read"
         );
         let b = self.hist.get(i + 1).copied().unwrap_or(a);
+        self.seg = (a, b);
         (a, b)
     }
 
@@ -184,7 +199,7 @@ impl SpindleLink {
         } else {
             a.turns + (b.turns - a.turns) * (t_ns - a.t_ns) as f64 / (b.t_ns - a.t_ns) as f64
         };
-        let count = |turns: f64| (turns * cpr).floor() as i64;
+        let count = |turns: f64| crate::fastmath::floor_i64(turns * cpr);
         let c_now = count(now);
         let edge_ns = if c_now == count(a.turns) || b.turns == a.turns {
             a.last_edge_ns

@@ -61,8 +61,10 @@ impl SpindleConfig {
     /// count when the filtered edge reaches the timer, ⌊(t + delay)·f⌋,
     /// wrapping at 2³² (the timer counts 0, 1, … from t = 0).
     pub fn capture_ticks(&self, t_ns: f64) -> u32 {
-        let ticks = ((t_ns + self.capture_delay_ns as f64) * 1e-9 * self.ticks_per_s).floor();
-        (ticks as u64) as u32
+        let ticks = crate::fastmath::floor_i64(
+            (t_ns + self.capture_delay_ns as f64) * 1e-9 * self.ticks_per_s,
+        );
+        ticks as u32
     }
 }
 
@@ -181,12 +183,12 @@ impl Spindle {
 
     /// The free-running clock's count at `t_ns` (as the firmware reads it).
     pub fn ticks_at(&self, t_ns: u64) -> u32 {
-        ((t_ns as f64 * 1e-9 * self.cfg.ticks_per_s).floor() as u64) as u32
+        crate::fastmath::floor_i64(t_ns as f64 * 1e-9 * self.cfg.ticks_per_s) as u32
     }
 
     /// Encoder count of a total angle.
     fn count_of(&self, turns: f64) -> u32 {
-        ((turns * f64::from(self.cfg.encoder_cpr)).floor() as i64) as u32
+        crate::fastmath::floor_i64(turns * f64::from(self.cfg.encoder_cpr)) as u32
     }
 
     /// The encoder as a board capturing every edge presents it now (the
@@ -239,11 +241,11 @@ impl Spindle {
             // Encoder edge: the last count boundary crossed in the step.
             let cpr = f64::from(self.cfg.encoder_cpr);
             if self.count_of(a1) != self.count_of(a0) {
-                let edge_turns = (a1 * cpr).floor() / cpr;
+                let edge_turns = crate::fastmath::floor_i64(a1 * cpr) as f64 / cpr;
                 self.last_edge_ns = at(edge_turns);
             }
             // True index: each whole turn crossed.
-            let mut k = a0.floor() + 1.0;
+            let mut k = crate::fastmath::floor_i64(a0) as f64 + 1.0;
             while k <= a1 {
                 if !self
                     .rng

@@ -236,8 +236,10 @@ pub struct ZSlide {
     /// search walks 16-byte entries.
     keys: Vec<(u64, bool)>,
     mats: Vec<Mats>,
-    /// Entry used last (the usual hit: the loop period).
+    /// Entries used last and the one before (a loop period is split in two
+    /// steps at the DAC frame, so the usual hits alternate between them).
     mru: usize,
+    mru2: usize,
     /// Next entry to replace when full (round robin).
     evict: usize,
     /// Entries whose step is not a power of two.
@@ -267,6 +269,7 @@ impl ZSlide {
             keys: Vec::with_capacity(CACHE_SIZE),
             mats: Vec::with_capacity(CACHE_SIZE),
             mru: 0,
+            mru2: 0,
             evict: 0,
             odd: 0,
             misses: 0,
@@ -282,6 +285,8 @@ impl ZSlide {
         let key = (dt_ns, current_held);
         let idx = if self.keys.get(self.mru) == Some(&key) {
             self.mru
+        } else if self.keys.get(self.mru2) == Some(&key) {
+            self.mru2
         } else if let Some(p) = self.keys.iter().position(|k| *k == key) {
             p
         } else if !dt_ns.is_power_of_two() && self.odd >= ODD_MAX {
@@ -311,7 +316,10 @@ impl ZSlide {
                 p
             }
         };
-        self.mru = idx;
+        if idx != self.mru {
+            self.mru2 = self.mru;
+            self.mru = idx;
+        }
         apply_fixed(&mut self.x, &self.mats[idx], [e_m, f_ext]);
     }
 
