@@ -113,13 +113,30 @@ impl HoleRing {
         if d >= self.max_half_turns {
             return 1.0;
         }
+        // d ≥ acos(c)/2π ⟺ cos(2πd) ≤ c (cos falls on [0, π] and 2πd ≤
+        // π/count): one cosine a tick instead of an arccosine a sample.
+        let cos_d = libm::cos(TAU * d);
         let solid = (0..CHORD_SAMPLES)
             .filter(|&k| {
                 let r = r_lo + (r_hi - r_lo) * (k as f64 + 0.5) / CHORD_SAMPLES as f64;
-                d >= self.half_width_turns(r)
+                match self.half_width_cos(r) {
+                    Some(c) => cos_d <= c,
+                    None => true,
+                }
             })
             .count();
         solid as f64 / CHORD_SAMPLES as f64
+    }
+
+    /// cos of the angular half-width (radians) of a hole at radius `r`
+    /// (`None` off the holes' annulus).
+    fn half_width_cos(&self, r: f64) -> Option<f64> {
+        if (r - self.circle_r).abs() >= self.rho || r <= 0.0 {
+            return None;
+        }
+        let c = (r * r + self.circle_r * self.circle_r - self.rho * self.rho)
+            / (2.0 * r * self.circle_r);
+        Some(c.clamp(-1.0, 1.0))
     }
 }
 

@@ -33,7 +33,7 @@ use super::spindle::{IndexPulse, Spindle, SpindleConfig};
 use super::xslide::{XInterrupt, XSlide, XSlideConfig};
 use crate::chips::SimTime;
 use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand_xoshiro::Xoshiro256PlusPlus;
 use std::cell::{Cell, RefCell};
 use std::collections::VecDeque;
 use std::rc::Rc;
@@ -43,7 +43,7 @@ use zslide::spindle::EdgeStamps;
 /// Clock ticks at `t_ns` for a clock of `ticks_per_s` (wrapping at 2³²),
 /// the same rounding as [`crate::chips::SimClock`].
 pub fn ticks_at(t_ns: u64, ticks_per_s: u64) -> u32 {
-    (u128::from(t_ns) * u128::from(ticks_per_s) / 1_000_000_000) as u32
+    crate::chips::pins::clock_ticks(t_ns, ticks_per_s)
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -66,14 +66,14 @@ pub struct SpindleLink {
     seg: (Snap, Snap),
     pending: VecDeque<IndexPulse>,
     scratch: Vec<IndexPulse>,
-    tach_rng: ChaCha8Rng,
+    tach_rng: Xoshiro256PlusPlus,
 }
 
 impl SpindleLink {
     /// `step_ns`: the model's integration step (angle interpolated linearly
     /// inside it); `window_ns`: how far the model runs ahead per scan.
     pub fn new(cfg: SpindleConfig, step_ns: u64, window_ns: u64) -> Self {
-        let tach_rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x7AC4_0000);
+        let tach_rng = Xoshiro256PlusPlus::seed_from_u64(cfg.seed ^ 0x7AC4_0000);
         let model = Spindle::new(cfg);
         let first = Snap {
             t_ns: 0,
