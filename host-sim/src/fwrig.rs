@@ -216,21 +216,15 @@ impl Controller {
 
     /// Puts this controller in charge of the amplifier of a freshly built
     /// world: the digital loop is armed (sign check, then bumpless
-    /// engagement), the 1983 loop is attached with its analog substep.
-    pub fn attach(self, w: &mut FirmwareWorld, s: &mut Scheduler<FirmwareWorld>) {
+    /// engagement), the 1983 loop is attached (it runs inside the world's
+    /// advance: [`crate::analog1983::AnalogDrive`]).
+    pub fn attach(self, w: &mut FirmwareWorld, _s: &mut Scheduler<FirmwareWorld>) {
         match self {
             Controller::Digital => w.request(Request::Arm),
-            Controller::LegacyAnalog => {
-                w.use_legacy_analog();
-                s.add(WorldTick::analog_substep(ANALOG_SUBSTEP_NS));
-            }
+            Controller::LegacyAnalog => w.use_legacy_analog(),
         }
     }
 }
-
-/// Integration step of the 1983 analog loop, ns (200 kHz: its fastest pole
-/// is the lag's 0.5 ms zero; well resolved).
-pub const ANALOG_SUBSTEP_NS: Nanos = 5_000;
 
 /// Rig + the firmware with the core's drivers on the simulated chips.
 pub struct FirmwareWorld {
@@ -247,7 +241,7 @@ pub struct FirmwareWorld {
     pub hook: Option<Box<dyn TickHook>>,
     init_fault: Option<Fault>,
     /// The 1983 loop when it drives the amplifier ([`Controller::LegacyAnalog`]).
-    pub analog: Option<crate::analog1983::AnalogController>,
+    pub analog: Option<crate::analog1983::AnalogDrive>,
     /// What the MCU is doing: a board-level state the core has no notion
     /// of (a stalled loop-tick interrupt, a halted core), set by the fault
     /// campaign's board models (`faults::board`).
@@ -270,7 +264,15 @@ pub enum Cpu {
 impl World for FirmwareWorld {
     #[inline]
     fn advance_to(&mut self, t: Nanos) {
-        self.rig.advance_to(t);
+        match self.analog.as_mut() {
+            None => self.rig.advance_to(t),
+            Some(a) => {
+                // Its reference: the firmware's command, V = mil.
+                let code = self.fw.table_code().saturating_add(self.fw.target_code());
+                a.reference_v = f64::from(code) * 10.0 / 524_288.0;
+                a.advance(&mut self.rig, t);
+            }
+        }
     }
     #[inline]
     fn set_time(&mut self, t: Nanos) {
@@ -473,9 +475,13 @@ impl FirmwareWorld {
         if self.rig.adc_sample_ns > 0 {
             // No input change falls inside: the last DAC frame ended a
             // period earlier at most (`loop.dac_latency_ns` ≤ period).
-            self.rig.advance_to(t_event + self.rig.adc_sample_ns);
+            World::advance_to(self, t_event + self.rig.adc_sample_ns);
         }
-        self.rig.cnv();
+        match self.analog.as_ref().and_then(|a| a.gauge_volts(&self.rig)) {
+            // The 1983 loop's exact steps carry the gauge's noise.
+            Some(v) => self.rig.adc.state.borrow_mut().convert(v),
+            None => self.rig.cnv(),
+        }
         // The handler runs at its read instant (the DAC frame is timed
         // from there, `Rig::new`).
         self.rig.time.set(t_event + self.rig.handler_entry_ns);
@@ -592,24 +598,22 @@ impl FirmwareWorld {
         self.machine.as_ref().map_or(f64::NAN, |m| m.x_true_in(t_s))
     }
 
-    /// Hands the amplifier to the 1983 analog loop (from now on; the
-    /// scheduler needs the analog substep source, [`WorldTick::analog_substep`]).
+    /// Hands the amplifier to the 1983 analog loop from now on, stepped
+    /// exactly while it is linear ([`crate::analog1983::AnalogDrive`]).
     pub fn use_legacy_analog(&mut self) {
-        self.analog = Some(crate::analog1983::AnalogController::position_loop(
-            &crate::analog1983::PositionLoop1983::default(),
-        ));
-        let _ = self.enable.set_high();
+        self.use_legacy_analog_with(true);
     }
 
-    /// One substep of the analog loop: its reference is the firmware's
-    /// command (V = mil), it reads the gauge and drives the amplifier.
-    #[inline]
-    pub fn analog_substep(&mut self) {
-        if let Some(a) = self.analog.as_mut() {
-            let code = self.fw.table_code().saturating_add(self.fw.target_code());
-            a.reference_v = f64::from(code) * 10.0 / 524_288.0;
-            a.tick(&mut self.rig);
-        }
+    /// [`Self::use_legacy_analog`]; `exact = false`: the 5 µs
+    /// co-simulation from the start (the reference the exact steps are
+    /// tested against).
+    pub fn use_legacy_analog_with(&mut self, exact: bool) {
+        self.analog = Some(crate::analog1983::AnalogDrive::position_loop(
+            &self.rig,
+            exact,
+            self.rig.seed ^ 0x1983_A7A1,
+        ));
+        let _ = self.enable.set_high();
     }
 
     /// Posts an operator request (arm, disarm, clear) for the next tick.
@@ -622,9 +626,8 @@ impl FirmwareWorld {
     }
 }
 
-/// A periodic source of the world at the loop tick's priority: the loop
-/// tick itself, or the analog loop's substeps. A plain function pointer (no
-/// boxed closure on the hot path).
+/// The loop tick as a periodic source of the world. A plain function
+/// pointer (no boxed closure on the hot path).
 pub struct WorldTick {
     name: &'static str,
     period_ns: Nanos,
@@ -640,16 +643,6 @@ impl WorldTick {
             period_ns,
             next: period_ns,
             fire: FirmwareWorld::tick,
-        }
-    }
-    /// The 1983 analog loop's substeps (it drives the amplifier when
-    /// [`FirmwareWorld::use_legacy_analog`] was called).
-    pub fn analog_substep(period_ns: Nanos) -> Self {
-        Self {
-            name: "analog_substep",
-            period_ns,
-            next: period_ns,
-            fire: FirmwareWorld::analog_substep,
         }
     }
 }

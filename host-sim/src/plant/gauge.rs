@@ -172,6 +172,23 @@ impl Gauge {
         n
     }
 
+    /// The hum's phases (fundamental, second harmonic), rad at t = 0.
+    pub fn hum_phases(&self) -> (f64, f64) {
+        (self.hum_phase, self.hum2_phase)
+    }
+
+    /// The broadband noise's state, in (the last sample's, without hum).
+    pub fn noise_state(&self) -> f64 {
+        self.ou
+    }
+
+    /// Continues the broadband noise from `ou_in` at `t_ns` (a model that
+    /// carried the same process until then hands it back).
+    pub fn continue_noise_from(&mut self, ou_in: f64, t_ns: u64) {
+        self.ou = ou_in;
+        self.last_ns = Some(t_ns);
+    }
+
     /// Gauge output volts at `t_ns` for the position it sees `z_in`
     /// (saturated at ±range).
     pub fn volts(&mut self, t_ns: u64, z_in: f64) -> f64 {

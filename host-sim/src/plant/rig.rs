@@ -77,6 +77,9 @@ pub struct Rig {
     pub handler_entry_ns: u64,
     /// Loop-tick event to the end of the DAC frame, ns (`RigConfig`).
     pub dac_latency_ns: u64,
+    /// The configuration's seed (streams derived from it, e.g. the 1983
+    /// loop's exact noise increments).
+    pub seed: u64,
     /// Amplifier input now applied, V.
     pub v_in: f64,
     /// External (cutting) force now applied along +Z, lbf.
@@ -109,6 +112,7 @@ impl Rig {
             adc_sample_ns: cfg.adc_sample_ns.min(handler_entry_ns),
             handler_entry_ns,
             dac_latency_ns: cfg.dac_latency_ns,
+            seed: cfg.seed,
             time,
             t_ns: 0,
             v_in: 0.0,
@@ -179,6 +183,23 @@ impl Rig {
             }
         }
         self.step_plain(t_ns);
+    }
+}
+
+impl Rig {
+    /// Drops the DAC output changes due by `t_ns` and applies the enable
+    /// edges due by then: for a plant advanced by someone else (the 1983
+    /// loop's exact steps, whose amplifier input is not the DAC).
+    pub fn take_changes_to(&mut self, t_ns: u64) {
+        let mut dac = self.dac.state.borrow_mut();
+        while dac.changes.front().is_some_and(|c| c.0 <= t_ns) {
+            dac.changes.pop_front();
+        }
+        let mut en = self.enable.state.borrow_mut();
+        while en.changes.first().is_some_and(|c| c.0 <= t_ns) {
+            let (_, level) = en.changes.remove(0);
+            self.amp.set_enabled(level);
+        }
     }
 }
 
