@@ -186,6 +186,12 @@ pub struct Machine {
     angle: AngleState,
     pub spindle: SharedSpindle,
     pub stats: MachineStats,
+    /// Run the monitor copy of the firmware's angle estimator (the
+    /// stats' `angle`, `referenced` and index faults; on by default). A
+    /// run that reads none of them turns it off: it costs as much as the
+    /// firmware's own estimator (≈ 170 instructions a tick with an
+    /// encoder).
+    pub monitor: bool,
 }
 
 /// Which loop drives the amplifier.
@@ -453,6 +459,7 @@ impl FirmwareWorld {
             angle,
             spindle: link,
             stats: MachineStats::default(),
+            monitor: true,
         });
     }
 
@@ -491,23 +498,23 @@ impl FirmwareWorld {
         if let Some(m) = self.machine.as_mut() {
             input.now = self.clock.now_ticks();
             // The monitor estimator sees exactly the firmware's readings.
+            let monitor = m.monitor;
             let est = match &mut m.angle {
                 AngleState::Encoder { dev, est } => {
                     let s = dev.sample();
                     input.spindle = SpindleReading::Encoder(s);
-                    let e = est.tick(s.count, s.edge_ticks, input.now);
-                    m.stats.referenced = est.referenced();
-                    e
+                    monitor.then(|| (est.tick(s.count, s.edge_ticks, input.now), est.referenced()))
                 }
                 AngleState::Tach { dev, est } => {
                     let mv = dev.millivolts();
                     input.spindle = SpindleReading::Tach(mv);
-                    let e = est.tick(mv, input.now);
-                    m.stats.referenced = est.referenced();
-                    e
+                    monitor.then(|| (est.tick(mv, input.now), est.referenced()))
                 }
             };
-            m.stats.angle = est.angle;
+            if let Some((e, referenced)) = est {
+                m.stats.angle = e.angle;
+                m.stats.referenced = referenced;
+            }
             if let XState::Count { enc, decoder } = &mut m.x {
                 input.x_count = enc.sample().count;
                 m.stats.x = Some(decoder.x(input.x_count));
@@ -572,6 +579,9 @@ impl FirmwareWorld {
         };
         m.stats.index_events += 1;
         self.fw.index_event(edge_ticks, count);
+        if !m.monitor {
+            return;
+        }
         let r = match &mut m.angle {
             AngleState::Encoder { est, .. } => est.on_index(count, edge_ticks),
             AngleState::Tach { est, .. } => est.on_index(edge_ticks),
