@@ -31,6 +31,13 @@ fn run(drive: &mut AnalogDrive, rig: &mut Rig, ticks: u64, r: impl Fn(f64) -> f6
     z
 }
 
+fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
 #[test]
 fn exact_steps_follow_the_finely_co_simulated_loop_without_noise() {
     let sine = |t: f64| 0.5 * (std::f64::consts::TAU * 40.0 * t).sin();
@@ -47,12 +54,7 @@ fn exact_steps_follow_the_finely_co_simulated_loop_without_noise() {
         let mut co = AnalogDrive::position_loop(&rb, false, 1);
         co.ctrl.substep_ns = sub;
         let zc = run(&mut co, &mut rb, ticks, sine);
-        let worst = ze
-            .iter()
-            .zip(&zc)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f64, f64::max);
-        errs.push(worst);
+        errs.push(max_abs_diff(&ze, &zc));
     }
     // 0.5 V = 0.5 mil amplitude; the differences in µin.
     let uin: Vec<f64> = errs.iter().map(|e| e * 1e6).collect();
@@ -136,11 +138,7 @@ fn a_loop_driven_into_its_current_limit_hands_over_to_the_co_simulation() {
     // The same trajectory as the co-simulation throughout, within the
     // 5 µs co-simulation's own error (0.1 % of the motion, as for the
     // sinusoid above).
-    let worst = ze
-        .iter()
-        .zip(&zc)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f64, f64::max);
+    let worst = max_abs_diff(&ze, &zc);
     assert!(worst < 6e-6, "{} µin", worst * 1e6);
     // It got there (the lag compensator's slow pole leaves a tail of tens
     // of µin after 0.14 s).
