@@ -188,6 +188,12 @@ pub struct Machine {
     angle: AngleState,
     pub spindle: SharedSpindle,
     pub stats: MachineStats,
+    /// Run the monitor copy of the firmware's angle estimator (the
+    /// stats' `angle`, `referenced` and index faults; on by default). A
+    /// run that reads none of them turns it off: it costs as much as the
+    /// firmware's own estimator (≈ 170 instructions a tick with an
+    /// encoder).
+    pub monitor: bool,
 }
 
 /// Which loop drives the amplifier.
@@ -218,21 +224,15 @@ impl Controller {
 
     /// Puts this controller in charge of the amplifier of a freshly built
     /// world: the digital loop is armed (sign check, then bumpless
-    /// engagement), the 1983 loop is attached with its analog substep.
-    pub fn attach(self, w: &mut FirmwareWorld, s: &mut Scheduler<FirmwareWorld>) {
+    /// engagement), the 1983 loop is attached (it runs inside the world's
+    /// advance: [`crate::analog1983::AnalogDrive`]).
+    pub fn attach(self, w: &mut FirmwareWorld, _s: &mut Scheduler<FirmwareWorld>) {
         match self {
             Controller::Digital => w.request(Request::Arm),
-            Controller::LegacyAnalog => {
-                w.use_legacy_analog();
-                s.add(WorldTick::analog_substep(ANALOG_SUBSTEP_NS));
-            }
+            Controller::LegacyAnalog => w.use_legacy_analog(),
         }
     }
 }
-
-/// Integration step of the 1983 analog loop, ns (200 kHz: its fastest pole
-/// is the lag's 0.5 ms zero; well resolved).
-pub const ANALOG_SUBSTEP_NS: Nanos = 5_000;
 
 /// Rig + the firmware with the core's drivers on the simulated chips.
 pub struct FirmwareWorld {
@@ -254,7 +254,7 @@ pub struct FirmwareWorld {
     pub hook: Option<Box<dyn TickHook>>,
     init_fault: Option<Fault>,
     /// The 1983 loop when it drives the amplifier ([`Controller::LegacyAnalog`]).
-    pub analog: Option<crate::analog1983::AnalogController>,
+    pub analog: Option<crate::analog1983::AnalogDrive>,
     /// What the MCU is doing: a board-level state the core has no notion
     /// of (a stalled loop-tick interrupt, a halted core), set by the fault
     /// campaign's board models (`faults::board`).
@@ -277,7 +277,15 @@ pub enum Cpu {
 impl World for FirmwareWorld {
     #[inline]
     fn advance_to(&mut self, t: Nanos) {
-        self.rig.advance_to(t);
+        match self.analog.as_mut() {
+            None => self.rig.advance_to(t),
+            Some(a) => {
+                // Its reference: the firmware's command, V = mil.
+                let code = self.fw.table_code().saturating_add(self.fw.target_code());
+                a.reference_v = f64::from(code) * 10.0 / 524_288.0;
+                a.advance(&mut self.rig, t);
+            }
+        }
     }
     #[inline]
     fn set_time(&mut self, t: Nanos) {
@@ -481,13 +489,16 @@ impl FirmwareWorld {
             angle,
             spindle: link,
             stats: MachineStats::default(),
+            monitor: true,
         });
     }
 
-    /// The loop-tick interrupt: CNV (hardware, on the timer), the hw-trait
-    /// readings at this instant (clock, spindle encoder or tachometer, X
-    /// count), the firmware's loop tick through the drivers, then the
-    /// enable line.
+    /// The loop-tick interrupt, on the board's timing (`RigConfig`): the
+    /// loop-timer event is now; the gauge is sampled `adc_sample_ns` later
+    /// (CNV, hardware); the handler reads the clock, the spindle encoder or
+    /// tachometer and the X count `handler_entry_ns` after the event, runs
+    /// the firmware's loop tick through the drivers (its DAC frame ends
+    /// `dac_latency_ns` after the event), then sets the enable line.
     #[inline]
     pub fn tick(&mut self) {
         // The machine's physics runs whatever the MCU does.
@@ -497,30 +508,43 @@ impl FirmwareWorld {
         if self.cpu != Cpu::Running {
             return;
         }
-        self.rig.cnv();
+        let t_event = self.rig.time.get();
+        if self.rig.adc_sample_ns > 0 {
+            // No input change falls inside: the last DAC frame ended a
+            // period earlier at most (`loop.dac_latency_ns` ≤ period).
+            World::advance_to(self, t_event + self.rig.adc_sample_ns);
+        }
+        match self.analog.as_ref().and_then(|a| a.gauge_volts(&self.rig)) {
+            // The 1983 loop's exact steps carry the gauge's noise.
+            Some(v) => self.rig.adc.state.borrow_mut().convert(v),
+            None => self.rig.cnv(),
+        }
+        // The handler runs at its read instant (the DAC frame is timed
+        // from there, `Rig::new`).
+        self.rig.time.set(t_event + self.rig.handler_entry_ns);
         let mut input = TickInput::NONE;
         // The amplifier's fault line, as the board reads it.
         input.amplifier_fault = self.rig.amp.tripped();
         if let Some(m) = self.machine.as_mut() {
             input.now = self.clock.now_ticks();
             // The monitor estimator sees exactly the firmware's readings.
+            let monitor = m.monitor;
             let est = match &mut m.angle {
                 AngleState::Encoder { dev, est } => {
                     let s = dev.sample();
                     input.spindle = SpindleReading::Encoder(s);
-                    let e = est.tick(s.count, s.edge_ticks, input.now);
-                    m.stats.referenced = est.referenced();
-                    e
+                    monitor.then(|| (est.tick(s.count, s.edge_ticks, input.now), est.referenced()))
                 }
                 AngleState::Tach { dev, est } => {
                     let mv = dev.millivolts();
                     input.spindle = SpindleReading::Tach(mv);
-                    let e = est.tick(mv, input.now);
-                    m.stats.referenced = est.referenced();
-                    e
+                    monitor.then(|| (est.tick(mv, input.now), est.referenced()))
                 }
             };
-            m.stats.angle = est.angle;
+            if let Some((e, referenced)) = est {
+                m.stats.angle = e.angle;
+                m.stats.referenced = referenced;
+            }
             if let XState::Count { enc, decoder } = &mut m.x {
                 input.x_count = enc.sample().count;
                 m.stats.x = Some(decoder.x(input.x_count));
@@ -541,12 +565,15 @@ impl FirmwareWorld {
         // With the 1983 loop driving, the firmware does not own the enable.
         let on = self.fw.amplifier_enable() || self.analog.is_some();
         if on != self.rig.enable.state.borrow().enable {
+            // The pin is written after the handler's DAC frame.
+            self.rig.time.set(t_event + self.rig.dac_latency_ns);
             let _ = if on {
                 self.enable.set_high()
             } else {
                 self.enable.set_low()
             };
         }
+        self.rig.time.set(t_event);
     }
 
     /// The half-mil interrupt: the latch was loaded at the edge; the
@@ -609,6 +636,9 @@ impl FirmwareWorld {
         if let Some(r) = &self.recorder {
             r.end(None, self.fw.amplifier_enable(), self.fw.fault());
         }
+        if !m.monitor {
+            return;
+        }
         let r = match &mut m.angle {
             AngleState::Encoder { est, .. } => est.on_index(count, edge_ticks),
             AngleState::Tach { est, .. } => est.on_index(edge_ticks),
@@ -635,24 +665,22 @@ impl FirmwareWorld {
         self.machine.as_ref().map_or(f64::NAN, |m| m.x_true_in(t_s))
     }
 
-    /// Hands the amplifier to the 1983 analog loop (from now on; the
-    /// scheduler needs the analog substep source, [`WorldTick::analog_substep`]).
+    /// Hands the amplifier to the 1983 analog loop from now on, stepped
+    /// exactly while it is linear ([`crate::analog1983::AnalogDrive`]).
     pub fn use_legacy_analog(&mut self) {
-        self.analog = Some(crate::analog1983::AnalogController::position_loop(
-            &crate::analog1983::PositionLoop1983::default(),
-        ));
-        let _ = self.enable.set_high();
+        self.use_legacy_analog_with(true);
     }
 
-    /// One substep of the analog loop: its reference is the firmware's
-    /// command (V = mil), it reads the gauge and drives the amplifier.
-    #[inline]
-    pub fn analog_substep(&mut self) {
-        if let Some(a) = self.analog.as_mut() {
-            let code = self.fw.table_code().saturating_add(self.fw.target_code());
-            a.reference_v = f64::from(code) * 10.0 / 524_288.0;
-            a.tick(&mut self.rig);
-        }
+    /// [`Self::use_legacy_analog`]; `exact = false`: the 5 µs
+    /// co-simulation from the start (the reference the exact steps are
+    /// tested against).
+    pub fn use_legacy_analog_with(&mut self, exact: bool) {
+        self.analog = Some(crate::analog1983::AnalogDrive::position_loop(
+            &self.rig,
+            exact,
+            self.rig.seed ^ 0x1983_A7A1,
+        ));
+        let _ = self.enable.set_high();
     }
 
     /// Posts an operator request (arm, disarm, clear) for the next tick.
@@ -668,9 +696,8 @@ impl FirmwareWorld {
     }
 }
 
-/// A periodic source of the world at the loop tick's priority: the loop
-/// tick itself, or the analog loop's substeps. A plain function pointer (no
-/// boxed closure on the hot path).
+/// The loop tick as a periodic source of the world. A plain function
+/// pointer (no boxed closure on the hot path).
 pub struct WorldTick {
     name: &'static str,
     period_ns: Nanos,
@@ -686,16 +713,6 @@ impl WorldTick {
             period_ns,
             next: period_ns,
             fire: FirmwareWorld::tick,
-        }
-    }
-    /// The 1983 analog loop's substeps (it drives the amplifier when
-    /// [`FirmwareWorld::use_legacy_analog`] was called).
-    pub fn analog_substep(period_ns: Nanos) -> Self {
-        Self {
-            name: "analog_substep",
-            period_ns,
-            next: period_ns,
-            fire: FirmwareWorld::analog_substep,
         }
     }
 }

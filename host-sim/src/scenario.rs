@@ -194,16 +194,33 @@ pub struct Gauge {
     pub hum2_uin: f64,
 }
 
-/// Firmware timing.
+/// The board's timing as the firmware meets it (`docs/BOARD.md`, Timers;
+/// `docs/PLANT.md`, Board timing). Instants are from the loop-timer event
+/// (the timer update that starts the gauge's conversion).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Loop {
     /// Loop-tick rate, Hz (≥ 1000).
     pub rate_hz: u32,
-    /// Time from the loop-tick event to the end of its DAC frame, ns.
-    pub dac_latency_ns: u64,
-    /// Firmware free-running clock, Hz.
+    /// The free-running clock the firmware reads and the input captures
+    /// latch, Hz: its period is the capture resolution.
     pub clock_hz: u64,
+    /// Pin to capture, ns: the input filter and resynchronisation of the
+    /// timers (the encoder's count changes as late).
+    pub capture_delay_ns: u64,
+    /// Loop-timer event to the gauge's sampling instant, ns (0: CNV from
+    /// the timer, the converter holds at its rising edge).
+    pub adc_sample_ns: u64,
+    /// The gauge converter's conversion time, ns: its result must be
+    /// ready when the handler reads it.
+    pub adc_conversion_ns: u64,
+    /// Loop-timer event to the handler's reads of the clock, the spindle
+    /// encoder or tachometer and the X count, ns (interrupt compare plus
+    /// entry).
+    pub handler_entry_ns: u64,
+    /// Loop-timer event to the end of the handler's DAC frame, ns: the
+    /// entry, the handler's own work before its DAC write, the frame.
+    pub dac_latency_ns: u64,
 }
 
 /// Cutting force model (docs/PLANT.md).
@@ -284,10 +301,10 @@ pub struct Spindle {
     pub tach_gain_error: f64,
     /// Tachometer noise, mV RMS.
     pub tach_noise_mv: f64,
-    /// The encoder's edge timestamps: "at-read" (the count read at the
-    /// loop tick, a change stamped with the read time: the NUCLEO's code;
-    /// the default) or "captured" (a timer input capture per edge).
-    #[serde(default = "default_encoder_edges")]
+    /// The encoder's edge timestamps: "captured" (both edges of both lines
+    /// captured on the clock, i.e. every count: the NUCLEO) or "at-read"
+    /// (the count read at the loop tick and a change stamped with the
+    /// read time: a board without capture wiring).
     pub encoder_edges: String,
     /// Timing jitter of the index edge, µs RMS (0 when absent).
     #[serde(default)]
@@ -351,13 +368,42 @@ impl ScenarioFile {
         check("gauge.hum2_uin", g.hum2_uin, 0.0, 10_000.0)?;
         let l = &self.loop_;
         check("loop.rate_hz", f64::from(l.rate_hz), 1000.0, 1.0e6)?;
+        let period_ns = 1.0e9 / f64::from(l.rate_hz);
+        check("loop.clock_hz", l.clock_hz as f64, 1000.0, 4.0e9)?;
+        check(
+            "loop.capture_delay_ns",
+            l.capture_delay_ns as f64,
+            0.0,
+            100_000.0,
+        )?;
+        check(
+            "loop.handler_entry_ns",
+            l.handler_entry_ns as f64,
+            0.0,
+            period_ns,
+        )?;
+        // The gauge is sampled before the handler reads it, and the result
+        // is ready by then (otherwise the handler reads the previous one:
+        // a board like that is not modelled).
+        check(
+            "loop.adc_sample_ns",
+            l.adc_sample_ns as f64,
+            0.0,
+            l.handler_entry_ns as f64,
+        )?;
+        check(
+            "loop.adc_conversion_ns",
+            l.adc_conversion_ns as f64,
+            0.0,
+            (l.handler_entry_ns - l.adc_sample_ns) as f64,
+        )?;
+        // The DAC frame ends after the handler's reads and within the period.
         check(
             "loop.dac_latency_ns",
             l.dac_latency_ns as f64,
-            0.0,
-            1.0e9 / f64::from(l.rate_hz),
+            l.handler_entry_ns as f64,
+            period_ns,
         )?;
-        check("loop.clock_hz", l.clock_hz as f64, 1000.0, 4.0e9)?;
         let c = &self.cutting;
         check("cutting.k_t_psi", c.k_t_psi, 0.0, 1.0e8)?;
         check("cutting.k_e_lbf_per_in", c.k_e_lbf_per_in, 0.0, 1.0e6)?;
@@ -490,6 +536,8 @@ impl ScenarioFile {
             seed: self.seed,
             dac_latency_ns: self.loop_.dac_latency_ns,
             clock_hz: self.loop_.clock_hz,
+            adc_sample_ns: self.loop_.adc_sample_ns,
+            handler_entry_ns: self.loop_.handler_entry_ns,
         };
         let x = &self.x;
         let xcfg = XSlideConfig {
@@ -526,6 +574,7 @@ impl ScenarioFile {
                 index_jitter_us: s.index_jitter_us,
                 speed_noise_rpm: s.speed_noise_rpm,
                 ticks_per_s: self.loop_.clock_hz as f64,
+                capture_delay_ns: self.loop_.capture_delay_ns,
                 seed: self.seed ^ 0x5350,
             },
             encoder_edges: if s.encoder_edges == "captured" {
@@ -622,8 +671,4 @@ impl ScenarioArg {
     pub fn load(&self) -> anyhow::Result<Scenario> {
         load(&self.scenario)
     }
-}
-
-fn default_encoder_edges() -> String {
-    "at-read".into()
 }

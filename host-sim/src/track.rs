@@ -39,7 +39,8 @@ pub struct TrackReport {
     pub rpm: f64,
     pub measured_revs: u32,
     pub simulated_s: f64,
-    /// RMS of the firmware's spindle angle minus the true angle, degrees.
+    /// RMS of the firmware's spindle angle minus the true angle at the
+    /// handler's read instant (the instant the estimate is for), degrees.
     pub angle_error_rms_deg: f64,
 }
 
@@ -154,15 +155,19 @@ pub fn run(sc: &Scenario, spec: &TrackSpec) -> anyhow::Result<TrackReport> {
     while t < end && w.fw.fault().is_none() {
         t += tick_ns;
         s.run_until(&mut w, t);
-        let turns = {
+        let (turns, read_turns) = {
             let m = w.machine.as_ref().expect("a machine is attached");
-            let turns = m.spindle.borrow_mut().turns_at(t);
-            turns + index_phase
+            let mut sp = m.spindle.borrow_mut();
+            // The firmware's angle is for the handler's read instant (read
+            // in time order: the link forgets what lies behind a read).
+            let now = sp.turns_at(t);
+            let read = sp.turns_at(t + w.rig.handler_entry_ns);
+            (now + index_phase, read + index_phase)
         };
         let z_cmd = a * ((std::f64::consts::TAU * f64::from(k) * turns).sin() - 1.0);
         if let Some(st) = w.stats() {
             let fw_turns = f64::from(st.angle.0) / 4_294_967_296.0;
-            let d = (fw_turns - turns).rem_euclid(1.0);
+            let d = (fw_turns - read_turns).rem_euclid(1.0);
             let d = if d > 0.5 { d - 1.0 } else { d };
             a2 += (d * 360.0) * (d * 360.0);
         }

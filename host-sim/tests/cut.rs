@@ -120,8 +120,9 @@ fn contour_band(scenario: &str, controller: Controller) -> (f64, f64, Vec<String
 }
 
 /// Brief §6: the simulated second part within ±30 µin on the 1983 machine
-/// (measured −7.4 .. −0.1 µin) and ±5 µin with the modern gauge
-/// (measured −0.8 .. +0.1, the encoder read at the tick as on the NUCLEO), cutting force and its process stiffness on.
+/// (`cargo sim -- --holes filled`: −8.0 .. −0.6 µin) and ±5 µin with the
+/// modern gauge (−0.7 .. −0.1, every encoder edge captured as on the
+/// NUCLEO), cutting force and its process stiffness on.
 #[test]
 fn digital_loop_cuts_the_second_part_within_the_brief_goals() {
     let (lo, hi, faults) = contour_band("legacy-hw", Controller::Digital);
@@ -138,7 +139,8 @@ fn digital_loop_cuts_the_second_part_within_the_brief_goals() {
 /// The 1983 loop on the same machine and part leaves errors of the order
 /// chapter 5 measured (−500 .. +900 µin on the second part): its following
 /// error at the part's 2/rev through the lag-compensated loop (eq 4-47)
-/// is hundreds of µin (measured −382 .. +403).
+/// is hundreds of µin (`cargo sim -- --controller legacy-analog`:
+/// −384 .. +403).
 #[test]
 fn the_1983_loop_leaves_hundreds_of_microinch_on_the_same_part() {
     let (lo, hi, faults) = contour_band("legacy-hw", Controller::LegacyAnalog);

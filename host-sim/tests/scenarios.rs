@@ -85,6 +85,9 @@ fn unknown_fields_are_refused_by_name() {
     let t = legacy_text().replace("hum_hz = 120.0", "");
     let e = format!("{:#}", parse(&t, "test").unwrap_err());
     assert!(e.contains("hum_hz"), "{e}");
+    let t = legacy_text().replace("handler_entry_ns = 1200", "");
+    let e = format!("{:#}", parse(&t, "test").unwrap_err());
+    assert!(e.contains("handler_entry_ns"), "{e}");
 }
 
 #[test]
@@ -105,6 +108,39 @@ fn out_of_range_values_are_refused_by_name() {
             "x.interface",
         ),
         ("part_side = -1.0", "part_side = 0.5", "cutting.part_side"),
+        // The board's timing: the gauge sampled after the handler read it,
+        // a conversion not done by then, a handler entered after the next
+        // tick, a DAC frame ending before the handler's reads.
+        (
+            "adc_sample_ns = 0",
+            "adc_sample_ns = 1500",
+            "loop.adc_sample_ns",
+        ),
+        (
+            "adc_conversion_ns = 320",
+            "adc_conversion_ns = 1300",
+            "loop.adc_conversion_ns",
+        ),
+        (
+            "handler_entry_ns = 1200",
+            "handler_entry_ns = 60000",
+            "loop.handler_entry_ns",
+        ),
+        (
+            "dac_latency_ns = 8500",
+            "dac_latency_ns = 1000",
+            "loop.dac_latency_ns",
+        ),
+        (
+            "capture_delay_ns = 55",
+            "capture_delay_ns = 200000",
+            "loop.capture_delay_ns",
+        ),
+        (
+            "encoder_edges = \"captured\"",
+            "encoder_edges = \"every\"",
+            "spindle.encoder_edges",
+        ),
     ] {
         let t = legacy_text().replacen(from, to, 1);
         assert_ne!(t, legacy_text(), "{from}");
@@ -208,7 +244,7 @@ fn every_servo_field_reaches_the_design() {
 #[test]
 fn a_band_too_slow_for_the_clock_is_refused_by_name() {
     let t = legacy_text()
-        .replacen("clock_hz = 100000000", "clock_hz = 4000000000", 1)
+        .replacen("clock_hz = 200000000", "clock_hz = 4000000000", 1)
         .replacen("min_rpm = 100", "min_rpm = 55", 1);
     let e = format!("{:#}", parse(&t, "test").unwrap_err());
     assert!(
@@ -216,7 +252,7 @@ fn a_band_too_slow_for_the_clock_is_refused_by_name() {
         "{e}"
     );
     let t = legacy_text()
-        .replacen("clock_hz = 100000000", "clock_hz = 4000000000", 1)
+        .replacen("clock_hz = 200000000", "clock_hz = 4000000000", 1)
         .replacen("min_rpm = 100", "min_rpm = 56", 1);
     parse(&t, "test").unwrap();
 }

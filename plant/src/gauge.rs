@@ -7,15 +7,17 @@
 //! The broadband part is an Ornstein–Uhlenbeck process (white noise through
 //! a first-order low-pass of bandwidth `white_bw_hz`), updated exactly
 //! between samples: `n ← e^{−h/τ} n + σ sqrt(1 − e^{−2h/τ}) w`, so its RMS
-//! and spectrum are right for any sample spacing. Seeded ChaCha8: the same
-//! seed and the same sample instants give bit-identical noise.
+//! and spectrum are right for any sample spacing. Seeded xoshiro256++ with
+//! the ziggurat normal: the same seed and the same sample instants give
+//! bit-identical noise.
 
 // The f64 functions of `libm` where std's are missing (no_std builds);
 // with std the inherent methods are used and the import is idle.
 #[allow(unused_imports)]
 use num_traits::Float;
 use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use rand_xoshiro::Xoshiro256PlusPlus;
 
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -83,14 +85,13 @@ impl GaugeParams {
 #[derive(Clone, Debug)]
 pub struct Gauge {
     pub params: GaugeParams,
-    rng: ChaCha8Rng,
+    rng: Xoshiro256PlusPlus,
     ou: f64,
     last_ns: Option<u64>,
     hum_phase: f64,
     hum2_phase: f64,
     /// OU coefficients for the last sample spacing: (h ns, a, sqrt(1 − a²)).
     ou_coef: (u64, f64, f64),
-    spare: Option<f64>,
     /// Hum phasor (sin, cos of the hum phase) at `hum_t_ns`, advanced by
     /// rotation when samples are evenly spaced (the loop timer): no `sin`
     /// per sample. Recomputed exactly every `HUM_EXACT_EVERY` samples and on
@@ -105,7 +106,7 @@ const HUM_EXACT_EVERY: u32 = 4096;
 
 impl Gauge {
     pub fn new(params: GaugeParams, seed: u64) -> Self {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
         let hum_phase = rng.random::<f64>() * core::f64::consts::TAU;
         let hum2_phase = rng.random::<f64>() * core::f64::consts::TAU;
         let ou = params.white_rms_in * gaussian(&mut rng);
@@ -117,7 +118,6 @@ impl Gauge {
             hum_phase,
             hum2_phase,
             ou_coef: (0, 1.0, 0.0),
-            spare: None,
             hum_sc: (0.0, 1.0),
             hum_t_ns: None,
             hum_rot: (0, 0.0, 1.0),
@@ -136,15 +136,7 @@ impl Gauge {
                     let a = (-(h_ns as f64 * 1e-9) / tau).exp();
                     self.ou_coef = (h_ns, a, (1.0 - a * a).sqrt());
                 }
-                // The polar method gives deviates in pairs; use both.
-                let w = match self.spare.take() {
-                    Some(w) => w,
-                    None => {
-                        let (a, b) = gaussian_pair(&mut self.rng);
-                        self.spare = Some(b);
-                        a
-                    }
-                };
+                let w = gaussian(&mut self.rng);
                 self.ou = self.ou_coef.1 * self.ou + p.white_rms_in * self.ou_coef.2 * w;
             }
         }
@@ -185,6 +177,23 @@ impl Gauge {
         n
     }
 
+    /// The hum's phases (fundamental, second harmonic), rad at t = 0.
+    pub fn hum_phases(&self) -> (f64, f64) {
+        (self.hum_phase, self.hum2_phase)
+    }
+
+    /// The broadband noise's state, in (the last sample's, without hum).
+    pub fn noise_state(&self) -> f64 {
+        self.ou
+    }
+
+    /// Continues the broadband noise from `ou_in` at `t_ns` (a model that
+    /// carried the same process until then hands it back).
+    pub fn continue_noise_from(&mut self, ou_in: f64, t_ns: u64) {
+        self.ou = ou_in;
+        self.last_ns = Some(t_ns);
+    }
+
     /// Gauge output volts at `t_ns` for the position it sees `z_in`
     /// (saturated at ±range).
     pub fn volts(&mut self, t_ns: u64, z_in: f64) -> f64 {
@@ -215,25 +224,9 @@ pub fn adc_convert(volts: f64) -> (i32, bool) {
     (code, ov)
 }
 
-/// Standard normal deviate (first of a polar pair).
-pub fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    gaussian_pair(rng).0
-}
-
-/// Two independent standard normal deviates (Marsaglia's polar method).
-///
-/// Replaces Box–Muller (same distribution, different sequence for a seed):
-/// the polar form needs no `sin_cos`, which was ≈ 130 of the ≈ 250
-/// instructions per pair on the per-tick gauge path; it rejects 21.5 % of
-/// the uniform pairs, still far cheaper. Deterministic for a seed.
-pub fn gaussian_pair(rng: &mut ChaCha8Rng) -> (f64, f64) {
-    loop {
-        let u = 2.0 * rng.random::<f64>() - 1.0;
-        let v = 2.0 * rng.random::<f64>() - 1.0;
-        let s = u * u + v * v;
-        if s > 0.0 && s < 1.0 {
-            let m = (-2.0 * s.ln() / s).sqrt();
-            return (u * m, v * m);
-        }
-    }
+/// Standard normal deviate: the ziggurat of `rand_distr` (≈ 15
+/// instructions in the common case; Marsaglia's polar method with its `ln`
+/// and `sqrt` was ≈ 80 a deviate). Deterministic for a seeded generator.
+pub fn gaussian<R: Rng + ?Sized>(rng: &mut R) -> f64 {
+    rng.sample(StandardNormal)
 }

@@ -251,8 +251,10 @@ pub struct ZSlide {
     mats: [Mats; CACHE_SIZE],
     /// Entries in use.
     len: usize,
-    /// Entry used last (the usual hit: the loop period).
+    /// Entries used last and the one before (a loop period is split in two
+    /// steps at the DAC frame, so the usual hits alternate between them).
     mru: usize,
+    mru2: usize,
     /// Next entry to replace when full (round robin).
     evict: usize,
     /// Entries whose step is not a power of two.
@@ -275,6 +277,7 @@ impl ZSlide {
             mats: [ZERO_MATS; CACHE_SIZE],
             len: 0,
             mru: 0,
+            mru2: 0,
             evict: 0,
             odd: 0,
             misses: 0,
@@ -334,6 +337,8 @@ impl ZSlide {
         let used = &self.keys[..self.len.min(CACHE_SIZE)];
         let idx = if used.get(self.mru) == Some(&key) {
             self.mru
+        } else if used.get(self.mru2) == Some(&key) {
+            self.mru2
         } else if let Some(p) = used.iter().position(|k| *k == key) {
             p
         } else if !dt_ns.is_power_of_two() && (self.odd >= ODD_MAX || cfg!(not(feature = "std"))) {
@@ -345,7 +350,10 @@ impl ZSlide {
             self.missing += 1;
             return;
         };
-        self.mru = idx;
+        if idx != self.mru {
+            self.mru2 = self.mru;
+            self.mru = idx;
+        }
         if let Some(m) = self.mats.get(idx) {
             apply_fixed(&mut self.x, m, [e_m, f_ext]);
         }

@@ -70,6 +70,42 @@ impl SimClock {
 
 impl zslide::hw::Clock for SimClock {
     fn now_ticks(&mut self) -> u32 {
-        (u128::from(self.time.get()) * u128::from(self.ticks_per_s) / 1_000_000_000) as u32
+        clock_ticks(self.time.get(), self.ticks_per_s)
+    }
+}
+
+/// A free-running clock of `ticks_per_s` (≤ 2³²) at `t_ns`: ⌊t·f / 10⁹⌋
+/// wrapping at 2³², exactly, without a 128-bit division (whole seconds
+/// and the rest apart; only the low 32 bits are kept, so the seconds'
+/// product may wrap).
+#[inline]
+pub fn clock_ticks(t_ns: u64, ticks_per_s: u64) -> u32 {
+    const NS: u64 = 1_000_000_000;
+    let (s, r) = (t_ns / NS, t_ns % NS);
+    s.wrapping_mul(ticks_per_s)
+        .wrapping_add(r * ticks_per_s / NS) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn clock_ticks_equal_the_128_bit_form() {
+        let mut g = 0x2545_F491_4F6C_DD1Du64;
+        for tps in [
+            1_000u64,
+            25_000_000,
+            100_000_000,
+            200_000_000,
+            4_000_000_000,
+        ] {
+            for k in 0..20_000u64 {
+                g ^= g << 13;
+                g ^= g >> 7;
+                g ^= g << 17;
+                let t = if k < 10 { k } else { g >> (k % 40) };
+                let want = (u128::from(t) * u128::from(tps) / 1_000_000_000) as u32;
+                assert_eq!(super::clock_ticks(t, tps), want, "t {t} f {tps}");
+            }
+        }
     }
 }

@@ -84,7 +84,7 @@ impl HoleRing {
 
     /// Angular distance (turns) from `phi_turns` to the nearest hole centre.
     fn to_nearest(&self, phi_turns: f64) -> f64 {
-        let u = ((phi_turns - self.phase_turns) * self.count).rem_euclid(1.0);
+        let u = crate::fastmath::frac((phi_turns - self.phase_turns) * self.count);
         u.min(1.0 - u) / self.count
     }
 
@@ -106,21 +106,37 @@ impl HoleRing {
     /// Fraction of the radial chord `[r_lo, r_hi]` over solid material (16
     /// samples, as the plant's reference model).
     pub fn engaged_fraction(&self, r_lo: f64, r_hi: f64, phi_turns: f64) -> f64 {
-        if !self.open
-            || r_hi < self.circle_r - self.rho
-            || r_lo > self.circle_r + self.rho
-            || self.to_nearest(phi_turns) >= self.max_half_turns
-        {
+        if !self.open || r_hi < self.circle_r - self.rho || r_lo > self.circle_r + self.rho {
             return 1.0;
         }
         let d = self.to_nearest(phi_turns);
+        if d >= self.max_half_turns {
+            return 1.0;
+        }
+        // d ≥ acos(c)/2π ⟺ cos(2πd) ≤ c (cos falls on [0, π] and 2πd ≤
+        // π/count): one cosine a tick instead of an arccosine a sample.
+        let cos_d = libm::cos(TAU * d);
         let solid = (0..CHORD_SAMPLES)
             .filter(|&k| {
                 let r = r_lo + (r_hi - r_lo) * (k as f64 + 0.5) / CHORD_SAMPLES as f64;
-                d >= self.half_width_turns(r)
+                match self.half_width_cos(r) {
+                    Some(c) => cos_d <= c,
+                    None => true,
+                }
             })
             .count();
         solid as f64 / CHORD_SAMPLES as f64
+    }
+
+    /// cos of the angular half-width (radians) of a hole at radius `r`
+    /// (`None` off the holes' annulus).
+    fn half_width_cos(&self, r: f64) -> Option<f64> {
+        if (r - self.circle_r).abs() >= self.rho || r <= 0.0 {
+            return None;
+        }
+        let c = (r * r + self.circle_r * self.circle_r - self.rho * self.rho)
+            / (2.0 * r * self.circle_r);
+        Some(c.clamp(-1.0, 1.0))
     }
 }
 
@@ -183,7 +199,7 @@ impl Engagement {
     /// tool bottom `e_in` above its nominal height; updates the memory of
     /// the angle bins passed since the last call.
     pub fn step(&mut self, x_in: f64, phi_turns: f64, e_in: f64) -> Contact {
-        let b = ((phi_turns.rem_euclid(1.0) * BINS as f64) as usize).min(BINS - 1);
+        let b = ((crate::fastmath::frac(phi_turns) * BINS as f64) as usize).min(BINS - 1);
         let sync = self.sync[b];
         let e_bar = if sync.is_nan() { e_in } else { sync };
         let e_prev = if sync.is_nan() { e_in } else { self.prev[b] };

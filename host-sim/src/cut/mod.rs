@@ -327,6 +327,12 @@ pub fn run_stretch(
         rec_start_s,
         total_s,
     } = build_stretch(spec, st, extras.trace_s, zslide::DEFAULT_TABLE)?;
+    // Nothing but the VCD reads the monitor copy of the angle estimator.
+    if extras.vcd.is_none() {
+        if let Some(m) = w.machine.as_mut() {
+            m.monitor = false;
+        }
+    }
     let trace = match &extras.vcd {
         Some((path, from, to)) => {
             let file = std::io::BufWriter::new(

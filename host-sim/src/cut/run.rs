@@ -103,7 +103,7 @@ impl TickHook for Cutter {
         let t_s = t as f64 * 1e-9;
         let x = m.x_true_in(t_s);
         let turns = m.spindle.borrow_mut().turns_at(t) + self.index_phase_turns;
-        let phi = turns.rem_euclid(1.0);
+        let phi = crate::fastmath::frac(turns);
         // The tool rides on the slide carriage (not on the coil frame the
         // gauge also sees).
         let z = rig.slide.position_in();
@@ -117,7 +117,7 @@ impl TickHook for Cutter {
         rig.set_force_lbf(c.force_lbf + self.extra_force_lbf);
 
         // Spindle load, once per revolution (the speed sags over seconds).
-        let rev = turns.floor() as i64;
+        let rev = crate::fastmath::floor_i64(turns);
         self.rev_force_sum += c.force_lbf.abs();
         self.rev_force_n += 1;
         if rev != self.rev {
@@ -148,8 +148,8 @@ impl TickHook for Cutter {
             // interpolated between the two ticks.
             if let Some((turns0, x0, z0)) = self.prev {
                 let n = CMM_PHI_COUNT as f64;
-                let k0 = (turns0 * n).floor() as i64;
-                let k1 = (turns * n).floor() as i64;
+                let k0 = crate::fastmath::floor_i64(turns0 * n);
+                let k1 = crate::fastmath::floor_i64(turns * n);
                 for k in (k0 + 1)..=k1 {
                     let tc = k as f64 / n;
                     let w = (tc - turns0) / (turns - turns0);

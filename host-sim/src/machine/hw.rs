@@ -15,21 +15,25 @@
 //! count. What runs ahead: a change of spindle load (sag) reaches the model
 //! up to one window late (1 ms by default, against a 200 ms revolution).
 //!
-//! # Encoder edges
+//! # Encoder edges and the index, as the board captures them
 //! Encoder edges are not interrupts on the target: a timer in encoder mode
-//! counts them. What the edge timestamp is depends on the board
-//! (`zslide::spindle::EdgeStamps`, the firmware is told the same): with input capture, the last edge's time in hardware
-//! (`Captured`: the [`SimSpindleEncoder`] gives the exact edge time); the
-//! NUCLEO's code today reads the count at each loop tick and stamps a
-//! change with the read time (`AtRead`: the simulator does exactly that,
-//! so the firmware's 1/T estimator sees no better times than on the
-//! board).
+//! counts them, behind an input filter (`SpindleConfig::capture_delay_ns`:
+//! the count read at time t is the true count at t − delay). What the edge
+//! timestamp is depends on the board (`zslide::spindle::EdgeStamps`, the
+//! firmware is told the same): the NUCLEO captures every edge of both
+//! lines on its free-running clock (`Captured`: the stamp is
+//! ⌊(t_edge + delay)·f_clock⌋, `SpindleConfig::capture_ticks`, so the
+//! clock's resolution and the filter are both paid); a board without
+//! capture wiring stamps a changed count with the clock at the read
+//! (`AtRead`). The index is captured the same way (time on the clock,
+//! count on the encoder timer, `IndexPulse`). Nothing the firmware gets
+//! is earlier or finer than the board's registers.
 
 use super::spindle::{IndexPulse, Spindle, SpindleConfig};
 use super::xslide::{XInterrupt, XSlide, XSlideConfig};
 use crate::chips::SimTime;
 use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand_xoshiro::Xoshiro256PlusPlus;
 use std::cell::{Cell, RefCell};
 use std::collections::VecDeque;
 use std::rc::Rc;
@@ -39,7 +43,7 @@ use zslide::spindle::EdgeStamps;
 /// Clock ticks at `t_ns` for a clock of `ticks_per_s` (wrapping at 2³²),
 /// the same rounding as [`crate::chips::SimClock`].
 pub fn ticks_at(t_ns: u64, ticks_per_s: u64) -> u32 {
-    (u128::from(t_ns) * u128::from(ticks_per_s) / 1_000_000_000) as u32
+    crate::chips::pins::clock_ticks(t_ns, ticks_per_s)
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -47,7 +51,7 @@ struct Snap {
     t_ns: u64,
     turns: f64,
     rpm: f64,
-    last_edge_ticks: u32,
+    last_edge_ns: f64,
 }
 
 /// The spindle model run ahead of simulation time, with the grid states
@@ -57,28 +61,32 @@ pub struct SpindleLink {
     step_ns: u64,
     window_ns: u64,
     hist: VecDeque<Snap>,
+    /// The grid step [a, b) that answered the last read: the next reads
+    /// (several a tick, ticks 50 µs apart, steps 250 µs) mostly fall in it.
+    seg: (Snap, Snap),
     pending: VecDeque<IndexPulse>,
     scratch: Vec<IndexPulse>,
-    tach_rng: ChaCha8Rng,
+    tach_rng: Xoshiro256PlusPlus,
 }
 
 impl SpindleLink {
     /// `step_ns`: the model's integration step (angle interpolated linearly
     /// inside it); `window_ns`: how far the model runs ahead per scan.
     pub fn new(cfg: SpindleConfig, step_ns: u64, window_ns: u64) -> Self {
-        let tach_rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x7AC4_0000);
+        let tach_rng = Xoshiro256PlusPlus::seed_from_u64(cfg.seed ^ 0x7AC4_0000);
         let model = Spindle::new(cfg);
         let first = Snap {
             t_ns: 0,
             turns: model.turns(),
             rpm: model.rpm(),
-            last_edge_ticks: model.last_edge_ticks(),
+            last_edge_ns: model.last_edge_ns(),
         };
         Self {
             model,
             step_ns: step_ns.max(1),
             window_ns: window_ns.max(step_ns.max(1)),
             hist: VecDeque::from([first]),
+            seg: (first, first),
             pending: VecDeque::new(),
             scratch: Vec::new(),
             tach_rng,
@@ -104,7 +112,7 @@ impl SpindleLink {
                 t_ns: t,
                 turns: self.model.turns(),
                 rpm: self.model.rpm(),
-                last_edge_ticks: self.model.last_edge_ticks(),
+                last_edge_ns: self.model.last_edge_ns(),
             });
         }
         // A spurious pulse is drawn after the true one of the same step.
@@ -124,16 +132,36 @@ impl SpindleLink {
     }
 
     /// The grid states around `t_ns` (scanning ahead if needed), dropping
-    /// the ones no later read can need.
+    /// the ones no later read can need. Reads may trail the latest one by
+    /// up to a model step (the loop handler reads the spindle after its
+    /// event, the cut and the reports read at the event), so one step
+    /// behind it is kept.
+    #[inline]
     fn around(&mut self, t_ns: u64) -> (Snap, Snap) {
+        let (a, b) = self.seg;
+        if a.t_ns <= t_ns && t_ns < b.t_ns {
+            return self.seg;
+        }
+        self.around_slow(t_ns)
+    }
+
+    #[inline(never)]
+    fn around_slow(&mut self, t_ns: u64) -> (Snap, Snap) {
         while self.model.time_ns() < t_ns {
             self.scan();
         }
-        while self.hist.len() > 2 && self.hist.get(1).is_some_and(|s| s.t_ns <= t_ns) {
+        let keep_from = t_ns.saturating_sub(self.step_ns);
+        while self.hist.len() > 2 && self.hist.get(1).is_some_and(|s| s.t_ns <= keep_from) {
             self.hist.pop_front();
         }
-        let a = self.hist[0];
-        let b = self.hist.get(1).copied().unwrap_or(a);
+        let i = usize::from(self.hist.len() > 2 && self.hist[1].t_ns <= t_ns);
+        let a = self.hist[i];
+        debug_assert!(
+            a.t_ns <= t_ns,
+            "spindle read at {t_ns} ns, more than a step behind an earlier read"
+        );
+        let b = self.hist.get(i + 1).copied().unwrap_or(a);
+        self.seg = (a, b);
         (a, b)
     }
 
@@ -161,8 +189,9 @@ impl SpindleLink {
         a.rpm + (b.rpm - a.rpm) * f
     }
 
-    /// The encoder counter and its captured last-edge timestamp at `t_ns`.
-    pub fn encoder_at(&mut self, t_ns: u64) -> EncoderSample {
+    /// The encoder's true count at `t_ns` and the exact time of the edge
+    /// that made it, ns.
+    pub fn encoder_at(&mut self, t_ns: u64) -> (u32, f64) {
         let (a, b) = self.around(t_ns);
         let cpr = self.cpr();
         let now = if b.t_ns == a.t_ns {
@@ -170,21 +199,17 @@ impl SpindleLink {
         } else {
             a.turns + (b.turns - a.turns) * (t_ns - a.t_ns) as f64 / (b.t_ns - a.t_ns) as f64
         };
-        let count = |turns: f64| (turns * cpr).floor() as i64;
+        let count = |turns: f64| crate::fastmath::floor_i64(turns * cpr);
         let c_now = count(now);
-        let edge_ticks = if c_now == count(a.turns) || b.turns == a.turns {
-            a.last_edge_ticks
+        let edge_ns = if c_now == count(a.turns) || b.turns == a.turns {
+            a.last_edge_ns
         } else {
             // The last boundary crossed, placed as the model places events.
             let edge = c_now as f64 / cpr;
             let f = ((edge - a.turns) / (b.turns - a.turns)).clamp(0.0, 1.0);
-            let t = a.t_ns + ((b.t_ns - a.t_ns) as f64 * f) as u64;
-            self.model.ticks_at(t)
+            a.t_ns as f64 + (b.t_ns - a.t_ns) as f64 * f
         };
-        EncoderSample {
-            count: c_now as u32,
-            edge_ticks,
-        }
+        (c_now as u32, edge_ns)
     }
 
     /// The tachometer at `t_ns`: 1 mV quantisation, gain error, uniform
@@ -206,7 +231,12 @@ impl SpindleLink {
 /// devices read the same model).
 pub type SharedSpindle = Rc<RefCell<SpindleLink>>;
 
-/// `zslide::hw::Encoder` for the spindle encoder, read at simulation time.
+/// `zslide::hw::Encoder` for the spindle encoder, read at simulation time
+/// (the loop handler's read instant), as the board presents it: the
+/// counter behind the input filter (the count `capture_delay_ns` late), and
+/// either every edge captured on the clock (`Captured`: the NUCLEO's TIM2
+/// CH3/CH4 on both edges of A and B) or a change stamped with the clock at
+/// the read (`AtRead`: a board without capture wiring).
 #[derive(Clone)]
 pub struct SimSpindleEncoder {
     pub link: SharedSpindle,
@@ -220,15 +250,20 @@ impl Encoder for SimSpindleEncoder {
     fn sample(&mut self) -> EncoderSample {
         let t = self.time.get();
         let mut link = self.link.borrow_mut();
-        let s = link.encoder_at(t);
+        let cfg = link.model().config();
+        let (delay, tps) = (cfg.capture_delay_ns, cfg.ticks_per_s);
+        let (count, edge_ns) = link.encoder_at(t.saturating_sub(delay));
         match self.edges {
-            EdgeStamps::Captured => s,
+            EdgeStamps::Captured => EncoderSample {
+                count,
+                edge_ticks: link.model().config().capture_ticks(edge_ns),
+            },
             EdgeStamps::AtRead => match self.last {
-                Some(l) if l.count == s.count => l,
+                Some(l) if l.count == count => l,
                 _ => {
                     let l = EncoderSample {
-                        count: s.count,
-                        edge_ticks: link.model().ticks_at(t),
+                        count,
+                        edge_ticks: ticks_at(t, tps as u64),
                     };
                     self.last = Some(l);
                     l

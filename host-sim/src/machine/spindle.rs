@@ -46,9 +46,26 @@ pub struct SpindleConfig {
     /// speed's target every revolution (drive and belt), approached at the
     /// acceleration limit.
     pub speed_noise_rpm: f64,
-    /// Clock of the timestamps, ticks per second (wraps at 2³²).
+    /// Clock of the timestamps, ticks per second (wraps at 2³²): the
+    /// board's free-running timer, whose count an input capture latches.
     pub ticks_per_s: f64,
+    /// Pin to capture, ns: the board's input filter and resynchronisation
+    /// (the encoder counter sees its edges as late, so a count and its
+    /// capture change together).
+    pub capture_delay_ns: u64,
     pub seed: u64,
+}
+
+impl SpindleConfig {
+    /// The board's input capture of an edge at `t_ns` (exact): the clock's
+    /// count when the filtered edge reaches the timer, ⌊(t + delay)·f⌋,
+    /// wrapping at 2³² (the timer counts 0, 1, … from t = 0).
+    pub fn capture_ticks(&self, t_ns: f64) -> u32 {
+        let ticks = crate::fastmath::floor_i64(
+            (t_ns + self.capture_delay_ns as f64) * 1e-9 * self.ticks_per_s,
+        );
+        ticks as u32
+    }
 }
 
 impl Default for SpindleConfig {
@@ -68,18 +85,21 @@ impl Default for SpindleConfig {
             index_jitter_us: 0.0,
             speed_noise_rpm: 0.0,
             ticks_per_s: 1.0e6,
+            capture_delay_ns: 0,
             seed: 1,
         }
     }
 }
 
-/// An index pulse (true or spurious).
+/// An index pulse (true or spurious) as the board captures it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct IndexPulse {
+    /// When the capture raises the interrupt (the edge plus the capture
+    /// delay), ns.
     pub t_ns: u64,
-    /// Timestamp of the edge, clock ticks (wrapping).
+    /// The captured time of the edge, clock ticks (wrapping).
     pub edge_ticks: u32,
-    /// Encoder count latched at the edge.
+    /// Encoder count captured at the edge (behind the same filter).
     pub count: u32,
     pub spurious: bool,
 }
@@ -96,7 +116,8 @@ pub struct Spindle {
     load: f64,
     /// This revolution's random speed offset (`speed_noise_rpm`), rpm.
     speed_offset_rpm: f64,
-    last_edge_ticks: u32,
+    /// Exact time of the last encoder edge the model has passed, ns.
+    last_edge_ns: f64,
 }
 
 impl Spindle {
@@ -111,7 +132,7 @@ impl Spindle {
             turns: 0.0,
             load: 0.0,
             speed_offset_rpm: 0.0,
-            last_edge_ticks: 0,
+            last_edge_ns: 0.0,
         }
     }
 
@@ -150,9 +171,9 @@ impl Spindle {
         self.t_ns
     }
 
-    /// Timestamp of the last encoder edge the model has passed.
-    pub fn last_edge_ticks(&self) -> u32 {
-        self.last_edge_ticks
+    /// Exact time of the last encoder edge the model has passed, ns.
+    pub fn last_edge_ns(&self) -> f64 {
+        self.last_edge_ns
     }
 
     /// True spindle angle φ, turns in [0, 1).
@@ -160,20 +181,23 @@ impl Spindle {
         (self.turns + self.cfg.index_phase_turns).rem_euclid(1.0)
     }
 
+    /// The free-running clock's count at `t_ns` (as the firmware reads it).
     pub fn ticks_at(&self, t_ns: u64) -> u32 {
-        ((t_ns as f64 * 1e-9 * self.cfg.ticks_per_s).round() as u64) as u32
+        crate::fastmath::floor_i64(t_ns as f64 * 1e-9 * self.cfg.ticks_per_s) as u32
     }
 
     /// Encoder count of a total angle.
     fn count_of(&self, turns: f64) -> u32 {
-        ((turns * f64::from(self.cfg.encoder_cpr)).floor() as i64) as u32
+        crate::fastmath::floor_i64(turns * f64::from(self.cfg.encoder_cpr)) as u32
     }
 
-    /// The encoder as the hardware presents it now.
+    /// The encoder as a board capturing every edge presents it now (the
+    /// count and its captured edge; with a capture delay the count itself
+    /// is as late: `SpindleLink` models that).
     pub fn encoder(&self) -> EncoderSample {
         EncoderSample {
             count: self.count_of(self.turns),
-            edge_ticks: self.last_edge_ticks,
+            edge_ticks: self.cfg.capture_ticks(self.last_edge_ns),
         }
     }
 
@@ -208,18 +232,20 @@ impl Spindle {
             let r1 = r0 + (want - r0).clamp(-max_dr, max_dr);
             let a0 = self.turns;
             let a1 = a0 + (r0 + r1) / 2.0 / 60.0 * dt;
-            let at = |a: f64| -> u64 {
+            // Exact time (ns) at which the angle reaches `a` in this step.
+            let at = |a: f64| -> f64 {
                 let f = if a1 > a0 { (a - a0) / (a1 - a0) } else { 0.0 };
-                self.t_ns + ((t1 - self.t_ns) as f64 * f.clamp(0.0, 1.0)) as u64
+                self.t_ns as f64 + (t1 - self.t_ns) as f64 * f.clamp(0.0, 1.0)
             };
+            let delay = self.cfg.capture_delay_ns as f64;
             // Encoder edge: the last count boundary crossed in the step.
             let cpr = f64::from(self.cfg.encoder_cpr);
             if self.count_of(a1) != self.count_of(a0) {
-                let edge_turns = (a1 * cpr).floor() / cpr;
-                self.last_edge_ticks = self.ticks_at(at(edge_turns));
+                let edge_turns = crate::fastmath::floor_i64(a1 * cpr) as f64 / cpr;
+                self.last_edge_ns = at(edge_turns);
             }
             // True index: each whole turn crossed.
-            let mut k = a0.floor() + 1.0;
+            let mut k = crate::fastmath::floor_i64(a0) as f64 + 1.0;
             while k <= a1 {
                 if !self
                     .rng
@@ -233,14 +259,14 @@ impl Spindle {
                             * self.cfg.index_jitter_us
                             * 3f64.sqrt()
                             * 1e-6;
-                        let t = (at(k) as f64 + j_s * 1e9).max(self.t_ns as f64) as u64;
+                        let t = (at(k) + j_s * 1e9).max(self.t_ns as f64);
                         (t, k + r0 / 60.0 * j_s)
                     } else {
                         (at(k), k)
                     };
                     out.push(IndexPulse {
-                        t_ns: t,
-                        edge_ticks: self.ticks_at(t),
+                        t_ns: (t + delay).ceil() as u64,
+                        edge_ticks: self.cfg.capture_ticks(t),
                         count: self.count_of(a),
                         spurious: false,
                     });
@@ -257,8 +283,8 @@ impl Spindle {
                 let a = self.rng.random_range(a0..=a1);
                 let t = at(a);
                 out.push(IndexPulse {
-                    t_ns: t,
-                    edge_ticks: self.ticks_at(t),
+                    t_ns: (t + delay).ceil() as u64,
+                    edge_ticks: self.cfg.capture_ticks(t),
                     count: self.count_of(a),
                     spurious: true,
                 });

@@ -117,17 +117,21 @@ pub struct XSlide {
     rng: ChaCha8Rng,
     count: i64,
     t_ns: u64,
+    /// The vibration's sin(2π f t), by rotation between samples.
+    vib: crate::fastmath::Phasor,
 }
 
 impl XSlide {
     pub fn new(cfg: XSlideConfig) -> Self {
         let rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let count = (cfg.x0_in * COUNTS_PER_INCH).round() as i64;
+        let vib = crate::fastmath::Phasor::new(std::f64::consts::TAU * cfg.vibration_hz);
         Self {
             cfg,
             rng,
             count,
             t_ns: 0,
+            vib,
         }
     }
 
@@ -164,8 +168,11 @@ impl XSlide {
         while self.t_ns < t_ns {
             let t_next = (self.t_ns + step).min(t_ns);
             let ts = t_next as f64 * 1e-9;
-            let vib =
-                self.cfg.vibration_uin * (std::f64::consts::TAU * self.cfg.vibration_hz * ts).sin();
+            let vib = if self.cfg.vibration_uin != 0.0 {
+                self.cfg.vibration_uin * self.vib.sin_at(t_next)
+            } else {
+                0.0
+            };
             let jit = if self.cfg.jitter_uin > 0.0 {
                 self.rng
                     .random_range(-self.cfg.jitter_uin..=self.cfg.jitter_uin)

@@ -29,6 +29,11 @@ pub struct RigConfig {
     pub dac_latency_ns: u64,
     /// Rate of the firmware's free-running clock, Hz.
     pub clock_hz: u64,
+    /// Loop-tick event to the gauge's sampling instant, ns.
+    pub adc_sample_ns: u64,
+    /// Loop-tick event to the handler's reads (clock, spindle, X), ns;
+    /// ≥ `adc_sample_ns`, ≤ `dac_latency_ns`.
+    pub handler_entry_ns: u64,
 }
 
 impl RigConfig {
@@ -41,6 +46,8 @@ impl RigConfig {
             seed,
             dac_latency_ns: 0,
             clock_hz: 100_000_000,
+            adc_sample_ns: 0,
+            handler_entry_ns: 0,
         }
     }
     /// Same motor and slide, low-noise gauge.
@@ -64,6 +71,15 @@ pub struct Rig {
     pub quad: SimAd5686,
     pub enable: SimAmpEnablePin,
     pub clock_hz: u64,
+    /// Loop-tick event to the gauge's sampling instant and to the
+    /// handler's reads, ns (`RigConfig`).
+    pub adc_sample_ns: u64,
+    pub handler_entry_ns: u64,
+    /// Loop-tick event to the end of the DAC frame, ns (`RigConfig`).
+    pub dac_latency_ns: u64,
+    /// The configuration's seed (streams derived from it, e.g. the 1983
+    /// loop's exact noise increments).
+    pub seed: u64,
     /// Amplifier input now applied, V.
     pub v_in: f64,
     /// External (cutting) force now applied along +Z, lbf.
@@ -80,7 +96,10 @@ impl Rig {
     pub fn new(cfg: RigConfig) -> Self {
         let time: SimTime = Rc::new(Cell::new(0));
         let dac = SimAd5791::new(time.clone());
-        dac.state.borrow_mut().latency_ns = cfg.dac_latency_ns;
+        // The DAC frame is timed from the handler's reads (the simulated
+        // clock stands there while the handler runs).
+        let handler_entry_ns = cfg.handler_entry_ns.min(cfg.dac_latency_ns);
+        dac.state.borrow_mut().latency_ns = cfg.dac_latency_ns - handler_entry_ns;
         Self {
             slide: ZSlide::new(cfg.slide),
             amp: Amplifier::new(cfg.amplifier),
@@ -90,6 +109,10 @@ impl Rig {
             quad: SimAd5686::new(),
             enable: SimAmpEnablePin::new(time.clone()),
             clock_hz: cfg.clock_hz,
+            adc_sample_ns: cfg.adc_sample_ns.min(handler_entry_ns),
+            handler_entry_ns,
+            dac_latency_ns: cfg.dac_latency_ns,
+            seed: cfg.seed,
             time,
             t_ns: 0,
             v_in: 0.0,
@@ -160,6 +183,23 @@ impl Rig {
             }
         }
         self.step_plain(t_ns);
+    }
+}
+
+impl Rig {
+    /// Drops the DAC output changes due by `t_ns` and applies the enable
+    /// edges due by then: for a plant advanced by someone else (the 1983
+    /// loop's exact steps, whose amplifier input is not the DAC).
+    pub fn take_changes_to(&mut self, t_ns: u64) {
+        let mut dac = self.dac.state.borrow_mut();
+        while dac.changes.front().is_some_and(|c| c.0 <= t_ns) {
+            dac.changes.pop_front();
+        }
+        let mut en = self.enable.state.borrow_mut();
+        while en.changes.first().is_some_and(|c| c.0 <= t_ns) {
+            let (_, level) = en.changes.remove(0);
+            self.amp.set_enabled(level);
+        }
     }
 }
 
