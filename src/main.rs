@@ -9,7 +9,7 @@
 //! |---|---|---|---|
 //! | 0x00 | `TIM3` | loop tick, 20 kHz, TIM3 CC2 | `LoopState::loop_tick`: gauge, spindle angle, command, loop, DAC; watchdog |
 //! | 0x10 | `EXTI2` | legacy X half-mil interrupt, PG2 | `EventState::x_event` on the latched word |
-//! | 0x10 | `EXTI3` | spindle index, PG3 | `Shared::index_event` with the count and time |
+//! | 0x10 | `TIM2` | spindle index, TIM2 CH1 capture (PA0) | `Shared::index_event` with the captured time and count |
 //! | thread | `main` loop | - | background: status and fault logging |
 //!
 //! Each handler owns its part of the firmware outright (moved in once,
@@ -75,7 +75,8 @@ mod app {
                 max_rpm: 1_200,
                 index_tolerance_counts: 4,
                 index_angle: SpindleAngle(0),
-                edge_stamps: zslide::spindle::EdgeStamps::AtRead,
+                // Every count's edge captured on TIM2 (`timers::start_captures`).
+                edge_stamps: zslide::spindle::EdgeStamps::Captured,
             }),
             x: XMode::Legacy {
                 clock_hz: timers::CLOCK_HZ,
@@ -174,6 +175,7 @@ mod app {
             Err(_) => boot_failure("coefficient DAC LDAC pin"),
         };
         timers::start_spindle_encoder(&dp.TIM4);
+        timers::start_captures(&dp.TIM2, &dp.TIM4);
         let lp = Loop {
             lp,
             gauge: Ad4020::new(gauge_spi),
@@ -194,10 +196,10 @@ mod app {
         unsafe {
             cp.NVIC.set_priority(Interrupt::TIM3, PRIO_LOOP_TICK);
             cp.NVIC.set_priority(Interrupt::EXTI2, PRIO_X_EVENT);
-            cp.NVIC.set_priority(Interrupt::EXTI3, PRIO_INDEX);
+            cp.NVIC.set_priority(Interrupt::TIM2, PRIO_INDEX);
             NVIC::unmask(Interrupt::TIM3);
             NVIC::unmask(Interrupt::EXTI2);
-            NVIC::unmask(Interrupt::EXTI3);
+            NVIC::unmask(Interrupt::TIM2);
         }
 
         background()
@@ -327,14 +329,13 @@ mod app {
         }
     }
 
-    /// Spindle index: the time and the spindle count at the edge, for the
-    /// loop tick's angle estimator.
+    /// Spindle index (TIM2 CC1): the edge's time and the spindle count at
+    /// the edge, both captured in hardware, for the loop tick's estimator.
     #[interrupt]
-    fn EXTI3() {
-        let now = timers::now_ticks();
-        let count = timers::spindle_count_now();
-        board::ack_exti(3);
-        SHARED.index_event(now, count);
+    fn TIM2() {
+        if let Some((edge, count)) = timers::index_capture() {
+            SHARED.index_event(edge, count);
+        }
     }
 
     // cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its

@@ -52,15 +52,22 @@ pub mod pins {
     pub const X_MIL_ZERO_FLAG: Pin = Pin::new(Port::G, 1);
     /// The half-mil interrupt, EXTI2 on its rising edge.
     pub const X_HALF_MIL_IRQ: Pin = Pin::new(Port::G, 2);
-    /// Spindle once-per-revolution index, EXTI3 on its rising edge.
-    pub const SPINDLE_INDEX: Pin = Pin::new(Port::G, 3);
-    /// Spindle encoder A/B, TIM4_CH1/CH2 (AF2): quadrature counter.
+    /// Spindle once-per-revolution index, wired to two pins: TIM2_CH1
+    /// (AF1) captures the edge's time on the clock and raises the index
+    /// interrupt; TIM4_CH3 (AF2) captures the encoder count at the edge.
+    pub const SPINDLE_INDEX_TIME: Pin = Pin::new(Port::A, 0);
+    pub const SPINDLE_INDEX_COUNT: Pin = Pin::new(Port::B, 8);
     /// Arm/disarm: the NUCLEO's user button B1 (high while pressed).
     pub const ARM_BUTTON: Pin = Pin::new(Port::C, 13);
     /// The power amplifier's fault output (high: tripped), pulled down.
     pub const AMP_FAULT: Pin = Pin::new(Port::G, 9);
+    /// Spindle encoder A/B, TIM4_CH1/CH2 (AF2): quadrature counter.
     pub const SPINDLE_ENC_A: Pin = Pin::new(Port::D, 12);
     pub const SPINDLE_ENC_B: Pin = Pin::new(Port::D, 13);
+    /// The same A/B lines wired also to TIM2_CH3/CH4 (AF1): both edges of
+    /// both lines captured on the clock, i.e. every count's edge time.
+    pub const SPINDLE_ENC_A_TIME: Pin = Pin::new(Port::B, 10);
+    pub const SPINDLE_ENC_B_TIME: Pin = Pin::new(Port::B, 11);
 }
 
 /// Configures every pin of the map; outputs start at their safe level
@@ -87,33 +94,31 @@ pub fn configure_pins() {
     GAUGE_CNV.configure(Mode::Alternate(2));
     SPINDLE_ENC_A.configure(Mode::Alternate(2));
     SPINDLE_ENC_B.configure(Mode::Alternate(2));
+    SPINDLE_INDEX_COUNT.configure(Mode::Alternate(2));
+    for p in [SPINDLE_INDEX_TIME, SPINDLE_ENC_A_TIME, SPINDLE_ENC_B_TIME] {
+        p.configure(Mode::Alternate(1));
+    }
     for n in 0..16 {
         Pin::new(BCD_PORT, n).configure(Mode::Input(0));
     }
-    for p in [
-        X_HALF_MIL_FLAG,
-        X_MIL_ZERO_FLAG,
-        X_HALF_MIL_IRQ,
-        SPINDLE_INDEX,
-        ARM_BUTTON,
-    ] {
+    for p in [X_HALF_MIL_FLAG, X_MIL_ZERO_FLAG, X_HALF_MIL_IRQ, ARM_BUTTON] {
         p.configure(Mode::Input(0));
     }
     AMP_FAULT.configure(Mode::Input(2));
 }
 
-/// Routes PG2 to EXTI2 and PG3 to EXTI3, rising edges, unmasked for the
-/// CPU (the NVIC lines stay masked until `main` unmasks them).
+/// Routes PG2 to EXTI2, rising edge, unmasked for the CPU (the NVIC line
+/// stays masked until `main` unmasks it).
 pub fn configure_exti(syscfg: &SYSCFG, exti: &EXTI) {
     const PORT_G: u32 = 6;
-    const LINES: u32 = (1 << 2) | (1 << 3);
-    // SAFETY: EXTICR1 fields EXTI2 (bits 11..8) and EXTI3 (bits 15..12)
-    // select port G; RTSR1/CPUIMR1 bits 2 and 3 enable rising-edge events
-    // and their interrupts; CPUPR1 clears stale pending bits (write 1).
+    const LINES: u32 = 1 << 2;
+    // SAFETY: EXTICR1 field EXTI2 (bits 11..8) selects port G; RTSR1/CPUIMR1
+    // bit 2 enables rising-edge events and their interrupt; CPUPR1 clears
+    // a stale pending bit (write 1).
     unsafe {
         syscfg
             .exticr1()
-            .modify(|r, w| w.bits((r.bits() & !0xFF00) | (PORT_G << 8) | (PORT_G << 12)));
+            .modify(|r, w| w.bits((r.bits() & !0x0F00) | (PORT_G << 8)));
         exti.rtsr1().modify(|r, w| w.bits(r.bits() | LINES));
         exti.cpupr1().write(|w| w.bits(LINES));
         exti.cpuimr1().modify(|r, w| w.bits(r.bits() | LINES));

@@ -4,7 +4,8 @@
 //! | timer | clock | use |
 //! |---|---|---|
 //! | TIM3 | 200 MHz, ARR = 200 MHz / [`LOOP_HZ`] − 1 | loop period; CH1 PWM = gauge CNV pulse on PC6, high for [`CNV_HIGH_TICKS`] from each update; CH2 compare at [`READ_AT_TICKS`] raises the loop-tick interrupt |
-//! | TIM2 | 200 MHz, free-running 32 bit | `hw::Clock` (5 ns ticks, wraps every 21.5 s) |
+//! | TIM2 | 200 MHz, free-running 32 bit | `hw::Clock` (5 ns ticks, wraps every 21.5 s); input captures of the spindle index (CH1) and of every encoder edge (CH3/CH4), [`start_captures`] |
+//! | TIM4 | encoder mode 3 | spindle count; CH3 captures it at the index |
 //! | TIM5 | 1 MHz, free-running 32 bit | defmt timestamp, µs (wraps every 71.6 min) |
 //! | IWDG1 | LSI 32 kHz / 4 | 10 ms watchdog, refreshed by the background when the loop tick ran (`zslide::watchdog`) |
 //!
@@ -136,12 +137,57 @@ pub fn spindle_count16() -> u16 {
     unsafe { (*TIM4::ptr()).cnt().read().bits() as u16 }
 }
 
+/// Configures TIM2's input captures (TIM2 already runs as the clock) and
+/// TIM4's index-count capture, all behind the same 8-sample input filter
+/// as the encoder inputs (IC filter 0011 at 200 MHz: the count and its
+/// captures change at the same filtered edge, ≈ 50 ns after the pin):
+///
+/// | channel | pin | edges | captures |
+/// |---|---|---|---|
+/// | TIM2 CH1 | PA0, index | rising, interrupt (CC1IE) | the index's time |
+/// | TIM2 CH3 | PB10, encoder A | both | time of A's every edge |
+/// | TIM2 CH4 | PB11, encoder B | both | time of B's every edge |
+/// | TIM4 CH3 | PB8, index | rising | the encoder count at the index |
+///
+/// Each edge of A or B is one count of the ×4 decoder, so CH3 and CH4
+/// together stamp every count.
+pub fn start_captures(tim2: &TIM2, tim4: &TIM4) {
+    // SAFETY: raw values into capture registers only this module reads.
+    // CCMRx input layout: CCyS (bits 1..0 / 9..8) = 01 (ICy on TIy),
+    // ICyF (bits 7..4 / 15..12) = 0011. CCER: CC1E (bit 0) rising;
+    // CC3E|CC3P|CC3NP (bits 8, 9, 11) and CC4E|CC4P|CC4NP (12, 13, 15) both
+    // edges. DIER CC1IE (bit 1). TIM4 CCER CC3E (bit 8) rising; its
+    // encoder inputs CH1/CH2 keep their polarity bits at 0 (non-inverted).
+    // The CCyS fields are written while the channels are disabled.
+    unsafe {
+        tim2.ccmr1_input().write(|w| w.bits(0b01 | (0b0011 << 4)));
+        tim2.ccmr2_input()
+            .write(|w| w.bits(0b01 | (0b0011 << 4) | (0b01 << 8) | (0b0011 << 12)));
+        tim2.ccer().write(|w| {
+            w.bits(1 | (1 << 8) | (1 << 9) | (1 << 11) | (1 << 12) | (1 << 13) | (1 << 15))
+        });
+        tim2.dier().write(|w| w.bits(SR_CC1IF));
+        tim4.ccmr2_input().write(|w| w.bits(0b01 | (0b0011 << 4)));
+        tim4.ccer().write(|w| w.bits(1 << 8));
+    }
+}
+
+const SR_CC1IF: u32 = 1 << 1;
+const SR_CC3IF: u32 = 1 << 3;
+const SR_CC4IF: u32 = 1 << 4;
+
+/// The newer of two stamps taken within half a clock wrap of each other.
+fn newer(a: Option<u32>, b: u32) -> Option<u32> {
+    match a {
+        Some(a) if (b.wrapping_sub(a) as i32) < 0 => Some(a),
+        _ => Some(b),
+    }
+}
+
 /// The spindle encoder as `hw::Encoder`, owned by the loop tick: TIM4's
 /// 16-bit count extended to 32 bits (the tick samples it far more often
-/// than every 32 768 counts), and the time of the last count change. The
-/// counter has no edge capture, so the edge time is the first loop tick
-/// that saw the new count: the 1/T interpolation then works to one loop
-/// period (a capture channel on an encoder line would make it exact).
+/// than every 32 768 counts), and the captured time of the edge that made
+/// the last count change (TIM2 CH3/CH4: `EdgeStamps::Captured`).
 pub struct SpindleEncoder {
     count: u32,
     edge: u32,
@@ -164,11 +210,39 @@ impl SpindleEncoder {
 
 impl zslide::hw::Encoder for SpindleEncoder {
     fn sample(&mut self) -> zslide::hw::EncoderSample {
-        let raw = spindle_count16();
+        // SAFETY: TIM2's SR is only read here and in the index handler
+        // (never written: each flag is cleared by reading its CCR), and
+        // CCR3/CCR4 are read only here.
+        let tim2 = unsafe { &*TIM2::ptr() };
+        let mut raw = spindle_count16();
+        let mut stamp = None;
+        // The captures are read between two reads of the count until the
+        // count holds still, so the newest stamp belongs to the edge that
+        // made the count read (an edge between the reads is stamped and
+        // counted on the next pass). Edges are ≥ 12 µs apart at 1200 rpm
+        // and 4096 counts a turn and a pass takes ≈ 50 ns: one retry
+        // suffices; three bound the handler.
+        for _ in 0..3 {
+            let sr = tim2.sr().read().bits();
+            if sr & SR_CC3IF != 0 {
+                stamp = newer(stamp, tim2.ccr3().read().bits());
+            }
+            if sr & SR_CC4IF != 0 {
+                stamp = newer(stamp, tim2.ccr4().read().bits());
+            }
+            let again = spindle_count16();
+            if again == raw {
+                break;
+            }
+            raw = again;
+        }
         let step = raw.wrapping_sub(self.count as u16) as i16;
         if step != 0 {
             self.count = self.count.wrapping_add(step as i32 as u32);
-            self.edge = now_ticks();
+            // A count change comes with its capture (same filter, same
+            // clock); should one ever be missing, the read time is a
+            // bounded stand-in (late by less than a loop period).
+            self.edge = stamp.unwrap_or_else(now_ticks);
             SPINDLE_COUNT.store(self.count, core::sync::atomic::Ordering::Relaxed);
         }
         zslide::hw::EncoderSample {
@@ -178,10 +252,20 @@ impl zslide::hw::Encoder for SpindleEncoder {
     }
 }
 
-/// The spindle count now, extended to 32 bits consistently with the loop
-/// tick's [`SpindleEncoder`] (for the index handler).
-pub fn spindle_count_now() -> u32 {
+/// The index capture, for its interrupt (TIM2 CC1): the edge's time and
+/// the encoder count at the edge, extended to 32 bits consistently with
+/// the loop tick's [`SpindleEncoder`]; `None` when no index was captured
+/// (a spurious entry).
+pub fn index_capture() -> Option<(u32, u32)> {
+    // SAFETY: TIM2 SR is read-only here; CCR1 (whose read clears CC1IF and
+    // with it the interrupt request) and TIM4 CCR3 are read only here.
+    let (tim2, tim4) = unsafe { (&*TIM2::ptr(), &*TIM4::ptr()) };
+    if tim2.sr().read().bits() & SR_CC1IF == 0 {
+        return None;
+    }
+    let edge = tim2.ccr1().read().bits();
+    let count16 = tim4.ccr3().read().bits() as u16;
     let base = SPINDLE_COUNT.load(core::sync::atomic::Ordering::Relaxed);
-    let step = spindle_count16().wrapping_sub(base as u16) as i16;
-    base.wrapping_add(step as i32 as u32)
+    let step = count16.wrapping_sub(base as u16) as i16;
+    Some((edge, base.wrapping_add(step as i32 as u32)))
 }
