@@ -787,7 +787,10 @@ mod tests {
             }
             let _ = t.on_index(now);
             let g = t.gain_q30() as f64 / f64::from(1u32 << 30);
-            assert!(ratio == 1.0 || (g - 1.0).abs() > 0.05, "gain {g} not calibrated");
+            assert!(
+                ratio == 1.0 || (g - 1.0).abs() > 0.05,
+                "gain {g} not calibrated"
+            );
             for mv in [65_536, -65_536, 65_535, 12_345, 1, 0, -7] {
                 t.tick(mv, now);
                 let bound = f64::from(mv).abs() * (g + 1.0) / 65_536.0 + 1.0;

@@ -114,7 +114,8 @@ impl Tachometers {
                 .write(|w| w.bits((0b011 << (3 * (CH_X - 10))) | (0b011 << (3 * (CH_Y - 10)))));
             adc.jsqr().write(|w| w.bits(1 | (CH_X << 9) | (CH_Y << 15)));
             adc.isr().write(|w| w.bits(ISR_ADRDY));
-            adc.cr().write(|w| w.bits(CR_ADVREGEN | CR_BOOST_50MHZ | CR_ADEN));
+            adc.cr()
+                .write(|w| w.bits(CR_ADVREGEN | CR_BOOST_50MHZ | CR_ADEN));
         }
         wait(&adc, ISR_ADRDY, true, "ADC enable (ADRDY)")?;
         let t = Self { adc };

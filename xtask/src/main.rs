@@ -128,6 +128,11 @@ pub fn board_elf() -> PathBuf {
     target_dir().join(TARGET).join("release/zslide-fw")
 }
 
+/// The centring firmware (Feezell 1967) for the same board.
+pub fn centre_elf() -> PathBuf {
+    target_dir().join(TARGET).join("release/zslide-centre")
+}
+
 pub fn qemu_elf() -> PathBuf {
     target_dir().join(TARGET).join("release/zslide-qemu")
 }
@@ -324,7 +329,7 @@ fn require(tools: &[Tool]) -> Result<()> {
 // ---------------------------------------------------------------- builds
 
 fn build_board() -> Result<()> {
-    step("board firmware: cargo fw (NUCLEO-H743ZI2)");
+    step("board firmware: cargo fw (NUCLEO-H743ZI2: zslide-fw, zslide-centre)");
     run(cargo().current_dir(root()).arg("fw"), "cargo fw")
 }
 
@@ -529,11 +534,11 @@ fn cmd_no_panic() -> Result<u8> {
     Ok(0)
 }
 
-/// Both images: no panic path from any interrupt handler (`nopanic.rs`).
+/// Every image: no panic path from any interrupt handler (`nopanic.rs`).
 fn check_no_panic() -> Result<()> {
-    step("no panic path from interrupt handlers (both images)");
+    step("no panic path from interrupt handlers (every image)");
     let mut errors = Vec::new();
-    for elf in [board_elf(), qemu_elf()] {
+    for elf in [board_elf(), centre_elf(), qemu_elf()] {
         match nopanic::check(&elf) {
             Ok(summary) => eprintln!("{summary}"),
             Err(e) => errors.push(e),
@@ -552,6 +557,12 @@ fn print_sizes() -> Result<()> {
         (
             "NUCLEO-H743ZI2 (zslide-fw)",
             board_elf(),
+            2048 * 1024,
+            128 * 1024,
+        ),
+        (
+            "NUCLEO-H743ZI2 (zslide-centre)",
+            centre_elf(),
             2048 * 1024,
             128 * 1024,
         ),
