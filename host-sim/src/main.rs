@@ -37,13 +37,10 @@ enum Command {
     Soak(cmd::soak::Args),
     /// Cost of one plant step and of one simulated second at the loop rate.
     Bench(cmd::bench::Args),
-<<<<<<< HEAD
     /// A board's decoded defmt trace log as a VCD with the simulator's signal names.
     Trace2vcd(cmd::trace2vcd::Args),
-=======
     /// Record the runs the target replays bit-exact (`cargo xtask qemu`).
     ReplayRecord(cmd::replay::Args),
->>>>>>> main
 }
 
 /// Errors go to stderr as one readable chain ("what: because"), exit code 1,
@@ -69,10 +66,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Faults(a) => cmd::faults::run(a),
         Command::Soak(a) => cmd::soak::run(a),
         Command::Bench(a) => cmd::bench::run(a),
-<<<<<<< HEAD
         Command::Trace2vcd(a) => cmd::trace2vcd::run(a),
-=======
         Command::ReplayRecord(a) => cmd::replay::run(a),
->>>>>>> main
     }
 }
