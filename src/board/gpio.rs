@@ -44,6 +44,8 @@ pub enum Mode {
     Output(bool),
     /// Alternate function number, push-pull, very high speed.
     Alternate(u8),
+    /// Analog (ADC input): no pull, digital input off.
+    Analog,
 }
 
 impl Port {
@@ -103,6 +105,10 @@ impl Pin {
                 self.set_field(OTYPER, 1, n, 0);
                 self.set_field(OSPEEDR, 2, n, 0b11);
                 self.set_field(MODER, 2, n, 0b10);
+            }
+            Mode::Analog => {
+                self.set_field(PUPDR, 2, n, 0);
+                self.set_field(MODER, 2, n, 0b11);
             }
         }
     }

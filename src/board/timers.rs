@@ -61,9 +61,16 @@ pub fn micros() -> u32 {
     unsafe { (*TIM5::ptr()).cnt().read().bits() }
 }
 
-/// Configures TIM3 for the loop tick and starts it (the NVIC line stays
-/// masked until `main` unmasks it).
+/// Configures TIM3 for the loop tick at [`LOOP_HZ`] and starts it (the
+/// NVIC line stays masked until `main` unmasks it).
 pub fn start_loop_timer(tim3: &TIM3) {
+    start_loop_timer_at(tim3, LOOP_HZ);
+}
+
+/// The same at `hz` (≥ 3052 Hz, dividing 200 MHz: the centring tick runs
+/// at 10 kHz).
+pub fn start_loop_timer_at(tim3: &TIM3, hz: u32) {
+    let arr = (APB1_TIMER_HZ / hz.max(3_052) - 1).clamp(2 * READ_AT_TICKS + 1, 0xFFFF);
     // SAFETY: raw values into TIM3, which only this function and the loop
     // handler touch: CCMR1 OC1M = PWM mode 1 with preload (bits 6..4 = 110,
     // bit 3), CC2 as frozen output compare (its flag is the interrupt);
@@ -71,7 +78,7 @@ pub fn start_loop_timer(tim3: &TIM3) {
     unsafe {
         tim3.cr1().write(|w| w.bits(0));
         tim3.psc().write(|w| w.bits(0));
-        tim3.arr().write(|w| w.bits(LOOP_ARR));
+        tim3.arr().write(|w| w.bits(arr));
         tim3.ccmr1_output()
             .write(|w| w.bits((0b110 << 4) | (1 << 3)));
         tim3.ccr1().write(|w| w.bits(CNV_HIGH_TICKS));
