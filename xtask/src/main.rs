@@ -880,7 +880,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         watchdog_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!(
-        "VCD (QEMU trace with the traced log checked, host-sim machine): {}",
+        "VCD (the traced QEMU run, PASS; a host-sim machine VCD): {}",
         vcd_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
