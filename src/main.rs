@@ -43,6 +43,7 @@ mod app {
     use zslide::safety::{Device, Fault};
     use zslide::servo::{ServoConfig, ServoDesign};
     use zslide::spindle::EncoderConfig;
+    use zslide::trace::{self, Event, Outputs};
     use zslide::units::SpindleAngle;
     use zslide::watchdog::FeedGate;
 
@@ -91,6 +92,8 @@ mod app {
     struct Loop {
         lp: LoopState,
         tap: TickTap,
+        /// The loop's outputs on the trace (`--features trace` only).
+        outputs: Outputs,
         gauge: Ad4020<SpiDev<SPI4, NoCs>>,
         dac: Ad5791<SpiDev<SPI1, Output>>,
         spindle: SpindleEncoder,
@@ -100,6 +103,8 @@ mod app {
     struct XHandler {
         ev: EventState,
         quad: Ad5686<SpiDev<SPI3, Output>, Output>,
+        /// Coefficient generation last traced.
+        generation: u32,
     }
 
     // `Cell`, not `RefCell`: a `RefCell` borrow inside a handler links the
@@ -232,17 +237,24 @@ mod app {
         let lp = Loop {
             lp,
             tap: TickTap::new(),
+            outputs: Outputs::new(),
             gauge: Ad4020::new(gauge_spi),
             dac,
             spindle: SpindleEncoder::new(),
         };
         critical_section::with(|cs| {
             HANDOFF.borrow(cs).set(Some(lp));
-            HANDOFF_X.borrow(cs).set(Some(XHandler { ev, quad }));
+            HANDOFF_X.borrow(cs).set(Some(XHandler {
+                ev,
+                quad,
+                generation: 0,
+            }));
         });
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
         timers::start_watchdog(&dp.IWDG, &dp.DBGMCU);
+        // With `--features trace`: the trace clock is TIM2 (5 ns).
+        trace::announce_clock(timers::CLOCK_HZ);
         timers::start_loop_timer(&dp.TIM3);
         // SAFETY: setting priorities and unmasking can break critical
         // sections that rely on masking; none does here: every datum shared
@@ -361,6 +373,7 @@ mod app {
         let Some(l) = LOOP.as_mut() else {
             return;
         };
+        trace::emit(Event::LoopEnter, timers::now_ticks());
         // The encoder first, then the clock: `now` is then never before
         // the captured edge of the count read (an edge between the two
         // reads would otherwise look 2³² ticks old, a stall).
@@ -374,6 +387,8 @@ mod app {
         l.lp.loop_tick(&SHARED, &input, &mut l.gauge, &mut l.dac);
         let enable = l.lp.amplifier_enable();
         pins::AMP_ENABLE.set(enable);
+        trace::emit(Event::LoopExit, timers::now_ticks());
+        l.outputs.after_tick(&l.lp, timers::now_ticks);
         // Fault changes, snapshots, capture: a few stores (zslide::link::tap).
         l.tap.after_tick(&TAP, &mut l.lp);
         ARMED.store(enable, Ordering::Relaxed);
@@ -393,8 +408,15 @@ mod app {
             *X = critical_section::with(|cs| HANDOFF_X.borrow(cs).take());
         }
         if let Some(x) = X.as_mut() {
+            trace::emit(Event::XEnter, now);
             // Faults reach the loop tick through SHARED.
             let _ = x.ev.x_event(&SHARED, word, now, &mut x.quad);
+            trace::emit(Event::XExit, timers::now_ticks());
+            let g = SHARED.coefficient_generation();
+            if g != x.generation {
+                x.generation = g;
+                trace::emit(Event::Coefficients(g), timers::now_ticks());
+            }
         }
     }
 
@@ -402,9 +424,11 @@ mod app {
     /// the edge, both captured in hardware, for the loop tick's estimator.
     #[interrupt]
     fn TIM2() {
+        trace::emit(Event::IndexEnter, timers::now_ticks());
         if let Some((edge, count)) = timers::index_capture() {
             SHARED.index_event(edge, count);
         }
+        trace::emit(Event::IndexExit, timers::now_ticks());
     }
 
     // cortex-m-rt requires the HardFault handler to be an `unsafe fn`; its

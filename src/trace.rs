@@ -1,12 +1,12 @@
 //! Trace events: what a board reports of its handlers and outputs so that a
 //! run on the target can be laid beside a simulated one, signal for signal.
 //!
-//! A board emits each [`Event`] as one defmt frame at `trace` level (the
-//! boards' `trace` module), carrying the event's [`Event::code`], its value
-//! and the board clock (`hw::Clock`) at the moment it happened. defmt's
-//! level filter decides whether the frames exist at all: a normal build
-//! (`DEFMT_LOG=info`) compiles them out and pays nothing, a trace build
-//! (`cargo xtask qemu --vcd`) compiles them in. The host side
+//! A board puts each [`Event`] on its defmt log with [`emit`]: one line
+//! carrying the event's [`Event::code`], its value and the board's clock at
+//! the moment it happened. Only builds with this crate's `trace` feature
+//! have the lines (the boards' own `trace` features turn it on: `cargo
+//! xtask qemu --vcd`, `cargo fw --features trace`); otherwise [`emit`] and
+//! [`Outputs`] are empty and cost nothing. The host side
 //! (`host-sim trace2vcd`) turns a decoded log into a VCD whose signal names
 //! are [`Signal::name`], the same names the simulator's machine trace uses
 //! for the same quantities (`host-sim/src/vcd/machine.rs`).
@@ -249,7 +249,95 @@ impl Signal {
     }
 }
 
+/// What changed in the loop's outputs since the last tick, as events: the
+/// boards call [`LoopTrace::after_tick`] after each `loop_tick` (in builds
+/// with their `trace` feature) and put each event on their log with their
+/// clock. Only changes are emitted, so a quiet loop costs little log.
+#[derive(Clone, Debug, Default)]
+pub struct LoopTrace {
+    last: [Option<i32>; 9],
+}
+
+impl LoopTrace {
+    pub const fn new() -> Self {
+        Self { last: [None; 9] }
+    }
+
+    /// The events of this tick's outputs that differ from the last tick's.
+    pub fn after_tick(&mut self, lp: &crate::looptick::LoopState, mut emit: impl FnMut(Event)) {
+        let command = lp.command_code();
+        let position = lp.position_code();
+        let now = [
+            Event::Adc(position),
+            Event::Dac(lp.output_code()),
+            Event::Command(command),
+            Event::Error(command.saturating_sub(position)),
+            Event::Enable(lp.amplifier_enable()),
+            Event::Fault(lp.fault().is_some()),
+            Event::Armed(lp.servo().phase() != crate::servo::Phase::Disarmed),
+            Event::X(lp.last_x().map_or(i32::MIN, |x| x.to_bits())),
+            Event::Angle(lp.setpoint_state().angle().map_or(0, |a| a.0)),
+        ];
+        for (last, e) in self.last.iter_mut().zip(now) {
+            // An unknown X or angle is not traced (the VCD keeps "unknown").
+            let unknown = matches!(e, Event::X(i32::MIN))
+                || (matches!(e, Event::Angle(_)) && lp.setpoint_state().angle().is_none());
+            if unknown || *last == Some(e.value()) {
+                continue;
+            }
+            *last = Some(e.value());
+            emit(e);
+        }
+    }
+}
+
+/// Puts `e` on the log, stamped `clock` (the board's trace clock, named
+/// once at boot by [`announce_clock`]), in `trace` builds on a target.
+#[inline(always)]
+pub fn emit(e: Event, clock: u32) {
+    #[cfg(all(target_os = "none", feature = "trace"))]
+    defmt::info!("ev {=u8} {=i32} {=u32}", e.code(), e.value(), clock);
+    #[cfg(not(all(target_os = "none", feature = "trace")))]
+    let _ = (e, clock);
+}
+
+/// Names the trace clock's rate (the decoder needs it before any event).
+#[inline(always)]
+pub fn announce_clock(hz: u32) {
+    #[cfg(all(target_os = "none", feature = "trace"))]
+    defmt::info!("trace clock {=u32} Hz", hz);
+    #[cfg(not(all(target_os = "none", feature = "trace")))]
+    let _ = hz;
+}
+
+/// The loop's outputs as the boards trace them: [`LoopTrace`] in `trace`
+/// builds, nothing at all otherwise.
+#[derive(Clone, Debug, Default)]
+pub struct Outputs {
+    #[cfg(feature = "trace")]
+    last: LoopTrace,
+}
+
+impl Outputs {
+    pub const fn new() -> Self {
+        Self {
+            #[cfg(feature = "trace")]
+            last: LoopTrace::new(),
+        }
+    }
+
+    /// After a loop tick: the outputs that changed, stamped by `clock`.
+    #[inline(always)]
+    pub fn after_tick(&mut self, lp: &crate::looptick::LoopState, clock: impl Fn() -> u32) {
+        #[cfg(feature = "trace")]
+        self.last.after_tick(lp, |e| emit(e, clock()));
+        #[cfg(not(feature = "trace"))]
+        let _ = (lp, clock);
+    }
+}
+
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 
@@ -287,6 +375,35 @@ mod tests {
         assert_eq!(Event::decode(255, 0), None);
         assert_eq!(Event::decode(Event::Enable(true).code(), 2), None);
         assert_eq!(Event::decode(Event::Fault(true).code(), -1), None);
+    }
+
+    #[test]
+    fn loop_trace_emits_what_changed_and_nothing_else() {
+        let cfg = crate::servo::ServoConfig::at_rate(20_000).unwrap();
+        let mut fw = crate::firmware::Firmware::new(cfg);
+        let mut tr = LoopTrace::new();
+        let mut got = heapless::Vec::<Event, 16>::new();
+        tr.after_tick(fw.loop_state(), |e| got.push(e).unwrap());
+        // a loop that never ran: codes 0, amplifier off, no fault,
+        // disarmed; X and the angle are unknown and not traced
+        assert_eq!(
+            got.as_slice(),
+            &[
+                Event::Adc(0),
+                Event::Dac(0),
+                Event::Command(0),
+                Event::Error(0),
+                Event::Enable(false),
+                Event::Fault(false),
+                Event::Armed(false),
+            ]
+        );
+        got.clear();
+        tr.after_tick(fw.loop_state(), |e| got.push(e).unwrap());
+        assert!(got.is_empty(), "{got:?}");
+        fw.trip(crate::safety::Fault::GaugeRange);
+        tr.after_tick(fw.loop_state(), |e| got.push(e).unwrap());
+        assert_eq!(got.as_slice(), &[Event::Fault(true)]);
     }
 
     #[test]

@@ -70,6 +70,10 @@ enum Cmd {
         /// Rewrite boards/qemu/expected.log with this run's log.
         #[arg(long)]
         bless: bool,
+        /// Also run the image built with trace events and write the run as
+        /// a VCD (the simulator's signal names; its decoded log beside it).
+        #[arg(long, value_name = "FILE")]
+        vcd: Option<PathBuf>,
     },
     /// Flash and RAM use of both images.
     Size,
@@ -105,7 +109,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.cmd {
         Cmd::Test { fuzz_seconds } => cmd_test(fuzz_seconds),
-        Cmd::Qemu { bless } => cmd_qemu(bless),
+        Cmd::Qemu { bless, vcd } => cmd_qemu(bless, vcd.as_deref()),
         Cmd::Size => cmd_size(),
         Cmd::IsrCost(args) => isr_cost::run(&args),
         Cmd::NoPanic => cmd_no_panic(),
@@ -313,7 +317,7 @@ fn ensure_one(tool: Tool) -> Result<()> {
             "QEMU ≥ 7 with the mps2-an386 machine",
         ),
         // The VCD viewers' readers the host tests check the VCDs with
-        // (`host-sim/tests/vcd_viewers.rs`): GTKWave's converter, libsigrok.
+        // (`trace::check_both`): GTKWave's converter, libsigrok.
         Tool::Viewers => apt_tool("vcd2fst", "gtkwave", "GTKWave's vcd2fst")
             .and_then(|()| apt_tool("sigrok-cli", "sigrok-cli", "sigrok-cli (libsigrok)")),
     }
@@ -506,6 +510,17 @@ pub fn run_qemu_elf(
     regions: &QemuRegions,
     extra: &[&str],
 ) -> Result<(u8, Vec<String>)> {
+    run_qemu_elf_echo(elf, regions, extra, true)
+}
+
+/// [`run_qemu_elf`], the log shown on stdout only with `echo` (a traced
+/// run's log is tens of thousands of lines).
+pub fn run_qemu_elf_echo(
+    elf: &Path,
+    regions: &QemuRegions,
+    extra: &[&str],
+    echo: bool,
+) -> Result<(u8, Vec<String>)> {
     let elf = elf.to_path_buf();
     let mut qemu = qemu_command_with(&elf, regions, "null", "enable=on,target=native")
         .args(extra)
@@ -529,7 +544,9 @@ pub fn run_qemu_elf(
             .lines()
             .map_while(std::result::Result::ok)
         {
-            println!("{line}");
+            if echo {
+                println!("{line}");
+            }
             lines.push(line);
         }
         lines
@@ -589,7 +606,7 @@ fn check_snapshot(lines: &[String], bless: bool) -> Result<()> {
 
 // ---------------------------------------------------------------- commands
 
-fn cmd_qemu(bless: bool) -> Result<u8> {
+fn cmd_qemu(bless: bool, vcd: Option<&Path>) -> Result<u8> {
     require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])?;
     build_qemu()?;
     let (code, lines) = run_qemu()?;
@@ -600,6 +617,10 @@ fn cmd_qemu(bless: bool) -> Result<u8> {
         eprintln!("QEMU replay: {summary}");
         let summary = watchdog::check()?;
         eprintln!("QEMU watchdog: {summary}");
+        if let Some(vcd) = vcd {
+            let (summary, _) = trace::qemu_vcd(vcd)?;
+            eprintln!("QEMU trace: {summary}");
+        }
     }
     Ok(code)
 }
@@ -716,14 +737,9 @@ fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
 
 /// `cargo test --workspace`, its output shown as it comes; returns the
 /// summed counts of its "test result:" lines.
-/// `cargo test --workspace`; with `viewers`, the VCD viewer test must find
-/// its tools (they were installed above) instead of skipping.
-fn host_tests(viewers: bool) -> Result<(u64, u64, u64)> {
-    let mut cmd = cargo();
-    if viewers {
-        cmd.env("ZSLIDE_REQUIRE_VIEWERS", "1");
-    }
-    let mut child = cmd
+/// `cargo test --workspace`.
+fn host_tests() -> Result<(u64, u64, u64)> {
+    let mut child = cargo()
         .current_dir(root())
         .args(["test", "--workspace"])
         .stdout(Stdio::piped())
@@ -770,7 +786,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             .any(|m| m.starts_with("qemu") || m.starts_with("defmt-print"));
 
     step("host tests: cargo test --workspace");
-    let results = host_tests(viewers)?;
+    let results = host_tests()?;
 
     if firmware_possible {
         build_board()?;
@@ -781,6 +797,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     let mut qemu_code = None;
     let mut replay_line = None;
     let mut watchdog_line = None;
+    let mut vcd_line = None;
     let mut board_checks = 0u64;
     if qemu_possible {
         let (code, lines) = run_qemu()?;
@@ -793,6 +810,13 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         board_checks += u64::from(link::end_to_end()?);
         replay_line = Some(replay::check()?);
         watchdog_line = Some(watchdog::check()?);
+        if viewers {
+            let vcd = target_dir().join("qemu-trace/run.vcd");
+            let (summary, t) = trace::qemu_vcd(&vcd)?;
+            eprintln!("QEMU trace: {summary}");
+            vcd_line = Some(trace::check_both(&vcd, t.runs[0])?);
+            board_checks += 2;
+        }
     }
 
     // A short fuzz run of every target: a finding fails the run (after the
@@ -854,6 +878,10 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     eprintln!(
         "QEMU watchdog: {}",
         watchdog_line.as_deref().unwrap_or("NOT RUN")
+    );
+    eprintln!(
+        "VCD (the traced QEMU run, PASS; a host-sim machine VCD): {}",
+        vcd_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
     let code = if fuzz_failed > 0 {

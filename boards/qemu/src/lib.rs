@@ -6,6 +6,7 @@
 #![no_std]
 
 pub mod board;
+pub mod trace;
 
 use cortex_m_semihosting::debug;
 

@@ -67,10 +67,12 @@ use zslide::params::{self, ParamSource};
 use zslide::safety::{Device, Fault};
 use zslide::servo::ServoDesign;
 use zslide::spindle::EncoderConfig;
+use zslide::trace::{Event, Outputs};
 use zslide::units::SpindleAngle;
 use zslide::xpos::{half_mils_to_x, latch_word, CountConfig, CountX};
 use zslide_qemu::board::{interrupt, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS};
 use zslide_qemu::exit;
+use zslide_qemu::trace;
 
 /// Loop-tick rate, Hz (the real board's rate).
 const LOOP_HZ: u32 = 20_000;
@@ -238,6 +240,7 @@ struct Run {
     dac: Ad5791<DacSpi>,
     summary: Summary,
     traced: usize,
+    outputs: Outputs,
 }
 
 /// Everything the event handler owns.
@@ -245,6 +248,8 @@ struct Events {
     ev: EventState,
     next_x: u32,
     next_index: u32,
+    /// Coefficient generation last traced.
+    generation: u32,
 }
 
 static SHARED: Shared = Shared::new();
@@ -270,6 +275,7 @@ fn TIMER0() {
         return;
     };
     WORLD_TICK.store(n, Ordering::Release);
+    trace::emit(Event::LoopEnter);
     let now = u64::from(n) * u64::from(CLOCK_PER_TICK);
     let input = TickInput {
         now: now as u32,
@@ -281,6 +287,8 @@ fn TIMER0() {
 
     run.lp
         .loop_tick(&SHARED, &input, &mut run.gauge, &mut run.dac);
+    trace::emit(Event::LoopExit);
+    run.outputs.after_tick(&run.lp, trace::clock);
     run.tap.after_tick(&link::TAP, &mut run.lp);
     let enabled = run.lp.amplifier_enable();
     if SESSION.load(Ordering::Relaxed) {
@@ -368,17 +376,28 @@ fn TIMER1() {
             (Some(tx), ti) if ti.is_none_or(|ti| tx <= ti) => {
                 let i = e.next_x;
                 let word = latch_word(x_script(i));
+                trace::emit(Event::XEnter);
                 let _ =
                     e.ev.x_event(&SHARED, word, tx as u32, &mut NoCoefficientDac);
+                trace::emit(Event::XExit);
                 if DUPLICATES.contains(&i) {
                     // The latch fires again in the same state.
+                    trace::emit(Event::XEnter);
                     let _ =
                         e.ev.x_event(&SHARED, word, tx as u32 + 200, &mut NoCoefficientDac);
+                    trace::emit(Event::XExit);
+                }
+                let g = SHARED.coefficient_generation();
+                if g != e.generation {
+                    e.generation = g;
+                    trace::emit(Event::Coefficients(g));
                 }
                 e.next_x += 1;
             }
             (_, Some(ti)) => {
+                trace::emit(Event::IndexEnter);
                 e.ev.index_event(&SHARED, ti as u32, index_count);
+                trace::emit(Event::IndexExit);
                 e.next_index += 1;
             }
             _ => break,
@@ -508,11 +527,13 @@ fn main() -> ! {
         dac,
         summary: Summary::default(),
         traced: 0,
+        outputs: Outputs::new(),
     };
     let events = Events {
         ev,
         next_x: 0,
         next_index: 0,
+        generation: 0,
     };
     critical_section::with(|cs| {
         HANDOFF.borrow(cs).set(Some(run));
@@ -536,6 +557,7 @@ fn main() -> ! {
     if !session {
         SHARED.request(Request::Arm);
     }
+    trace::start();
     TIMER0_LOOP.start_periodic(PCLK_HZ / LOOP_HZ);
     // Not a multiple of the loop period: the event handler runs at every
     // phase of the loop tick and is preempted by it.

@@ -79,7 +79,13 @@ impl<W: Write> VcdRecorder<W> {
                 SignalKind::Real => Last::Real(v),
                 _ => Last::Int(v as i64),
             };
-            if self.last[k] == new {
+            // Bit equality, so that an unknown (NaN) value is written once,
+            // not at every sample.
+            let same = match (self.last[k], new) {
+                (Last::Real(a), Last::Real(b)) => a.to_bits() == b.to_bits(),
+                (a, b) => a == b,
+            };
+            if same {
                 continue;
             }
             if !stamped && self.last_t != Some(t_ns) {
