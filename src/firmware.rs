@@ -171,6 +171,11 @@ impl Firmware {
     pub fn loop_state(&self) -> &LoopState {
         &self.lp
     }
+    /// The loop tick's part, for what the boards run after each tick with
+    /// it (the host link's `TickTap::after_tick`).
+    pub fn loop_state_mut(&mut self) -> &mut LoopState {
+        &mut self.lp
+    }
     /// The command generator of the loaded table (`None`: no table or refused).
     pub fn command_gen(&self) -> Option<&CommandGen<'static>> {
         self.lp.gen.as_ref()

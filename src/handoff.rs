@@ -197,3 +197,346 @@ impl Default for Shared {
         Self::new()
     }
 }
+
+/// The hand-offs under the board's preemption, step by step: the loop tick
+/// (the reader, highest priority) may run to completion between any two
+/// stores of a writer (the X or index handler), never the other way. The
+/// writer's steps follow the protocol of the module docs and
+/// `xevent::EventState::publish` / [`Shared::index_event`] store for store
+/// (a test checks that a publication by the real writer leaves the same
+/// words); the reader is the real `LoopState::take_published`.
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod preemption_tests {
+    extern crate std;
+
+    use super::*;
+    use crate::looptick::{Estimator, LoopState, LoopX};
+    use crate::servo::ServoDesign;
+    use crate::spindle::{EdgeStamps, EncoderAngle, EncoderConfig};
+    use crate::units::{SpindleAngle, XInches};
+    use proptest::prelude::*;
+    use std::format;
+    use std::vec::Vec;
+
+    /// One coefficient set as the X handler publishes it.
+    #[derive(Clone, Debug)]
+    struct Set {
+        x: i32,
+        null: bool,
+        terms: usize,
+        value: [i32; COLS],
+        delta: [i32; COLS],
+    }
+
+    #[derive(Clone, Copy, Debug)]
+    enum Step {
+        Seq,
+        X,
+        Value(usize),
+        Delta(usize),
+        Meta,
+        Gen,
+    }
+
+    /// The stores of one publication, in the writer's order: the slot's
+    /// sequence word (then the release fence), X, the columns, the meta
+    /// word, and last the generation.
+    fn steps(s: &Set) -> Vec<Step> {
+        let mut v = std::vec![Step::Seq, Step::X];
+        if !s.null {
+            for i in 0..s.terms {
+                v.push(Step::Value(i));
+                v.push(Step::Delta(i));
+            }
+        }
+        v.push(Step::Meta);
+        v.push(Step::Gen);
+        v
+    }
+
+    fn store(sh: &Shared, g: u32, s: &Set, step: Step) {
+        let slot = &sh.coeff[(g & 1) as usize];
+        match step {
+            Step::Seq => {
+                slot.seq.store(g, Ordering::Relaxed);
+                fence(Ordering::Release);
+            }
+            Step::X => slot.x.store(s.x, Ordering::Relaxed),
+            Step::Value(i) => slot.value[i].store(s.value[i], Ordering::Relaxed),
+            Step::Delta(i) => slot.delta[i].store(s.delta[i], Ordering::Relaxed),
+            Step::Meta => slot.meta.store(
+                if s.null { NULL_META } else { s.terms as u32 },
+                Ordering::Relaxed,
+            ),
+            Step::Gen => sh.coeff_gen.store(g, Ordering::Release),
+        }
+    }
+
+    fn loop_state() -> LoopState {
+        let cfg = ServoDesign::brief(20_000).config().unwrap();
+        let mut lp = LoopState::new(cfg);
+        lp.x = LoopX::Published;
+        lp
+    }
+
+    fn set() -> impl Strategy<Value = Set> {
+        (
+            any::<i32>(),
+            prop::bool::weighted(0.2),
+            1..=COLS,
+            prop::array::uniform8(any::<i32>()),
+            prop::array::uniform8(any::<i32>()),
+        )
+            .prop_map(|(x, null, terms, v, d)| {
+                let mut value = [0; COLS];
+                let mut delta = [0; COLS];
+                for i in 0..COLS {
+                    value[i] = v[i % 8];
+                    delta[i] = d[i % 8];
+                }
+                Set {
+                    x,
+                    null,
+                    terms,
+                    value,
+                    delta,
+                }
+            })
+    }
+
+    /// What the reader holds must be exactly set `g` (0: none yet).
+    fn holds(lp: &LoopState, sets: &[Set], g: u32) -> Result<(), TestCaseError> {
+        let c = &lp.coeffs;
+        let Some(s) = g.checked_sub(1).map(|k| &sets[k as usize]) else {
+            prop_assert!(c.null);
+            return Ok(());
+        };
+        prop_assert_eq!(c.x().to_bits(), s.x, "X of generation {}", g);
+        prop_assert_eq!(c.null, s.null, "generation {}", g);
+        if !s.null {
+            prop_assert_eq!(usize::from(c.terms()), s.terms);
+            prop_assert_eq!(
+                &c.value[..s.terms],
+                &s.value[..s.terms],
+                "torn values, generation {}",
+                g
+            );
+            prop_assert_eq!(
+                &c.delta[..s.terms],
+                &s.delta[..s.terms],
+                "torn slopes, generation {}",
+                g
+            );
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+
+        /// Publications of random sets (null ones among them) with the loop
+        /// tick run at random points between the writer's stores (several
+        /// times between two stores, or not at all during a publication):
+        /// after every run the tick holds exactly the latest completely
+        /// published set, never a mix of two, never an older one it takes
+        /// for new, and its generation never goes back.
+        #[test]
+        fn the_loop_tick_between_any_two_stores_takes_the_latest_whole_set(
+            sets in prop::collection::vec(set(), 1..6),
+            runs in prop::collection::vec(prop::collection::vec(0usize..64, 0..4), 6),
+        ) {
+            let sh = Shared::new();
+            let mut lp = loop_state();
+            let mut published = 0u32;
+            for (k, s) in sets.iter().enumerate() {
+                let g = k as u32 + 1;
+                let st = steps(s);
+                // Reader runs before step j (j = st.len(): after the last).
+                let mut at: Vec<usize> = runs[k].iter().map(|&r| r % (st.len() + 1)).collect();
+                at.sort_unstable();
+                let mut next = at.iter().peekable();
+                for (j, &step) in st.iter().enumerate() {
+                    while next.peek().is_some_and(|&&a| a == j) {
+                        next.next();
+                        lp.take_published(&sh);
+                        prop_assert_eq!(lp.coeff_seen, published, "before store {} of generation {}", j, g);
+                        holds(&lp, &sets, published)?;
+                    }
+                    store(&sh, g, s, step);
+                    if matches!(step, Step::Gen) {
+                        published = g;
+                    }
+                }
+                for _ in next {
+                    lp.take_published(&sh);
+                    prop_assert_eq!(lp.coeff_seen, published);
+                    holds(&lp, &sets, published)?;
+                }
+            }
+            lp.take_published(&sh);
+            prop_assert_eq!(lp.coeff_seen, sets.len() as u32);
+            holds(&lp, &sets, published)?;
+        }
+
+        /// Index pulses published store by store, the loop tick at random
+        /// points: the estimator sees each pair it takes whole (its state
+        /// is that of an estimator given the latest published pair
+        /// directly), the tick takes the latest, reports two pulses within
+        /// one of its periods as an extra index, and latches exactly the
+        /// faults the direct estimator gives (a torn pair would change
+        /// both).
+        #[test]
+        fn the_loop_tick_between_any_two_stores_takes_the_latest_whole_index(
+            pairs in prop::collection::vec((any::<u32>(), any::<u32>()), 1..8),
+            runs in prop::collection::vec(0usize..6, 8),
+        ) {
+            let cfg = EncoderConfig {
+                counts_per_rev: 4096,
+                ticks_per_s: 200_000_000,
+                min_rpm: 30,
+                max_rpm: 600,
+                index_tolerance_counts: 2,
+                index_angle: SpindleAngle(0),
+                edge_stamps: EdgeStamps::Captured,
+            };
+            let sh = Shared::new();
+            let mut lp = loop_state();
+            lp.spindle = Estimator::Encoder(EncoderAngle::new(cfg).unwrap());
+            let mut want = EncoderAngle::new(cfg).unwrap();
+            let mut want_fault: Option<Fault> = None;
+            let trip = |f: &mut Option<Fault>, new: Fault| match *f {
+                Some(o) if o.reaction() >= new.reaction() => {}
+                _ => *f = Some(new),
+            };
+            let (mut published, mut seen) = (0u32, 0u32);
+            for k in 0..=pairs.len() {
+                // The five stores of `Shared::index_event` for pulse k + 1;
+                // the tick before store `runs[k]` (5: not during it), and
+                // once more after the last pulse.
+                for j in 0..5 {
+                    if runs[k.min(7)] == j || k == pairs.len() {
+                        lp.take_published(&sh);
+                        if published != seen {
+                            if published - seen > 1 {
+                                trip(&mut want_fault, Fault::IndexExtra);
+                            }
+                            let (c, e) = pairs[published as usize - 1];
+                            if let Err(f) = want.on_index(c, e) {
+                                trip(&mut want_fault, f);
+                            }
+                            seen = published;
+                        }
+                        prop_assert_eq!(lp.index_seen, published);
+                        prop_assert_eq!(
+                            format!("{:?}", lp.spindle),
+                            format!("{:?}", Estimator::Encoder(want.clone()))
+                        );
+                        prop_assert_eq!(lp.fault, want_fault);
+                    }
+                    if k == pairs.len() {
+                        break;
+                    }
+                    let s = k as u32 + 1;
+                    let (count, edge) = pairs[k];
+                    let slot = &sh.index[(s & 1) as usize];
+                    match j {
+                        0 => slot[2].store(s, Ordering::Relaxed),
+                        1 => fence(Ordering::Release),
+                        2 => slot[0].store(count, Ordering::Relaxed),
+                        3 => slot[1].store(edge, Ordering::Relaxed),
+                        _ => {
+                            sh.index_seq.store(s, Ordering::Release);
+                            published = s;
+                        }
+                    }
+                }
+            }
+            prop_assert_eq!(seen, pairs.len() as u32);
+        }
+    }
+
+    /// The step writer stores what the real writers store: a publication
+    /// by `EventState::publish` (the X handler, default table, live and
+    /// null) and by `Shared::index_event` leaves the same words in the same
+    /// slots as the steps above.
+    #[test]
+    fn the_step_writer_leaves_the_words_the_real_writers_leave() {
+        use crate::config::{FirmwareConfig, SpindleMode, XMode};
+        use crate::xevent::EventState;
+        let gen = crate::config::load_table(crate::DEFAULT_TABLE).ok();
+        let fc = FirmwareConfig {
+            loop_cfg: ServoDesign::brief(20_000).config().unwrap(),
+            spindle: SpindleMode::None,
+            x: XMode::Legacy {
+                clock_hz: 1_000_000,
+            },
+            coefficient_output: false,
+            gauge_reversed: false,
+        };
+        let mut ev = EventState::new(gen, &fc);
+        let real = Shared::new();
+        let mirror = Shared::new();
+        for (k, (x_in, null)) in [(3.25, false), (4.0, true), (5.5, false)]
+            .into_iter()
+            .enumerate()
+        {
+            let g = k as u32 + 1;
+            let x = XInches::from_f64(x_in);
+            ev.publish(&real, x, null).unwrap();
+            let slot = &real.coeff[(g & 1) as usize];
+            let meta = slot.meta.load(Ordering::Relaxed);
+            let mut s = Set {
+                x: x.to_bits(),
+                null: meta & NULL_META != 0,
+                terms: (meta & !NULL_META) as usize,
+                value: [0; COLS],
+                delta: [0; COLS],
+            };
+            assert_eq!(s.null, null);
+            for i in 0..COLS {
+                s.value[i] = slot.value[i].load(Ordering::Relaxed);
+                s.delta[i] = slot.delta[i].load(Ordering::Relaxed);
+            }
+            for step in steps(&s) {
+                store(&mirror, g, &s, step);
+            }
+            assert_eq!(
+                real.coeff_gen.load(Ordering::Relaxed),
+                mirror.coeff_gen.load(Ordering::Relaxed)
+            );
+            for (a, b) in real.coeff.iter().zip(&mirror.coeff) {
+                assert_eq!(a.seq.load(Ordering::Relaxed), b.seq.load(Ordering::Relaxed));
+                assert_eq!(a.x.load(Ordering::Relaxed), b.x.load(Ordering::Relaxed));
+                assert_eq!(
+                    a.meta.load(Ordering::Relaxed),
+                    b.meta.load(Ordering::Relaxed)
+                );
+                let live = if s.null { 0 } else { s.terms };
+                for i in 0..live {
+                    assert_eq!(
+                        a.value[i].load(Ordering::Relaxed),
+                        b.value[i].load(Ordering::Relaxed)
+                    );
+                    assert_eq!(
+                        a.delta[i].load(Ordering::Relaxed),
+                        b.delta[i].load(Ordering::Relaxed)
+                    );
+                }
+            }
+        }
+        // The index.
+        let real = Shared::new();
+        real.index_event(5678, 1234);
+        let slot = &real.index[1];
+        assert_eq!(
+            [
+                slot[0].load(Ordering::Relaxed),
+                slot[1].load(Ordering::Relaxed),
+                slot[2].load(Ordering::Relaxed)
+            ],
+            [1234, 5678, 1]
+        );
+        assert_eq!(real.index_seq.load(Ordering::Relaxed), 1);
+    }
+}

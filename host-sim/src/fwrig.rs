@@ -259,6 +259,9 @@ pub struct FirmwareWorld {
     /// of (a stalled loop-tick interrupt, a halted core), set by the fault
     /// campaign's board models (`faults::board`).
     pub cpu: Cpu,
+    /// The host link, when attached (`crate::link::attach`): its tap runs
+    /// at the end of every loop tick, its station in the background.
+    pub link: Option<Box<crate::link::HostLink>>,
 }
 
 /// The MCU's execution state, as far as the handlers are concerned.
@@ -366,6 +369,7 @@ impl FirmwareWorld {
             init_fault,
             analog: None,
             cpu: Cpu::Running,
+            link: None,
             recorder,
         }
     }
@@ -573,6 +577,11 @@ impl FirmwareWorld {
                 self.enable.set_low()
             };
         }
+        // Last in the handler, as on the boards: fault changes, snapshots
+        // and the capture for the host link.
+        if let Some(l) = self.link.as_mut() {
+            l.after_tick(self.fw.loop_state_mut());
+        }
         self.rig.time.set(t_event);
     }
 
@@ -656,6 +665,15 @@ impl FirmwareWorld {
             Some(XState::Legacy { latch, .. }) => Some(latch.clone()),
             _ => None,
         }
+    }
+
+    /// Whether the attached machine's spindle angle comes from an encoder
+    /// (else a tachometer, or no machine).
+    pub fn spindle_is_encoder(&self) -> bool {
+        matches!(
+            self.machine.as_ref().map(|m| &m.angle),
+            Some(AngleState::Encoder { .. })
+        )
     }
 
     /// True X now (feed profile, without vibration and jitter), in; NaN

@@ -11,6 +11,7 @@ pub mod faults;
 pub mod fastmath;
 pub mod fwrig;
 pub mod geometry;
+pub mod link;
 pub mod machine;
 pub mod plant;
 pub mod plot;

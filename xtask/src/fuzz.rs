@@ -20,13 +20,16 @@ use crate::{cargo, root, step, Result};
 
 /// The targets, in the order they run: the `[[bin]]` names of
 /// `fuzz/Cargo.toml` (a test checks the two lists agree).
-pub const TARGETS: [&str; 6] = [
+pub const TARGETS: [&str; 9] = [
     "table_parse",
     "xpos",
     "spindle",
     "scenario",
     "geometry",
     "link_frame",
+    "param_block",
+    "replay_recording",
+    "trace_log",
 ];
 
 /// Seconds per target in `cargo xtask test`: enough to replay the corpus and

@@ -114,20 +114,21 @@ fn write_csv(path: &Path, out: &[Outcome]) -> anyhow::Result<()> {
     );
     writeln!(
         f,
-        "fault,detected,latched,reaction,max_excursion_uin,excursion_before_uin,safe_state,time_to_safe_ms,reason"
+        "fault,detected,latched,reaction,max_excursion_uin,excursion_before_uin,excursion_undisturbed_uin,safe_state,time_to_safe_ms,reason"
     )?;
     let s = |o: Option<String>| o.unwrap_or_default();
     for o in out {
         let r = &o.row;
         writeln!(
             f,
-            "{},{},{},{},{},{},{},{},\"{}\"",
+            "{},{},{},{},{},{},{},{},{},\"{}\"",
             r.fault,
             s(r.detected.map(|b| b.to_string())),
             s(r.latched.as_ref().map(|l| format!("\"{l}\""))),
             s(r.reaction.clone()),
             s(r.max_excursion_uin.map(|v| format!("{v:.3}"))),
             s(r.excursion_before_uin.map(|v| format!("{v:.3}"))),
+            s(r.excursion_undisturbed_uin.map(|v| format!("{v:.3}"))),
             s(r.safe_state.map(|b| b.to_string())),
             s(r.time_to_safe_ms.map(|v| format!("{v:.3}"))),
             r.reason.replace('"', "'")
@@ -160,6 +161,14 @@ fn write_trace(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
         Series {
             label: "firmware command, µin".into(),
             points: pts(&|x| x.command_in * 1e6),
+        },
+        Series {
+            label: "loop reference (command + learned correction), µin".into(),
+            points: pts(&|x| x.reference_in * 1e6),
+        },
+        Series {
+            label: "slide position, µin".into(),
+            points: pts(&|x| x.z_in * 1e6),
         },
         Series {
             label: "DAC output (amplifier input), V × 100".into(),

@@ -8,10 +8,12 @@
 //!
 //! Injections reuse the simulator's own mechanisms: the chips' bus-fault
 //! injector, the gauge's injection input, the amplifier's trip, the
-//! spindle and X-slide models, the cutter's force; the watchdog and the
-//! panic handler are board models ([`board`]).
+//! spindle and X-slide models, the cutter's force, the host link's
+//! transport ([`crate::link`]); the watchdog and the panic handler are
+//! board models ([`board`]).
 
 pub mod board;
+pub mod link;
 
 use crate::chips::BusFault;
 use crate::cut::run::CODES_PER_IN;
@@ -58,6 +60,7 @@ pub enum Case {
     AdcBusError,
     DacBusError,
     FollowingError,
+    FollowingErrorFast,
     CurrentLimit,
     AmplifierTrip,
     ReversedGauge,
@@ -67,7 +70,7 @@ pub enum Case {
 }
 
 impl Case {
-    pub const ALL: [Case; 17] = [
+    pub const ALL: [Case; 18] = [
         Case::CorruptTable,
         Case::XOutsideTable,
         Case::XGlitchStorm,
@@ -79,6 +82,7 @@ impl Case {
         Case::AdcBusError,
         Case::DacBusError,
         Case::FollowingError,
+        Case::FollowingErrorFast,
         Case::CurrentLimit,
         Case::AmplifierTrip,
         Case::ReversedGauge,
@@ -100,6 +104,7 @@ impl Case {
             Case::AdcBusError => "adc-bus-error",
             Case::DacBusError => "dac-bus-error",
             Case::FollowingError => "following-error",
+            Case::FollowingErrorFast => "following-error-fast",
             Case::CurrentLimit => "current-limit",
             Case::AmplifierTrip => "amplifier-trip",
             Case::ReversedGauge => "reversed-gauge",
@@ -122,19 +127,20 @@ impl Case {
             Case::GaugeSaturation => "the gauge output driven to its +10 V rail (0.02 in injected into its input)",
             Case::AdcBusError => "gauge ADC bus stuck low on every frame from now on",
             Case::DacBusError => "every amplifier-DAC transaction fails from now on (SPI error)",
-            Case::FollowingError => "the amplifier's output stage fails to 4 A while a hard spot pushes the tool out of the cut (16 lbf for 30 ms)",
+            Case::FollowingError => "a hard inclusion under the tool: the force pushing it out of the cut rises to 20 lbf in 5 ms (above the 17.4 lbf of the loop's 6 A) and dies away over 40 ms",
+            Case::FollowingErrorFast => "the amplifier's output stage fails to 4 A while a hard spot pushes the tool out of the cut (16 lbf for 30 ms)",
             Case::CurrentLimit => "a chip wedged under the tool: 18 lbf pushing the tool out for 40 ms (above the 6 A the loop allows)",
             Case::AmplifierTrip => "the amplifier trips on its own (its fault line goes high)",
             Case::ReversedGauge => "gauge wired reversed, the firmware not told; arm requested at boot",
             Case::StalledLoop => "the loop-tick interrupt stops running (the board's IWDG is fed by it)",
             Case::Panic => "the firmware panics (board panic handler)",
-            Case::MalformedHostFrame => "-",
+            Case::MalformedHostFrame => "a flood of 235 malformed host-link frames (garbage, truncated, corrupt, unknown command, other version, undecodable, oversize) and 10 empty ones, 4 valid read-only requests among them, as fast as the RTT buffer takes them",
         }
     }
 
-    /// Whether the row applies to this firmware (the host link does not
-    /// exist yet).
-    pub fn applies(self) -> bool {
+    /// Whether the injection must latch a fault (a malformed host frame
+    /// must not: it is refused and counted, the cut goes on).
+    pub fn expects_fault(self) -> bool {
         self != Case::MalformedHostFrame
     }
 
@@ -153,11 +159,12 @@ impl Case {
             Case::GaugeSaturation => f == Fault::GaugeRange,
             Case::AdcBusError => f == Fault::Bus(Device::GaugeAdc),
             Case::DacBusError => f == Fault::Bus(Device::AmplifierDac),
+            Case::FollowingError => f == Fault::FollowingError,
             // A slide lost at ~4 in/s crosses the 0.006 in between the
             // following-error limit (0.004 in) and the gauge's range
             // (0.010 in) in ~1.5 ms, inside the monitor's 2 ms persistence:
             // the more severe GaugeRange then holds the latch.
-            Case::FollowingError => matches!(f, Fault::FollowingError | Fault::GaugeRange),
+            Case::FollowingErrorFast => matches!(f, Fault::FollowingError | Fault::GaugeRange),
             Case::CurrentLimit => f == Fault::CurrentLimit,
             Case::AmplifierTrip => f == Fault::AmplifierTrip,
             Case::ReversedGauge => f == Fault::SignCheck,
@@ -195,7 +202,6 @@ impl Case {
 pub struct Row {
     pub fault: &'static str,
     pub injection: &'static str,
-    /// `None`: not applicable.
     pub detected: Option<bool>,
     /// The fault the firmware latched (Debug form).
     pub latched: Option<String>,
@@ -206,11 +212,16 @@ pub struct Row {
     /// The same over the 20 ms before the injection (the cut's own
     /// following error), µin.
     pub excursion_before_uin: Option<f64>,
+    /// The same run without the injection, over the same time (the
+    /// malformed-frame row: the flood must leave the cut as it was), µin.
+    pub excursion_undisturbed_uin: Option<f64>,
     pub safe_state: Option<bool>,
     pub reason: String,
     pub time_to_safe_ms: Option<f64>,
     /// Injection instant, s of simulated time.
     pub injected_at_s: Option<f64>,
+    /// The host link's account of the flood (malformed-frame row).
+    pub link: Option<link::LinkOutcome>,
 }
 
 /// One sample per loop-tick instant.
@@ -223,6 +234,8 @@ pub struct Sample {
     pub z_in: f64,
     /// The firmware's command, in.
     pub command_in: f64,
+    /// What the loop followed: the command plus the learned correction, in.
+    pub reference_in: f64,
     /// Amplifier input (the DAC's analog output), V.
     pub dac_v: f64,
     pub fault: bool,
@@ -247,28 +260,52 @@ pub fn spec(scenario: crate::scenario::Scenario) -> anyhow::Result<CutSpec> {
     Ok(spec)
 }
 
-/// Runs one case; `seed_index` 0 is the scenario's own seeds, others mix
-/// into every random stream (as the cut's stretches do).
-pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<Outcome> {
-    if !case.applies() {
-        return Ok(Outcome {
-            row: Row {
-                fault: case.name(),
-                injection: case.injection(),
-                detected: None,
-                latched: None,
-                reaction: None,
-                max_excursion_uin: None,
-                excursion_before_uin: None,
-                safe_state: None,
-                reason: "not applicable in the simulator: the link is tested with malformed frames in tests/link.rs and end to end in QEMU".into(),
-                time_to_safe_ms: None,
-                injected_at_s: None,
-            },
-            latched: None,
-            trace: Vec::new(),
+/// What one simulated run left.
+struct Run {
+    latched: Option<Fault>,
+    trace: Vec<Sample>,
+    t_inj: Nanos,
+    t_end: Nanos,
+    /// The host link (malformed-frame row).
+    link: Option<Box<crate::link::HostLink>>,
+    phase: Phase,
+}
+
+/// A force on the tool (+Z, out of the cut) through the cutter, piecewise
+/// linear through `(ms after t0, lbf)` and stepped every 250 µs (the
+/// cutter applies a force at loop ticks).
+fn force_profile(
+    burst: &mut OneShots<crate::fwrig::FirmwareWorld>,
+    cutter: &Rc<RefCell<crate::cut::run::Cutter>>,
+    t0: Nanos,
+    points: &[(f64, f64)],
+) {
+    const STEP: Nanos = 250_000;
+    let end_ms = points.last().map_or(0.0, |p| p.0);
+    let steps = (end_ms * 1e6 / STEP as f64).round() as u64;
+    for k in 0..=steps {
+        let t_ms = k as f64 * STEP as f64 * 1e-6;
+        let lbf = points
+            .windows(2)
+            .find(|w| t_ms >= w[0].0 && t_ms <= w[1].0)
+            .map_or(0.0, |w| {
+                w[0].1 + (w[1].1 - w[0].1) * (t_ms - w[0].0) / (w[1].0 - w[0].0)
+            });
+        let c = cutter.clone();
+        burst.at(t0 + k * STEP, move |_, _| {
+            c.borrow_mut().extra_force_lbf = lbf
         });
     }
+}
+
+/// Simulates `case` (the malformed-frame row: `flood` is what the host
+/// writes at the injection, `None` the undisturbed run with the link idle).
+fn simulate(
+    spec: &CutSpec,
+    case: Case,
+    seed_index: u64,
+    flood: Option<Vec<u8>>,
+) -> anyhow::Result<Run> {
     let f = spec.feed_per_rev_in;
     let rev_s = 60.0 / spec.rpm;
     let t_inj: Nanos = if case.at_boot() {
@@ -314,6 +351,15 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
     let mut rig = build_stretch(&spec, &st, 0.0, table)?;
     let reset_at = Rc::new(Cell::new(None));
     rig.s.add(board::Iwdg::new(reset_at.clone()));
+    if case == Case::MalformedHostFrame {
+        // From boot, as on the board.
+        crate::link::attach(
+            &mut rig.w,
+            &mut rig.s,
+            spec.scenario.loop_hz,
+            spec.scenario.servo_design,
+        )?;
+    }
 
     // One sample per loop-tick instant from BEFORE_NS before the injection.
     let samples: Rc<RefCell<Vec<Sample>>> = Rc::new(RefCell::new(Vec::new()));
@@ -325,11 +371,13 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             if k != src::LOOP_TICK || t < t0 {
                 return;
             }
+            let sv = w.fw.servo();
             samples.borrow_mut().push(Sample {
                 t_ns: t,
                 err_in: cutter.borrow().last_error_in,
                 z_in: w.rig.slide.position_in(),
                 command_in: f64::from(w.fw.command_code()) / CODES_PER_IN,
+                reference_in: sv.reference_q16() as f64 / 65536.0 / CODES_PER_IN,
                 dac_v: w.rig.v_in,
                 fault: w.fw.fault().is_some(),
                 amp_enabled: w.rig.amp.enabled(),
@@ -413,8 +461,18 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
                 .faults
                 .random(1, 1.0, BusFault::Error);
         }
-        Case::FollowingError | Case::CurrentLimit => {
-            let (lbf, dur) = if case == Case::FollowingError {
+        // Beyond the loop's force (6 A × 2.9 lbf/A) for about 20 ms: the
+        // slide is pushed out of the cut past the following-error limit
+        // within ~8 ms, short of the gauge's range, and the push is gone
+        // before the current limit has been held for its 20 ms.
+        Case::FollowingError => force_profile(
+            &mut burst,
+            &rig.cutter,
+            t_inj,
+            &[(0.0, 0.0), (5.0, 20.0), (45.0, 0.0)],
+        ),
+        Case::FollowingErrorFast | Case::CurrentLimit => {
+            let (lbf, dur) = if case == Case::FollowingErrorFast {
                 // An output stage that can give only 4 A: the loop's own
                 // 6 A estimate limit never engages, the slide is lost.
                 w.rig.amp.params.current_limit_a = 4.0;
@@ -425,15 +483,22 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             };
             let c = rig.cutter.clone();
             c.borrow_mut().extra_force_lbf = lbf;
-            let c2 = c.clone();
             burst.at(t_inj + dur, move |_, _| {
-                c2.borrow_mut().extra_force_lbf = 0.0
+                c.borrow_mut().extra_force_lbf = 0.0
             });
         }
         Case::AmplifierTrip => w.rig.amp.trip_now(),
         Case::StalledLoop => w.cpu = Cpu::LoopStalled,
         Case::Panic => board::panic(w),
-        Case::MalformedHostFrame => unreachable!("handled above"),
+        Case::MalformedHostFrame => {
+            if let Some(bytes) = flood {
+                burst.at(t_inj, move |_, w| {
+                    if let Some(l) = w.link.as_mut() {
+                        l.send(&bytes);
+                    }
+                });
+            }
+        }
     }
     let (w, s) = (&mut rig.w, &mut rig.s);
     s.add(burst);
@@ -446,11 +511,38 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
         Case::Panic => Some(Fault::Panic),
         _ => w.fw.fault(),
     };
-    let reaction = latched.map(Fault::reaction);
     let trace = std::mem::take(&mut *samples.borrow_mut());
+    Ok(Run {
+        latched,
+        trace,
+        t_inj,
+        t_end,
+        link: w.link.take(),
+        phase: w.fw.servo().phase(),
+    })
+}
+
+/// The tool's largest departure into the part over `v`, µin.
+fn into_part(v: &[&Sample]) -> f64 {
+    v.iter().map(|x| -x.err_in).fold(0.0f64, f64::max).max(0.0) * 1e6
+}
+
+/// Runs one case; `seed_index` 0 is the scenario's own seeds, others mix
+/// into every random stream (as the cut's stretches do).
+pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<Outcome> {
+    if case == Case::MalformedHostFrame {
+        return run_link_case(spec, seed_index);
+    }
+    let Run {
+        latched,
+        trace,
+        t_inj,
+        t_end,
+        ..
+    } = simulate(spec, case, seed_index, None)?;
+    let reaction = latched.map(Fault::reaction);
     let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
     let before: Vec<&Sample> = trace.iter().filter(|x| x.t_ns < t_inj).collect();
-    let into = |v: &[&Sample]| v.iter().map(|x| -x.err_in).fold(0.0f64, f64::max).max(0.0) * 1e6;
     let safe = |x: &Sample| match reaction {
         Some(Reaction::RampToNull) => {
             x.amp_enabled && x.command_in == 0.0 && x.z_in.abs() <= NULL_HOLD_IN
@@ -480,17 +572,94 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             detected: Some(latched.is_some()),
             latched: latched.map(|f| format!("{f:?}")),
             reaction: reaction.map(|r| format!("{r:?}")),
-            max_excursion_uin: Some(into(&after)),
-            excursion_before_uin: (!case.at_boot()).then(|| into(&before)),
+            max_excursion_uin: Some(into_part(&after)),
+            excursion_before_uin: (!case.at_boot()).then(|| into_part(&before)),
+            excursion_undisturbed_uin: None,
             safe_state: Some(stays),
             reason,
             time_to_safe_ms: safe_from
                 .filter(|_| stays)
                 .map(|t| (t - t_inj) as f64 * 1e-6),
             injected_at_s: Some(t_inj as f64 * 1e-9),
+            link: None,
         },
         latched,
         trace,
+    })
+}
+
+/// The malformed-frame row: the cut with the flood, and the same cut
+/// (same seeds, the link attached and idle) without it. Detected: the
+/// station refused and counted every malformed frame; safe: nothing of
+/// the machine changed (no fault, the loop engaged, the tool's path
+/// sample for sample the undisturbed run's) and the valid requests in the
+/// flood were answered.
+fn run_link_case(spec: &CutSpec, seed_index: u64) -> anyhow::Result<Outcome> {
+    let case = Case::MalformedHostFrame;
+    let fl = link::flood(seed_index);
+    let run = simulate(spec, case, seed_index, Some(fl.bytes.clone()))?;
+    let quiet = simulate(spec, case, seed_index, None)?;
+    let l = run.link.as_ref().context("the link was attached")?;
+    let judged = link::judge(&fl, l);
+    let after = |t: &[Sample]| -> f64 {
+        let v: Vec<&Sample> = t.iter().filter(|x| x.t_ns >= run.t_inj).collect();
+        into_part(&v)
+    };
+    let before: Vec<&Sample> = run.trace.iter().filter(|x| x.t_ns < run.t_inj).collect();
+    let untouched = run.trace == quiet.trace;
+    let unaffected = run.latched.is_none()
+        && run.phase == Phase::Engaged
+        && run.trace.last().is_some_and(|x| x.amp_enabled && !x.fault)
+        && untouched;
+    let c = &judged.counters;
+    let reason = format!(
+        "{}{} of {} malformed frames refused and counted (bad COBS {}, short/undecodable {}, bad CRC {}, other version {}, unknown command {}, oversize {}), {} empty counted; {} of {} valid requests answered, the status in mid-flood: {}, fault {}; {}",
+        judged
+            .first_refusal
+            .as_deref()
+            .map_or(String::new(), |r| format!("\"{r}\", … ")),
+        judged.refused,
+        judged.malformed_sent,
+        c.bad_cobs,
+        c.malformed,
+        c.bad_crc,
+        c.bad_version,
+        c.unknown_command,
+        c.oversize,
+        c.empty,
+        c.ok,
+        judged.valid_sent,
+        judged.status_phase.as_deref().unwrap_or("not answered"),
+        judged.status_fault.as_deref().unwrap_or("-"),
+        if untouched {
+            format!(
+                "the cut went on, sample for sample as without the flood (into the part {:.1} µin, without the flood {:.1})",
+                after(&run.trace),
+                after(&quiet.trace)
+            )
+        } else {
+            "the cut's trace differs from the run without the flood".to_string()
+        }
+    );
+    Ok(Outcome {
+        row: Row {
+            fault: case.name(),
+            injection: case.injection(),
+            detected: Some(judged.refused == judged.malformed_sent),
+            latched: run.latched.map(|f| format!("{f:?}")),
+            reaction: Some("Refusal::Frame".into()),
+            max_excursion_uin: Some(after(&run.trace)),
+            excursion_before_uin: Some(into_part(&before)),
+            excursion_undisturbed_uin: Some(after(&quiet.trace)),
+            safe_state: Some(unaffected && judged.all_served()),
+            reason,
+            // The machine never left its state.
+            time_to_safe_ms: (unaffected && judged.all_served()).then_some(0.0),
+            injected_at_s: Some(run.t_inj as f64 * 1e-9),
+            link: Some(judged),
+        },
+        latched: run.latched,
+        trace: run.trace,
     })
 }
 
