@@ -67,15 +67,36 @@ impl SlewProfile {
         // the gauge's span, Q16); beyond that the speed is the rate limit.
         let dist = d.unsigned_abs().min((1 << 37) - 1);
         let vmax = self.v_max_q16.unsigned_abs();
-        let two_a_d = 2 * a.unsigned_abs() * dist;
-        // Far from the goal the rate limit holds and no root is needed.
-        let speed = if vmax.saturating_mul(vmax) <= two_a_d {
-            vmax
+        let a_u = a.unsigned_abs();
+        let v = if dist <= 2 * a_u && dist <= vmax {
+            // Near the goal (while tracking, the goal's moves differ from
+            // its velocity by a fraction of a code each tick): the braking
+            // speed √(2·a·|d|) and the rate limit are both ≥ |d|, so with
+            // u₀ the velocity toward the goal the step below arrives
+            // exactly when u₀ + a ≥ |d| and otherwise gives u₀ + a: the
+            // same result without the root.
+            let u0 = if d > 0 { v0 } else { -v0 };
+            let u = u0 + a;
+            if u >= dist as i64 {
+                self.v_q16 = 0;
+                return (goal, d, d - v0);
+            }
+            if d > 0 {
+                u
+            } else {
+                -u
+            }
         } else {
-            isqrt_u64(two_a_d).min(vmax)
-        } as i64;
-        let target_v = if d > 0 { speed } else { -speed };
-        let v = step_toward(v0, target_v, a);
+            let two_a_d = 2 * a_u * dist;
+            // Far from the goal the rate limit holds and no root is needed.
+            let speed = if vmax.saturating_mul(vmax) <= two_a_d {
+                vmax
+            } else {
+                sqrt_u64(two_a_d).min(vmax)
+            } as i64;
+            let target_v = if d > 0 { speed } else { -speed };
+            step_toward(v0, target_v, a)
+        };
         let toward = (v > 0) == (d > 0);
         if toward && v.abs() >= d.abs() {
             // Arrives this tick (from at most about 2a): stop on the goal.
@@ -99,29 +120,41 @@ impl SlewProfile {
     }
 }
 
-/// ⌊√x⌋, digit by digit: no division, at most 32 rounds (the handler has
-/// no panic path and a bounded cost), starting at x's top digit pair so a
-/// small distance (the command a few codes off its goal, the usual case
-/// while tracking) costs a few rounds.
+/// √x for the braking speed: ⌊√x⌋ exactly for x < 2³², else the root of x
+/// with its low bits dropped to 32 significant bits (an even shift 2k),
+/// times 2ᵏ: below the true root by less than 2ᵏ⁺¹, a relative 2⁻¹⁴ at
+/// most (the braking curve is followed that much below its limit). Integer
+/// only, no panic path, at most a handful of hardware divisions (Newton's
+/// iteration from above, [`isqrt_u32`]).
 #[inline]
-pub fn isqrt_u64(x: u64) -> u64 {
+pub fn sqrt_u64(x: u64) -> u64 {
+    let bits = 64 - x.leading_zeros();
+    let k = bits.saturating_sub(31) / 2;
+    u64::from(isqrt_u32((x >> (2 * k)) as u32)) << k
+}
+
+/// ⌊√x⌋ by Newton's iteration `g ← (g + x/g)/2` from 2¹⁶ (above every
+/// root of a u32): it decreases monotonically to ⌊√x⌋ and stops there
+/// (the integer form of the iteration never undershoots the floor root).
+/// Starting from above the root: at most 17 rounds, 8 for x ≥ 2¹⁶ (tested).
+#[inline]
+pub fn isqrt_u32(x: u32) -> u32 {
     if x == 0 {
         return 0;
     }
-    let mut rem = x;
-    let mut root: u64 = 0;
-    // The highest power of four not above x.
-    let mut bit: u64 = 1 << ((63 - x.leading_zeros()) & !1);
-    while bit != 0 {
-        if rem >= root + bit {
-            rem -= root + bit;
-            root = (root >> 1) + bit;
-        } else {
-            root >>= 1;
+    // An upper bound from the bit length: 2^⌈bits/2⌉ > √x.
+    let bits = 32 - x.leading_zeros();
+    let mut g: u32 = 1 << bits.div_ceil(2);
+    loop {
+        let Some(nz) = core::num::NonZeroU32::new(g) else {
+            return 0;
+        };
+        let y = (g + x / nz) >> 1;
+        if y >= g {
+            return g;
         }
-        bit >>= 2;
+        g = y;
     }
-    root
 }
 
 /// The current limit with its persistence counter.
@@ -206,37 +239,94 @@ impl FollowingError {
 mod tests {
     use super::*;
 
-    #[test]
-    fn isqrt_is_the_floor_square_root() {
-        for x in [
-            0u64,
-            1,
-            2,
-            3,
-            4,
-            15,
-            16,
-            17,
-            1 << 40,
-            (1 << 62) + 12345,
-            u64::MAX,
-        ] {
-            let r = u128::from(isqrt_u64(x));
-            let x = u128::from(x);
-            assert!(r * r <= x && (r + 1) * (r + 1) > x, "{x}: {r}");
+    /// The Newton rounds of [`isqrt_u32`] for x, counted the same way.
+    fn rounds(x: u32) -> u32 {
+        let bits = 32 - x.leading_zeros();
+        let mut g: u64 = 1 << bits.div_ceil(2);
+        let mut n = 0;
+        loop {
+            n += 1;
+            let y = (g + u64::from(x) / g) >> 1;
+            if y >= g {
+                return n;
+            }
+            g = y;
         }
     }
 
-    proptest::proptest! {
-        /// ⌊√x⌋ over the whole u64 range (the top digit pair is found from
-        /// the leading zeros; an off-by-one there shows at some magnitude).
-        #[test]
-        fn isqrt_is_the_floor_square_root_at_any_magnitude(x in proptest::num::u64::ANY, shift in 0u32..64) {
-            let x = x >> shift;
-            let r = u128::from(isqrt_u64(x));
-            let x = u128::from(x);
-            proptest::prop_assert!(r * r <= x && (r + 1) * (r + 1) > x);
+    #[test]
+    fn isqrt_u32_is_the_floor_square_root_in_few_rounds() {
+        let edges = [0u32, 1, 2, 3, 4, 15, 16, 17, 65_535, 65_536, u32::MAX];
+        let squares = (0..=65_535u32).flat_map(|r| [r * r, (r * r).wrapping_sub(1), r * r + 1]);
+        let mut worst = 0;
+        for x in edges.into_iter().chain(squares) {
+            let r = u64::from(isqrt_u32(x));
+            let xx = u64::from(x);
+            assert!(r * r <= xx && (r + 1) * (r + 1) > xx, "{x}: {r}");
+            if x > 0 {
+                worst = worst.max(rounds(x));
+            }
         }
+        assert!(worst <= 8, "{worst} rounds");
+    }
+
+    proptest::proptest! {
+        /// ⌊√x⌋ for every magnitude of a u32, and within the stated bound
+        /// below the true root for a u64.
+        #[test]
+        fn sqrt_is_the_floor_root_or_within_its_bound(x in proptest::num::u64::ANY, shift in 0u32..64) {
+            let x = x >> shift;
+            let r = u128::from(sqrt_u64(x));
+            let xx = u128::from(x);
+            proptest::prop_assert!(r * r <= xx);
+            let k = (64 - x.leading_zeros()).saturating_sub(31) / 2;
+            let slack = 2u128 << k;
+            proptest::prop_assert!((r + slack) * (r + slack) > xx, "{x}: {r}");
+            if x >> 32 == 0 {
+                proptest::prop_assert!((r + 1) * (r + 1) > xx);
+            }
+        }
+    }
+
+    /// The near-goal shortcut of [`SlewProfile::step`] gives what the
+    /// general step (the braking speed from the root) gives, for offsets
+    /// and velocities around the goal at the default design's limits.
+    #[test]
+    fn slew_near_goal_matches_the_general_step() {
+        let (vm, am) = (42_949_672i64, 171_798i64);
+        for d in (-2 * am..=2 * am)
+            .step_by(997)
+            .chain([-1, 1, 2 * am, -2 * am])
+        {
+            for v0 in (-3 * am..=3 * am).step_by(1999) {
+                let mut p = SlewProfile::new(vm, am);
+                p.set_velocity(v0);
+                let got = p.step(0, d);
+                // The general step, written out.
+                let dist = d.unsigned_abs();
+                let s = isqrt_slow(2 * am.unsigned_abs() * dist).min(vm.unsigned_abs()) as i64;
+                let v = step_toward(v0, if d > 0 { s } else { -s }, am);
+                let want = if d != 0 && (v > 0) == (d > 0) && v.abs() >= d.abs() {
+                    (d, d, d - v0)
+                } else if d == 0 {
+                    (0, 0, -v0)
+                } else {
+                    (v, v, v - v0)
+                };
+                assert_eq!(got, want, "d {d} v0 {v0}");
+            }
+        }
+    }
+
+    fn isqrt_slow(x: u64) -> u64 {
+        let mut r = (x as f64).sqrt() as u64;
+        while r * r > x {
+            r -= 1;
+        }
+        while (r + 1) * (r + 1) <= x {
+            r += 1;
+        }
+        r
     }
 
     /// A 100 000-code move at ≤ 655 codes/tick and ≤ 3 codes/tick²
