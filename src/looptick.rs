@@ -97,9 +97,9 @@ pub struct LoopState {
     /// Table command of the last tick, gauge codes.
     pub(crate) table_code: i32,
     /// Velocity input of the last tick (∂Z/∂φ·Δφ), codes/tick Q16.
-    pub(crate) ff_q16: i64,
+    pub(crate) ff_q16: i32,
     /// Acceleration input of the last tick, codes/tick², Q16.
-    pub(crate) accel_q16: i64,
+    pub(crate) accel_q16: i32,
     pub(crate) servo: Servo,
     /// Gauge code of the last good sample (+Z).
     pub(crate) position: i32,
@@ -350,15 +350,22 @@ impl LoopState {
             // The target offset's own rate (a user signal, clean) joins the
             // table's analytic rate in the velocity feedforward when it is a
             // motion (a step is approached by the servo's slew profile).
-            let step = i64::from(self.target) - i64::from(self.last_target);
+            // Both within the gauge's range: the step fits an i32.
+            let step = self.target - self.last_target;
             let slew_codes = self.servo.config().slew_q16 >> 16;
-            let target_step = if step.abs() <= slew_codes { step } else { 0 };
+            let target_step = if i64::from(step.abs()) <= slew_codes {
+                step
+            } else {
+                0
+            };
             Reference {
                 code: self
                     .target
                     .saturating_add(table_code)
                     .clamp(CODE_MIN, CODE_MAX),
-                velocity_q16: slope + (target_step << 16),
+                // A step of the target within the slew rate is motion (at
+                // most 2¹⁴ codes per tick counted: 6 in/s at 20 kHz).
+                velocity_q16: slope.saturating_add(target_step.clamp(-(1 << 14), 1 << 14) << 16),
                 accel_q16: accel,
             }
         };
@@ -526,12 +533,12 @@ impl LoopState {
         self.output
     }
     /// Velocity feedforward input of the last tick, gauge codes per tick, Q16.
-    pub fn feedforward_q16(&self) -> i64 {
+    pub fn feedforward_q16(&self) -> i32 {
         self.ff_q16
     }
     /// Acceleration feedforward input of the last tick (∂²Z/∂φ²·Δφ²),
     /// gauge codes per tick², Q16.
-    pub fn accel_q16(&self) -> i64 {
+    pub fn accel_q16(&self) -> i32 {
         self.accel_q16
     }
     /// Whether the DAC has acknowledged its clamp to ground.

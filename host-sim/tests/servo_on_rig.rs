@@ -84,8 +84,8 @@ fn run(design: ServoDesign, rig_cfg: RigConfig, r: Run) -> Result {
             gauge_code: y,
             reference: Reference {
                 code: (z * CODES_PER_IN).round() as i32,
-                velocity_q16: (v * CODES_PER_IN * 65536.0) as i64,
-                accel_q16: (a * CODES_PER_IN * 65536.0) as i64,
+                velocity_q16: (v * CODES_PER_IN * 65536.0) as i32,
+                accel_q16: (a * CODES_PER_IN * 65536.0) as i32,
             },
             angle: Some((phi, dphi)),
             freeze: r.freeze,
@@ -94,7 +94,7 @@ fn run(design: ServoDesign, rig_cfg: RigConfig, r: Run) -> Result {
         if fault.is_none() {
             fault = out.fault;
         }
-        d_peak = d_peak.max((servo.estimate().d_q16 as f64 / 65536.0).abs());
+        d_peak = d_peak.max((f64::from(servo.estimate().d_q8) / 256.0).abs());
         last_err = rig.slide.position_in() - z;
         dac.write(out.dac_code).unwrap();
         if out.enable != enabled {

@@ -14,72 +14,86 @@ use crate::safety::Fault;
 
 /// Steps `from` toward `to` by at most `max_step` (> 0).
 #[inline(always)]
-pub const fn step_toward(from: i64, to: i64, max_step: i64) -> i64 {
-    if to > from + max_step {
+pub const fn step_toward(from: i32, to: i32, max_step: i32) -> i32 {
+    if to > from.saturating_add(max_step) {
         from + max_step
-    } else if to < from - max_step {
+    } else if to < from.saturating_sub(max_step) {
         from - max_step
     } else {
         to
     }
 }
 
+/// Largest slew rate, Q16 codes per tick (16 384 codes per tick, 6 in/s at
+/// 20 kHz: far beyond the design's 10 in/s limit only at rates under
+/// 12 kHz, where it then limits).
+const V_MAX_LIMIT: i32 = 1 << 30;
+/// Largest acceleration, Q16 codes per tick².
+const A_MAX_LIMIT: i32 = (1 << 26) - 1;
+
 /// The command's approach to a goal it is not on (engagement, disarming, a
 /// target step, a fault's ramp to null): velocity limited to the slew rate
-/// and acceleration limited, braking in time to arrive at rest, so that
-/// the feedforward of the ramp (its acceleration through the plant
-/// inverse) stays bounded and the slide does not overshoot at the end of
-/// a ramp. No division: the braking test is `v² ≥ 2·a·|d|`.
+/// and acceleration limited, braking in time to arrive at rest on the
+/// goal, so that the feedforward of the ramp (its acceleration through the
+/// plant inverse) stays bounded and the slide does not overshoot at the
+/// end of a ramp: the speed toward the goal never exceeds √(2·a·|d|).
+///
+/// Formats: the offset from the goal is Q8 codes (|offset| < 2²⁹),
+/// velocities Q16 codes per tick and accelerations Q16 codes per tick²
+/// (`i32`); the offset moves by the velocity rounded to Q8.
 #[derive(Clone, Debug)]
 pub struct SlewProfile {
-    v_max_q16: i64,
-    a_max_q16: i64,
-    /// Velocity of the command, codes per tick Q16.
-    v_q16: i64,
+    v_max_q16: i32,
+    a_max_q16: i32,
+    /// |offset| (Q8) within which the braking speed and the rate limit are
+    /// both at least the distance: ⌊min(2a, v_max) / 2⁸⌋.
+    near_q8: i32,
+    /// Velocity of the command relative to the goal, Q16 codes per tick.
+    v_q16: i32,
 }
 
 impl SlewProfile {
     pub fn new(v_max_q16: i64, a_max_q16: i64) -> Self {
+        let v_max_q16 = v_max_q16.clamp(1, i64::from(V_MAX_LIMIT)) as i32;
+        let a_max_q16 = a_max_q16.clamp(1, i64::from(A_MAX_LIMIT)) as i32;
         Self {
-            v_max_q16: v_max_q16.clamp(1, 1 << 31),
-            a_max_q16: a_max_q16.clamp(1, (1 << 26) - 1),
+            v_max_q16,
+            a_max_q16,
+            near_q8: (2 * a_max_q16).min(v_max_q16) >> 8,
             v_q16: 0,
         }
     }
 
-    /// One tick from `cmd` toward `goal` (Q16 codes): the new command and
-    /// its velocity and acceleration (Q16 per tick, per tick²). The speed
-    /// toward the goal never exceeds √(2·a·distance) (it can always stop
-    /// in time), so it arrives on the goal without overshooting, landing
-    /// from at most 2a.
+    /// One tick of the command at `offset_q8` from its goal: the new offset
+    /// and the command's velocity and acceleration relative to the goal (Q16
+    /// per tick, per tick²). It arrives on the goal (offset 0) without
+    /// overshooting, landing from at most 2a.
     #[inline]
-    pub fn step(&mut self, cmd: i64, goal: i64) -> (i64, i64, i64) {
-        let d = goal - cmd;
+    pub fn step(&mut self, offset_q8: i32) -> (i32, i32, i32) {
+        // The distance to go (toward the goal is the sign of `d`).
+        let d = -offset_q8.clamp(-(1 << 29) + 1, (1 << 29) - 1);
         let v0 = self.v_q16;
         if d == 0 {
             // On the goal (the steady state of every tick while tracking):
             // the arrival below, without the root it would not use.
             self.v_q16 = 0;
-            return (goal, 0, -v0);
+            return (0, 0, -v0);
         }
         let a = self.a_max_q16;
-        // 2·a·|d| < 2⁶⁴: a < 2²⁶ (the design's bound) and |d| < 2³⁷ (twice
-        // the gauge's span, Q16); beyond that the speed is the rate limit.
-        let dist = d.unsigned_abs().min((1 << 37) - 1);
-        let vmax = self.v_max_q16.unsigned_abs();
-        let a_u = a.unsigned_abs();
-        let v = if dist <= 2 * a_u && dist <= vmax {
+        let dist_q8 = d.unsigned_abs();
+        let v = if dist_q8 <= self.near_q8 as u32 {
             // Near the goal (while tracking, the goal's moves differ from
             // its velocity by a fraction of a code each tick): the braking
             // speed √(2·a·|d|) and the rate limit are both ≥ |d|, so with
             // u₀ the velocity toward the goal the step below arrives
             // exactly when u₀ + a ≥ |d| and otherwise gives u₀ + a: the
-            // same result without the root.
+            // same result without the root. (|d|·2⁸ ≤ 2a < 2²⁷.)
             let u0 = if d > 0 { v0 } else { -v0 };
             let u = u0 + a;
-            if u >= dist as i64 {
+            let dist_q16 = (dist_q8 << 8) as i32;
+            if u >= dist_q16 {
                 self.v_q16 = 0;
-                return (goal, d, d - v0);
+                return (0, d << 8, (d << 8) - v0);
             }
             if d > 0 {
                 u
@@ -87,24 +101,26 @@ impl SlewProfile {
                 -u
             }
         } else {
-            let two_a_d = 2 * a_u * dist;
+            // 2·a·|d| in Q32 (a Q16, |d| Q8 · 2⁸): below 2⁶⁴ (a < 2²⁶,
+            // |d| < 2²⁹).
+            let two_a_d = 2 * u64::from(a.unsigned_abs()) * (u64::from(dist_q8) << 8);
+            let vmax = u64::from(self.v_max_q16.unsigned_abs());
             // Far from the goal the rate limit holds and no root is needed.
-            let speed = if vmax.saturating_mul(vmax) <= two_a_d {
+            let speed = if vmax * vmax <= two_a_d {
                 vmax
             } else {
                 sqrt_u64(two_a_d).min(vmax)
-            } as i64;
-            let target_v = if d > 0 { speed } else { -speed };
-            step_toward(v0, target_v, a)
+            } as i32;
+            step_toward(v0, if d > 0 { speed } else { -speed }, a)
         };
         let toward = (v > 0) == (d > 0);
-        if toward && v.abs() >= d.abs() {
+        if toward && i64::from(v).abs() >= i64::from(d).abs() << 8 {
             // Arrives this tick (from at most about 2a): stop on the goal.
             self.v_q16 = 0;
-            return (goal, d, d - v0);
+            return (0, d << 8, (d << 8) - v0);
         }
         self.v_q16 = v;
-        (cmd + v, v, v - v0)
+        (offset_q8 + ((v + (1 << 7)) >> 8), v, v - v0)
     }
 
     /// Starts from rest (engagement).
@@ -115,7 +131,7 @@ impl SlewProfile {
     /// Sets the velocity relative to the goal (the command's velocity minus
     /// the goal's), bounded by the rate limit.
     #[inline(always)]
-    pub fn set_velocity(&mut self, v_q16: i64) {
+    pub fn set_velocity(&mut self, v_q16: i32) {
         self.v_q16 = v_q16.max(-self.v_max_q16).min(self.v_max_q16);
     }
 }
@@ -160,8 +176,8 @@ pub fn isqrt_u32(x: u32) -> u32 {
 /// The current limit with its persistence counter.
 #[derive(Clone, Debug)]
 pub struct CurrentLimit {
-    limit_code: i64,
-    k_emf_q24: i64,
+    limit_code: i32,
+    k_emf_q24: i32,
     ticks_allowed: u32,
     ticks_in_limit: u32,
 }
@@ -169,20 +185,21 @@ pub struct CurrentLimit {
 impl CurrentLimit {
     pub fn new(limit_code: i32, k_emf_q24: i32, ticks_allowed: u32) -> Self {
         Self {
-            limit_code: i64::from(limit_code.max(0)),
-            k_emf_q24: i64::from(k_emf_q24),
+            // Below 2²⁴: the window stays inside i32 around any back-EMF.
+            limit_code: limit_code.clamp(0, 1 << 24),
+            k_emf_q24,
             ticks_allowed,
             ticks_in_limit: 0,
         }
     }
 
     /// The DAC code `u` limited so that the estimated current at velocity
-    /// `v_q16` (gauge codes per tick) stays within the limit; whether it
-    /// was limited; a fault when the limit has been held too long.
+    /// `v_q16` (gauge codes per tick Q16) stays within the limit; whether
+    /// it was limited; a fault when the limit has been held too long.
     #[inline]
-    pub fn apply(&mut self, u: i64, v_q16: i64) -> (i64, bool, Option<Fault>) {
-        let v = v_q16.clamp(-(1 << 34), 1 << 34) >> 8;
-        let emf = (self.k_emf_q24 * v) >> 32;
+    pub fn apply(&mut self, u: i32, v_q16: i32) -> (i32, bool, Option<Fault>) {
+        // Q24 × Q16 = Q40 → codes; |k·v| < 2⁶¹, so |emf| < 2²¹.
+        let emf = ((i64::from(self.k_emf_q24) * i64::from(v_q16)) >> 40) as i32;
         let hi = emf + self.limit_code;
         let lo = emf - self.limit_code;
         let limited = u > hi || u < lo;
@@ -205,7 +222,7 @@ impl CurrentLimit {
 /// longer than allowed.
 #[derive(Clone, Debug)]
 pub struct FollowingError {
-    limit_q16: i64,
+    limit_q8: u32,
     ticks_allowed: u32,
     ticks_over: u32,
 }
@@ -213,15 +230,17 @@ pub struct FollowingError {
 impl FollowingError {
     pub fn new(limit_code: i32, ticks_allowed: u32) -> Self {
         Self {
-            limit_q16: i64::from(limit_code.max(1)) << 16,
+            // The gauge's whole span at most (2²⁰ codes, Q8 < 2³²).
+            limit_q8: (limit_code.clamp(1, 1 << 20) as u32) << 8,
             ticks_allowed,
             ticks_over: 0,
         }
     }
 
+    /// One tick with the error `error_q8` (gauge codes Q8).
     #[inline]
-    pub fn check(&mut self, error_q16: i64) -> Option<Fault> {
-        if error_q16.abs() > self.limit_q16 {
+    pub fn check(&mut self, error_q8: i32) -> Option<Fault> {
+        if error_q8.unsigned_abs() > self.limit_q8 {
             self.ticks_over = self.ticks_over.saturating_add(1);
         } else {
             self.ticks_over = 0;
@@ -289,29 +308,28 @@ mod tests {
     }
 
     /// The near-goal shortcut of [`SlewProfile::step`] gives what the
-    /// general step (the braking speed from the root) gives, for offsets
-    /// and velocities around the goal at the default design's limits.
+    /// general step (the braking speed from the exact root) gives, for
+    /// offsets and velocities around the goal at the default design's
+    /// limits.
     #[test]
     fn slew_near_goal_matches_the_general_step() {
-        let (vm, am) = (42_949_672i64, 171_798i64);
-        for d in (-2 * am..=2 * am)
-            .step_by(997)
-            .chain([-1, 1, 2 * am, -2 * am])
-        {
+        let (vm, am) = (42_949_672i32, 171_798i32);
+        let near = (2 * am).min(vm) >> 8;
+        for d in (-near..=near).step_by(7).chain([-1, 1, near, -near]) {
             for v0 in (-3 * am..=3 * am).step_by(1999) {
-                let mut p = SlewProfile::new(vm, am);
+                let mut p = SlewProfile::new(vm.into(), am.into());
                 p.set_velocity(v0);
-                let got = p.step(0, d);
+                let got = p.step(-d);
                 // The general step, written out.
-                let dist = d.unsigned_abs();
-                let s = isqrt_slow(2 * am.unsigned_abs() * dist).min(vm.unsigned_abs()) as i64;
+                let dist = u64::from(d.unsigned_abs()) << 8;
+                let s = isqrt_slow(2 * u64::from(am.unsigned_abs()) * dist).min(vm as u64) as i32;
                 let v = step_toward(v0, if d > 0 { s } else { -s }, am);
-                let want = if d != 0 && (v > 0) == (d > 0) && v.abs() >= d.abs() {
-                    (d, d, d - v0)
-                } else if d == 0 {
+                let want = if d == 0 {
                     (0, 0, -v0)
+                } else if (v > 0) == (d > 0) && i64::from(v).abs() >= i64::from(d).abs() << 8 {
+                    (0, d << 8, (d << 8) - v0)
                 } else {
-                    (v, v, v - v0)
+                    (-d + ((v + 128) >> 8), v, v - v0)
                 };
                 assert_eq!(got, want, "d {d} v0 {v0}");
             }
@@ -336,20 +354,21 @@ mod tests {
     /// the goal, never exceeding either limit or overshooting.
     #[test]
     fn slew_profile_is_a_bounded_trapezoid_that_arrives_at_rest() {
-        let (vm, am) = (655i64 << 16, 3i64 << 16);
+        let (vm, am) = (655i32 << 16, 3i32 << 16);
         // Triangle: t = 2√(d/a) = 365; trapezoid: t = d/vm + vm/a = 829.
-        for (d, expected) in [(100_000i64, 365.0), (400_000, 829.0)] {
-            let mut p = SlewProfile::new(vm, am);
-            let (mut cmd, goal) = (0i64, d << 16);
+        for (d, expected) in [(100_000i32, 365.0), (400_000, 829.0)] {
+            let mut p = SlewProfile::new(vm.into(), am.into());
+            // The command starts d codes below its goal.
+            let mut offset = -(d << 8);
             let mut ticks = 0;
             let mut v_prev = 0;
-            while cmd != goal {
-                let (c, v, a) = p.step(cmd, goal);
+            while offset != 0 {
+                let (o, v, a) = p.step(offset);
                 assert!(v.abs() <= vm && a.abs() <= vm.max(am));
-                assert!((v - v_prev).abs() <= am || c == goal);
-                assert!(c <= goal, "no overshoot");
+                assert!((v - v_prev).abs() <= am || o == 0);
+                assert!(o <= 0, "no overshoot");
                 v_prev = v;
-                cmd = c;
+                offset = o;
                 ticks += 1;
                 assert!(ticks < 10_000);
             }
@@ -370,7 +389,7 @@ mod tests {
         assert_eq!(c.apply(50_000, 0).0, 44_040);
         assert_eq!(c.apply(-50_000, 0).0, -44_040);
         // v = 1000 codes/tick, k = 1: window [−43 040, 45 040]
-        let v = 1000i64 << 16;
+        let v = 1000i32 << 16;
         assert_eq!(c.apply(50_000, v).0, 45_040);
         assert_eq!(c.apply(-50_000, v).0, -43_040);
     }
@@ -391,11 +410,11 @@ mod tests {
     #[test]
     fn following_error_needs_persistence() {
         let mut f = FollowingError::new(100, 2);
-        let big = 200i64 << 16;
+        let big = 200i32 << 8;
         assert_eq!(f.check(big), None);
         assert_eq!(f.check(-big), None);
         assert_eq!(f.check(big), Some(Fault::FollowingError));
         f.reset();
-        assert_eq!(f.check(50 << 16), None);
+        assert_eq!(f.check(50 << 8), None);
     }
 }

@@ -35,10 +35,14 @@
 //! trusted or the machine jumped.
 //!
 //! # Number formats
-//! Table entries: gauge codes Q8 (`i32`). Angle: the binary spindle angle
-//! (2³² per revolution); a bin is 2²⁴. Outputs: position Q16 codes,
-//! velocity Q16 codes per tick, acceleration Q16 codes per tick².
+//! Table entries: gauge codes Q8 (`i32`, |entry| ≤ 2²⁵). Angle: the binary
+//! spindle angle (2³² per revolution); a bin is 2²⁴. Outputs: position Q8
+//! codes, velocity Q16 codes per tick, acceleration Q16 codes per tick², all
+//! `i32`. Products of an entry difference (< 2²⁷) and a fraction or an
+//! angle step (< 2²²) are single 32×32 → 64-bit multiplies, shifted back to
+//! 32 bits once.
 
+use super::observer::sat_i32;
 use crate::units::SpindleAngle;
 
 /// Bins per revolution.
@@ -82,16 +86,19 @@ pub enum Freeze {
 /// The learned reference correction at one angle.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Correction {
-    pub position_q16: i64,
-    pub velocity_q16: i64,
-    pub accel_q16: i64,
+    /// Gauge codes Q8.
+    pub position_q8: i32,
+    /// Gauge codes per tick Q16.
+    pub velocity_q16: i32,
+    /// Gauge codes per tick² Q16.
+    pub accel_q16: i32,
 }
 
 /// The learning table and its state.
 #[derive(Clone, Debug)]
 pub struct Repetitive {
     table: [i32; BINS],
-    gain_q16: i64,
+    gain_q16: i32,
     lead: usize,
     q_shift: u32,
     last_bin: Option<usize>,
@@ -106,7 +113,7 @@ impl Repetitive {
     pub fn new(gain_q16: i32, lead_bins: u32, q_shift: u32) -> Self {
         Self {
             table: [0; BINS],
-            gain_q16: i64::from(gain_q16.max(0)),
+            gain_q16: gain_q16.clamp(0, 65_535),
             lead: (lead_bins as usize).clamp(MIN_LEAD, MASK),
             q_shift: q_shift.clamp(1, 16),
             last_bin: None,
@@ -126,20 +133,25 @@ impl Repetitive {
     #[inline]
     pub fn correction(&self, phi: SpindleAngle, dphi: i32) -> Correction {
         let i = (phi.0 >> BIN_BITS) as usize;
-        let f = i64::from((phi.0 >> (BIN_BITS - 16)) & 0xFFFF);
-        let t = |k: usize| i64::from(self.table[k & MASK]);
+        // The position inside the bin, Q16.
+        let f = ((phi.0 >> (BIN_BITS - 16)) & 0xFFFF) as i32;
+        let t = |k: usize| self.table[k & MASK];
         let (t0, t1, t2, t3) = (t(i + MASK), t(i), t(i + 1), t(i + 2));
-        let c_q8 = t1 + (((t2 - t1) * f) >> 16);
+        // |entries| ≤ 2²⁵: differences < 2²⁶, slopes' differences < 2²⁷.
+        let c_q8 = t1 + ((i64::from(t2 - t1) * i64::from(f)) >> 16) as i32;
         // Slopes at the nodes (codes Q8 per bin, times 2), interpolated.
         let (s1, s2) = (t2 - t0, t3 - t1);
-        let slope2 = s1 + (((s2 - s1) * f) >> 16);
-        let d = i64::from(dphi.clamp(-MAX_DPHI, MAX_DPHI));
-        // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17.
-        let v = (slope2 * d) >> (BIN_BITS - 7);
-        // (s2 − s1)/2 per bin² · dphi² / 2⁴⁸, Q8 → Q16: >> 41 in two steps.
-        let a = ((((s2 - s1) * d) >> 20) * d) >> (2 * BIN_BITS - 27);
+        let slope2 = s1 + ((i64::from(s2 - s1) * i64::from(f)) >> 16) as i32;
+        let d = dphi.clamp(-MAX_DPHI, MAX_DPHI);
+        // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17
+        // (< 2³²: saturated).
+        let v = sat_i32((i64::from(slope2) * i64::from(d)) >> (BIN_BITS - 7));
+        // (s2 − s1)/2 per bin² · dphi² / 2⁴⁸, Q8 → Q16: >> 41 in two
+        // steps (< 2²⁹, then < 2³⁰).
+        let a1 = ((i64::from(s2 - s1) * i64::from(d)) >> 20) as i32;
+        let a = ((i64::from(a1) * i64::from(d)) >> (2 * BIN_BITS - 27)) as i32;
         Correction {
-            position_q16: c_q8 << 8,
+            position_q8: c_q8,
             velocity_q16: v,
             accel_q16: a,
         }
@@ -149,7 +161,7 @@ impl Repetitive {
     /// codes Q16) seen at `phi` after a step `dphi`, unless `freeze` says
     /// why not.
     #[inline]
-    pub fn learn(&mut self, phi: SpindleAngle, dphi: i32, error_q16: i64, freeze: Option<Freeze>) {
+    pub fn learn(&mut self, phi: SpindleAngle, dphi: i32, error_q8: i32, freeze: Option<Freeze>) {
         if self.gain_q16 == 0 {
             self.frozen = Some(Freeze::Disabled);
             return;
@@ -190,11 +202,15 @@ impl Repetitive {
         }
         self.last_bin = Some(i);
         let j = (i + BINS - self.lead) & MASK;
-        let f = i64::from((phi.0 >> (BIN_BITS - 16)) & 0xFFFF);
-        let e_q8 = (error_q16 >> 8).clamp(-(1 << 28), 1 << 28);
-        // κ · e · Δφ / bin, rounded: Σ over a bin is κ·ē.
-        let inc = (((e_q8 * i64::from(dphi)) >> 16) * self.gain_q16) >> BIN_BITS;
-        let lo = (inc * (65_536 - f)) >> 16;
+        let f = ((phi.0 >> (BIN_BITS - 16)) & 0xFFFF) as i32;
+        // κ · e · Δφ / bin: Σ over a bin is κ·ē. κ·Δφ/2⁷ < 2³¹ (κ < 1 in
+        // Q16, 0 < Δφ ≤ 2²²), and its product with e (|e| ≤ 2²⁸, Q8) over
+        // 2³³ is below 2²⁶.
+        let e_q8 = error_q8.clamp(-(1 << 28), 1 << 28);
+        let k_dphi = (dphi >> 7) * self.gain_q16;
+        let inc = ((i64::from(e_q8) * i64::from(k_dphi)) >> (BIN_BITS + 9)) as i32;
+        // Shared between the two bins around the angle (|inc| < 2²⁶).
+        let lo = ((i64::from(inc) * i64::from(65_536 - f)) >> 16) as i32;
         let hi = inc - lo;
         self.add(j, lo);
         self.add((j + 1) & MASK, hi);
@@ -210,16 +226,16 @@ impl Repetitive {
     }
 
     #[inline(always)]
-    fn add(&mut self, k: usize, inc: i64) {
+    fn add(&mut self, k: usize, inc: i32) {
         if let Some(t) = self.table.get_mut(k) {
-            let v = (i64::from(*t) + inc).clamp(-i64::from(ENTRY_LIMIT), i64::from(ENTRY_LIMIT));
-            *t = v as i32;
+            *t = t.saturating_add(inc).clamp(-ENTRY_LIMIT, ENTRY_LIMIT);
         }
     }
 
     #[inline(always)]
     fn q_filter(&mut self, k: usize) {
-        let t = |k: usize| i64::from(self.table[k & MASK]);
+        let t = |k: usize| self.table[k & MASK];
+        // |entries| ≤ 2²⁵: the second difference is below 2²⁷.
         let d = (t(k + MASK) - 2 * t(k) + t(k + 1)) >> self.q_shift;
         self.add(k & MASK, d);
     }
@@ -278,8 +294,8 @@ mod tests {
                 let ph = SpindleAngle(phi);
                 let target =
                     1000.0 * libm::sin(2.0 * core::f64::consts::TAU * f64::from(phi) / TURN);
-                let c = r.correction(ph, dphi as i32).position_q16 as f64 / 65536.0;
-                let e = ((target - c) * 65536.0) as i64;
+                let c = f64::from(r.correction(ph, dphi as i32).position_q8) / 256.0;
+                let e = ((target - c) * 256.0) as i32;
                 r.learn(ph, dphi as i32, e, None);
                 phi = phi.wrapping_add(dphi);
             }
@@ -290,7 +306,7 @@ mod tests {
             for k in 0..360 {
                 let p = (k as f64 / 360.0 * TURN) as u32;
                 let target = 1000.0 * libm::sin(2.0 * core::f64::consts::TAU * f64::from(p) / TURN);
-                let c = r.correction(SpindleAngle(p), 0).position_q16 as f64 / 65536.0;
+                let c = f64::from(r.correction(SpindleAngle(p), 0).position_q8) / 256.0;
                 worst = worst.max((target - c).abs());
             }
             assert!(worst < 10.0, "{ticks_per_rev}: {worst} codes of 1000");
@@ -315,8 +331,8 @@ mod tests {
             let p = (k as f64 / 64.0 * TURN) as u32;
             let th = core::f64::consts::TAU * f64::from(p) / TURN;
             let c = r.correction(SpindleAngle(p), dphi);
-            let v = c.velocity_q16 as f64 / 65536.0;
-            let acc = c.accel_q16 as f64 / 65536.0;
+            let v = f64::from(c.velocity_q16) / 65536.0;
+            let acc = f64::from(c.accel_q16) / 65536.0;
             let v_exact = a * 2.0 * w * libm::cos(2.0 * th);
             let a_exact = -a * 4.0 * w * w * libm::sin(2.0 * th);
             assert!(
@@ -333,19 +349,19 @@ mod tests {
     #[test]
     fn backward_or_huge_angle_steps_freeze_the_learning() {
         let mut r = Repetitive::new(20_000, 0, 8);
-        r.learn(SpindleAngle(1000), -5, 1 << 20, None);
+        r.learn(SpindleAngle(1000), -5, 1 << 12, None);
         assert_eq!(r.frozen(), Some(Freeze::SpindleJump));
-        r.learn(SpindleAngle(1000), 1 << 23, 1 << 20, None);
+        r.learn(SpindleAngle(1000), 1 << 23, 1 << 12, None);
         assert_eq!(r.frozen(), Some(Freeze::SpindleJump));
         assert_eq!(r.peak_code(), 0);
-        r.learn(SpindleAngle(1000), 1000, 1 << 20, Some(Freeze::NoAngle));
+        r.learn(SpindleAngle(1000), 1000, 1 << 12, Some(Freeze::NoAngle));
         assert_eq!(r.frozen(), Some(Freeze::NoAngle));
         r.hold_for(Freeze::XJump, 3);
         for _ in 0..3 {
-            r.learn(SpindleAngle(1000), 1000, 1 << 20, None);
+            r.learn(SpindleAngle(1000), 1000, 1 << 12, None);
             assert_eq!(r.frozen(), Some(Freeze::XJump));
         }
-        r.learn(SpindleAngle(1000), 1000, 1 << 20, None);
+        r.learn(SpindleAngle(1000), 1000, 1 << 12, None);
         assert_eq!(r.frozen(), None);
     }
 
@@ -355,7 +371,7 @@ mod tests {
         let mut r = Repetitive::new(60_000, 0, 16);
         let mut phi = 0u32;
         for _ in 0..400_000 {
-            r.learn(SpindleAngle(phi), 1 << 20, i64::MAX / 4, None);
+            r.learn(SpindleAngle(phi), 1 << 20, i32::MAX / 4, None);
             phi = phi.wrapping_add(1 << 20);
         }
         assert!(r.peak_code() <= ENTRY_LIMIT >> 8);

@@ -277,9 +277,17 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
         return Err(format!("the QEMU image failed under tracing ({status})"));
     }
     if let Some(p) = &profile {
-        let calls = stats.get(p.as_str()).map_or(1, |s| s.calls.max(1));
+        // With --call the histogram holds that one call: no averaging.
+        let calls = match args.call {
+            Some(_) => 1,
+            None => stats.get(p.as_str()).map_or(1, |s| s.calls.max(1)),
+        };
         eprintln!(
-            "isr-cost profile of {p} ({calls} calls): address, executions per call, function"
+            "isr-cost profile of {p} ({}): address, executions per call, function",
+            match args.call {
+                Some(n) => format!("call {n}"),
+                None => format!("{calls} calls"),
+            }
         );
         for (pc, n) in &histogram {
             let f = find(&funcs, *pc).map_or("?", |f| f.name.as_str());
