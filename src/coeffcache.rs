@@ -1,7 +1,7 @@
 //! Coefficients at X through a per-interval cache: the two node rows of
-//! the grid interval X is in, fetched once per interval, so an X event (or
-//! a modern-X tick) costs one multiply-add per column and no division;
-//! bit-identical to `CommandGen::coefficients_into`.
+//! the grid interval X is in, fetched once per interval, so an X event
+//! (legacy half-mil or modern X count) costs one multiply-add per column
+//! and no division; bit-identical to `CommandGen::coefficients_into`.
 
 use crate::command::{Coefficients, CommandGen, COEFF_LIMIT};
 use crate::config::COLS;
@@ -32,10 +32,8 @@ pub(crate) struct IntervalCache {
 /// path does not cover).
 pub(crate) fn general_columns(
     g: &CommandGen<'static>,
-    held: &mut [Option<u32>; 2],
     terms: usize,
     slot: &CoeffSlot,
-    which: usize,
     x: XInches,
 ) -> Result<bool, Fault> {
     let mut c = Coefficients::NULL;
@@ -43,14 +41,8 @@ pub(crate) fn general_columns(
     if c.null {
         return Ok(false);
     }
-    let dst = slot.value.iter().zip(slot.delta.iter());
-    let src = c.value.iter().zip(c.delta.iter());
-    for ((v, dv), (a, b)) in dst.zip(src).take(terms) {
+    for (v, a) in slot.value.iter().zip(c.value.iter()).take(terms) {
         v.store(*a, Ordering::Relaxed);
-        dv.store(*b, Ordering::Relaxed);
-    }
-    if let Some(s) = held.get_mut(which) {
-        *s = None;
     }
     Ok(true)
 }
@@ -98,32 +90,6 @@ impl IntervalCache {
                 t.node_x(1).to_bits().wrapping_sub(t.node_x(0).to_bits())
             }),
         }
-    }
-
-    /// The coefficients at `x` into `c`, bit for bit what
-    /// [`CommandGen::coefficients_into`] gives (the modern X mode's
-    /// re-interpolation in the loop tick: one multiply-add per column while
-    /// X stays in the interval, one flash row more at a crossing).
-    #[inline(always)]
-    pub(crate) fn coefficients_into(
-        &mut self,
-        g: &CommandGen<'static>,
-        n: usize,
-        x: XInches,
-        c: &mut Coefficients,
-    ) -> Result<(), Fault> {
-        let f = match self.seek(g, n, x)? {
-            Seek::In(f) => f,
-            Seek::Null | Seek::General => return g.coefficients_into(x, c),
-        };
-        let src = self.lo.iter().zip(self.d.iter());
-        let dst = c.value.iter_mut().zip(c.delta.iter_mut());
-        for ((v, dv), (lo, d)) in dst.zip(src).take(n) {
-            *v = Self::lerp(*lo, *d, f);
-            *dv = *d;
-        }
-        c.set_live(n as u8, x);
-        Ok(())
     }
 
     /// Moves the cache to the interval holding `x` (for Q30 tables within
@@ -225,34 +191,23 @@ impl IntervalCache {
 
 /// The columns at `x` through the interval cache ([`IntervalCache::seek`]),
 /// bit for bit what [`CommandGen::coefficients_into`] gives: per column one
-/// 32×32 → 64 multiply-add; the interval changes written to a slot only
-/// when that slot does not hold them yet.
+/// 32×32 → 64 multiply-add.
 #[inline(always)]
 pub(crate) fn fast_columns(
     g: &CommandGen<'static>,
     c: &mut IntervalCache,
-    held: &mut [Option<u32>; 2],
     n: usize,
     slot: &CoeffSlot,
-    which: usize,
     x: XInches,
 ) -> Result<bool, Fault> {
     let f = match c.seek(g, n, x)? {
         Seek::Null => return Ok(false),
-        Seek::General => return general_columns(g, held, n, slot, which, x),
+        Seek::General => return general_columns(g, n, slot, x),
         Seek::In(f) => f,
     };
     let cols = c.lo.iter().zip(c.d.iter());
     for ((lo, d), v) in cols.zip(slot.value.iter()).take(n) {
         v.store(IntervalCache::lerp(*lo, *d, f), Ordering::Relaxed);
-    }
-    if let Some(s) = held.get_mut(which) {
-        if *s != c.interval {
-            for (d, dv) in c.d.iter().zip(slot.delta.iter()).take(n) {
-                dv.store(*d, Ordering::Relaxed);
-            }
-            *s = c.interval;
-        }
     }
     Ok(true)
 }

@@ -46,7 +46,9 @@ pub const COEFF_LIMIT: i32 = 1 << 27;
 pub struct Coefficients {
     /// Column values at X, Q30 inches.
     pub value: [i32; COLS],
-    /// Column changes across the interval holding X, Q30 inches (for ∂Z/∂X).
+    /// Column changes across the interval holding X, Q30 inches (for ∂Z/∂X;
+    /// filled by [`CommandGen::coefficients_into`], not by the loop tick's
+    /// hand-off, which carries values only).
     pub delta: [i32; COLS],
     /// Slope scale of the interval: `delta · per_inch_q16 >> 16` = in/in.
     terms: u8,
@@ -522,11 +524,7 @@ fn sat(a: i32, b: i32) -> i32 {
 /// Z = Σ c_j sin^j φ (eq 2-19) by Horner, with P'(s) and P''(s) alongside:
 /// ∂Z/∂φ = P'(s) cos φ, ∂²Z/∂φ² = P''(s) cos²φ − P'(s) sin φ. All in i32
 /// Q30 with saturating adds (one instruction each on the M4's DSP unit).
-fn sin_power<const DX: bool, const SMALL: bool>(
-    v: &[i32],
-    d: &[i32],
-    sc: SinCos,
-) -> [i32; 4] {
+fn sin_power<const DX: bool, const SMALL: bool>(v: &[i32], d: &[i32], sc: SinCos) -> [i32; 4] {
     let (s, c) = (sc.sin, sc.cos);
     let mul = |a: i32, b: i32| {
         if SMALL {

@@ -47,10 +47,11 @@ use crate::config::COLS;
 use crate::safety::{Device, Fault};
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
-/// One published coefficient set.
+/// One published coefficient set: the column values at X, all the loop
+/// tick evaluates (Z and its φ-derivatives; the changes across the grid
+/// interval, for ∂Z/∂X, are not needed there and are not carried).
 pub(crate) struct CoeffSlot {
     pub(crate) value: [AtomicI32; COLS],
-    pub(crate) delta: [AtomicI32; COLS],
     pub(crate) x: AtomicI32,
     /// Live columns, or [`NULL_META`] for the null command.
     pub(crate) meta: AtomicU32,
@@ -66,7 +67,6 @@ impl CoeffSlot {
     pub(crate) const fn new() -> Self {
         Self {
             value: [const { AtomicI32::new(0) }; COLS],
-            delta: [const { AtomicI32::new(0) }; COLS],
             x: AtomicI32::new(0),
             meta: AtomicU32::new(NULL_META),
             seq: AtomicU32::new(0),

@@ -5,7 +5,6 @@
 //! itself is `servo`, the command `command`/`setpoint`.
 
 use crate::codes::{CODE_MAX, CODE_MIN};
-use crate::coeffcache::IntervalCache;
 use crate::command::{Coefficients, CommandGen};
 use crate::config::COLS;
 use crate::handoff::{Request, Shared, NULL_META, X_FAULTS};
@@ -15,7 +14,6 @@ use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
 use crate::setpoint::{setpoint, SetpointState};
 use crate::spindle::{EncoderAngle, TachAngle};
 use crate::units::XInches;
-use crate::xpos::CountX;
 use core::sync::atomic::{fence, Ordering};
 
 /// One spindle reading, as the hw traits deliver it.
@@ -36,7 +34,13 @@ pub struct TickInput {
     /// [`crate::hw::Clock::now_ticks`] at the sampling instant.
     pub now: u32,
     pub spindle: SpindleReading,
-    /// Modern X mode: the X encoder's count ([`crate::hw::Encoder`]).
+    /// Modern X mode: the X encoder's count at the tick
+    /// ([`crate::hw::Encoder`]). The loop tick itself does not use it: the
+    /// coefficients at the count's X are the X handler's work, at its
+    /// lower priority ([`crate::xevent::EventState::x_count_event`]), and
+    /// reach the tick through the same hand-off as a legacy X event. The
+    /// `Firmware` bundle hands this count to that handler after the tick,
+    /// as a board's lower-priority handler would take it.
     pub x_count: u32,
     /// The power amplifier's fault line (high: it tripped).
     pub amplifier_fault: bool,
@@ -59,33 +63,18 @@ pub(crate) enum Estimator {
     Tach(TachAngle),
 }
 
-#[derive(Clone, Debug)]
-// The large variant is the only one a modern-X firmware uses (no heap to
-// box it in; the enum lives once, in the loop-tick state). Keeping the
-// cache here measured cheaper on the M4 than a separate field, and so did
-// copying the slopes every time over testing whether they changed.
-#[allow(clippy::large_enum_variant)]
-pub(crate) enum LoopX {
-    /// Coefficients arrive from the X handler.
-    Published,
-    /// Modern X: re-interpolated in the tick, through the interval cache
-    /// when the table takes the fast path (`Some`).
-    Count(CountX, Option<IntervalCache>),
-    None,
-}
-
 /// State of the loop-tick handler (highest priority).
 #[derive(Clone, Debug)]
 pub struct LoopState {
     pub(crate) gen: Option<CommandGen<'static>>,
     pub(crate) spindle: Estimator,
-    pub(crate) x: LoopX,
+    /// Coefficients arrive from the X handler (an X source is configured).
+    pub(crate) x_published: bool,
     pub(crate) gauge_reversed: bool,
     pub(crate) coeffs: Coefficients,
     pub(crate) coeff_seen: u32,
     pub(crate) index_seen: u32,
     pub(crate) x_faults_seen: u32,
-    pub(crate) last_x_count: Option<u32>,
     /// The angle history of the setpoint's rates.
     pub(crate) sp: SetpointState,
     /// X of the last coefficient set (learning freezes when it jumps).
@@ -125,13 +114,12 @@ impl LoopState {
         Self {
             gen: None,
             spindle: Estimator::None,
-            x: LoopX::None,
+            x_published: false,
             gauge_reversed: false,
             coeffs: Coefficients::NULL,
             coeff_seen: 0,
             index_seen: 0,
             x_faults_seen: 0,
-            last_x_count: None,
             sp: SetpointState::default(),
             last_coeff_x: None,
             target: 0,
@@ -208,7 +196,7 @@ impl LoopState {
                 self.trip(f);
             }
         }
-        if matches!(self.x, LoopX::Published) {
+        if self.x_published {
             let g = sh.coeff_gen.load(Ordering::Acquire);
             if g != self.coeff_seen {
                 let slot = &sh.coeff[(g & 1) as usize];
@@ -218,15 +206,9 @@ impl LoopState {
                     self.coeffs.set_null(x);
                 } else {
                     let n = (meta as usize).min(COLS);
-                    let src = slot.value.iter().zip(slot.delta.iter());
-                    let dst = self
-                        .coeffs
-                        .value
-                        .iter_mut()
-                        .zip(self.coeffs.delta.iter_mut());
-                    for ((v, d), (sv, sd)) in dst.zip(src).take(n) {
+                    let src = slot.value.iter();
+                    for (v, sv) in self.coeffs.value.iter_mut().zip(src).take(n) {
                         *v = sv.load(Ordering::Relaxed);
-                        *d = sd.load(Ordering::Relaxed);
                     }
                     self.coeffs.set_live(n as u8, x);
                 }
@@ -311,29 +293,6 @@ impl LoopState {
             }
             None => None,
         };
-
-        // Modern X: re-interpolate when the count moved.
-        if let LoopX::Count(cx, cache) = &mut self.x {
-            if self.last_x_count != Some(input.x_count) {
-                self.last_x_count = Some(input.x_count);
-                let moved = cx.on_tick(input.x_count);
-                let r = match (moved, self.gen.as_ref(), cache) {
-                    (Ok(x), Some(g), Some(c)) => {
-                        let n = usize::from(g.interpolator().table().header().terms);
-                        c.coefficients_into(g, n.min(COLS), x, &mut self.coeffs)
-                    }
-                    (Ok(x), Some(g), None) => g.coefficients_into(x, &mut self.coeffs),
-                    (Err(f), _, _) => Err(f),
-                    (Ok(_), None, _) => Ok(()),
-                };
-                if let Err(f) = r {
-                    self.trip(f);
-                }
-                if let Ok(x) = moved {
-                    self.note_x(x);
-                }
-            }
-        }
 
         // The command and its analytic rates.
         let dphi = self.sp.dphi(phi);
@@ -545,7 +504,9 @@ impl LoopState {
     pub fn dac_clamped(&self) -> bool {
         self.dac_clamped
     }
-    /// The coefficients the loop tick evaluates.
+    /// The coefficients the loop tick evaluates: the column values at X
+    /// (`delta`, the changes across the grid interval, is not kept up to
+    /// date here: the tick evaluates Z and its φ-derivatives only).
     pub fn coefficients(&self) -> &Coefficients {
         &self.coeffs
     }

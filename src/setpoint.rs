@@ -27,6 +27,7 @@
 
 use crate::codes::gauge_code_from_z;
 use crate::command::{Coefficients, CommandGen};
+use crate::servo::fixed::{mul_hi, sat_i32, ssat};
 use crate::servo::Reference;
 use crate::units::SpindleAngle;
 
@@ -72,18 +73,6 @@ impl SetpointState {
     }
 }
 
-/// The high 32 bits of `a·k`, rounded (`SMMULR`).
-#[inline(always)]
-fn mul_hi(a: i32, k: i32) -> i32 {
-    ((i64::from(a) * i64::from(k) + (1 << 31)) >> 32) as i32
-}
-
-/// `v` saturated to ±`limit` (a power of two, < 2³¹).
-#[inline(always)]
-fn sat(v: i64, limit: i32) -> i32 {
-    v.max(-i64::from(limit)).min(i64::from(limit)) as i32
-}
-
 /// The table's setpoint at `phi` (a null one without a table or angle);
 /// updates the angle history.
 #[inline(always)]
@@ -125,8 +114,8 @@ pub fn setpoint(
             let a1 = (i64::from(mul_hi(d1, FF_K)) * i64::from(alpha_q4)) >> 20;
             Reference {
                 code: gauge_code_from_z(c.z),
-                velocity_q16: sat(v, 1 << 30),
-                accel_q16: sat(a2 + a1, 1 << 24),
+                velocity_q16: ssat::<31>(sat_i32(v)),
+                accel_q16: ssat::<25>(sat_i32(a2 + a1)),
             }
         }
         _ => Reference::default(),
@@ -165,7 +154,7 @@ mod tests {
         let rad = core::f64::consts::TAU / 4_294_967_296.0;
         let dphi = (4_294_967_296.0 / 4000.0) as i32; // 300 rpm at 20 kHz
         let w = f64::from(dphi) * rad; // rad per tick
-        // Z = A sin(2φ): ∂Z/∂φ = 2A cos, ∂²Z/∂φ² = −4A sin, A = 0.004 in.
+                                       // Z = A sin(2φ): ∂Z/∂φ = 2A cos, ∂²Z/∂φ² = −4A sin, A = 0.004 in.
         for k in 0..32 {
             let th = f64::from(k) * 0.2;
             let d1 = 2.0 * 0.004 * libm::cos(2.0 * th);
@@ -179,8 +168,14 @@ mod tests {
             let a2 = (((q2 >> 23) as i32 as i64) * i64::from(dphi)) >> 23;
             let v_exact = f64::from(b1) / f64::from(1u32 << 30) * w * cpi;
             let a_exact = f64::from(b2) / f64::from(1u32 << 30) * w * w * cpi;
-            assert!((v as f64 / 65_536.0 - v_exact).abs() < 1.5e-4, "{k}: v {v} vs {v_exact}");
-            assert!((a2 as f64 / 65_536.0 - a_exact).abs() < 1e-4, "{k}: a {a2} vs {a_exact}");
+            assert!(
+                (v as f64 / 65_536.0 - v_exact).abs() < 1.5e-4,
+                "{k}: v {v} vs {v_exact}"
+            );
+            assert!(
+                (a2 as f64 / 65_536.0 - a_exact).abs() < 1e-4,
+                "{k}: a {a2} vs {a_exact}"
+            );
         }
     }
 }

@@ -161,7 +161,9 @@ mod tests {
         let fs = 20_000.0;
         for (f0, q, rms_max, peak_max) in [(120.0, 20.0, 8.0, 40.0), (3150.0, 0.7, 1.0, 3.0)] {
             let mut n = Notch::design(f0, fs, q).unwrap();
-            let c = n.coefficient_bits().map(|v| f64::from(v) / f64::from(1u32 << 30));
+            let c = n
+                .coefficient_bits()
+                .map(|v| f64::from(v) / f64::from(1u32 << 30));
             let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
             let mut seed = 12_345u64;
             let (mut sum, mut peak, mut count) = (0.0f64, 0.0f64, 0.0);
@@ -187,7 +189,10 @@ mod tests {
                 }
             }
             let rms = libm::sqrt(sum / count);
-            assert!(rms < rms_max && peak < peak_max, "{f0} Hz: {rms} RMS, {peak} peak");
+            assert!(
+                rms < rms_max && peak < peak_max,
+                "{f0} Hz: {rms} RMS, {peak} peak"
+            );
         }
     }
 

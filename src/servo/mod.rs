@@ -38,6 +38,7 @@
 pub mod design;
 pub mod engage;
 pub mod filters;
+pub(crate) mod fixed;
 pub mod limits;
 pub mod observer;
 pub mod repetitive;
@@ -50,8 +51,9 @@ use crate::safety::Fault;
 use crate::units::SpindleAngle;
 use engage::{SignCheck, SignStep};
 use filters::Notch;
+use fixed::{mul_hi, qadd_mul, round_q8, ssat};
 use limits::{CurrentLimit, FollowingError, SlewProfile};
-use observer::{mul_shr, sat_i32, ssat, Estimate, Observer};
+use observer::{Estimate, Observer};
 use repetitive::Repetitive;
 
 /// Largest 20-bit code.
@@ -381,13 +383,13 @@ impl Servo {
         };
         let u_q8 = fb_q8.saturating_add(ff_q8);
         // Output: current limit on the estimate, mode notch, DAC range.
-        let u_code = (u_q8 >> 8) + ((u_q8 >> 7) & 1);
+        let u_code = round_q8(u_q8);
         let (u_code, limited, i_fault) = self.current.apply(u_code, est.v_q16);
         self.current_limited = limited;
         let u_code = match &mut self.mode {
             Some(n) => {
                 let y = n.process(ssat::<24>(u_code) << 8);
-                (y >> 8) + ((y >> 7) & 1)
+                round_q8(y)
             }
             None => u_code,
         };
@@ -414,13 +416,11 @@ impl Servo {
         } else {
             (c.kp_q24, c.kd_q24)
         };
-        // Q24 gain × Q8 error → Q8 (>> 24); × Q16 velocity → Q8 (>> 32).
-        let fb = mul_shr::<24>(kp, e_q8) + mul_shr::<32>(kd, ev_q16);
-        let ff = mul_shr::<32>(c.kff_q24, v_q16) + mul_shr::<24>(c.ka_q16, ssat::<27>(a_q16));
-        (
-            sat_i32(fb).saturating_sub(est.d_q8),
-            sat_i32(ff),
-        )
+        // Q24 gain × Q8 error → Q8 (>> 24); × Q16 velocity → Q8 (>> 32,
+        // the rounded high word: below 2³⁰).
+        let fb = qadd_mul::<24>(mul_hi(kd, ev_q16), kp, e_q8);
+        let ff = qadd_mul::<24>(mul_hi(c.kff_q24, v_q16), c.ka_q16, a_q16);
+        (fb.saturating_sub(est.d_q8), ff)
     }
 
     /// Closes the loop with the command where the slide is. After the
@@ -456,7 +456,7 @@ impl Servo {
     }
     /// The slew-limited command, gauge codes.
     pub fn command_code(&self) -> i32 {
-        (self.command_q8 >> 8) + ((self.command_q8 >> 7) & 1)
+        round_q8(self.command_q8)
     }
     /// The reference followed on the last tick (command + learned
     /// correction), gauge codes Q8.

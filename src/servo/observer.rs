@@ -42,6 +42,8 @@
 //! (a > 0, h > 0), so the predictions cannot overflow, and every state is
 //! saturated to its bound (one `SSAT` each).
 
+use super::fixed::{mul_shr, qadd_mul, ssat};
+
 /// Observer coefficients, `Q2.30` bits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -80,27 +82,11 @@ pub struct Observer {
     /// `1 − c1`, `1 − c2` (Q30): the model's own velocity terms.
     a12: i32,
     a22: i32,
+    /// |innovation| (Q8) beyond which the fast gains take over.
+    switch: u32,
     x: Estimate,
     /// Ticks left on the fast gains.
     fast_left: u32,
-}
-
-/// `x` saturated to `BITS`-bit two's complement (one `SSAT`).
-#[inline(always)]
-pub(crate) fn ssat<const BITS: u32>(x: i32) -> i32 {
-    x.clamp(-(1 << (BITS - 1)), (1 << (BITS - 1)) - 1)
-}
-
-/// `c·x / 2^SHIFT`, rounded: one `SMULL` and a shift.
-#[inline(always)]
-pub(crate) fn mul_shr<const SHIFT: u32>(c: i32, x: i32) -> i64 {
-    (i64::from(c) * i64::from(x) + (1 << (SHIFT - 1))) >> SHIFT
-}
-
-/// `v` saturated to `i32`.
-#[inline(always)]
-pub(crate) fn sat_i32(v: i64) -> i32 {
-    i32::try_from(v).unwrap_or(if v < 0 { i32::MIN } else { i32::MAX })
 }
 
 impl Observer {
@@ -108,6 +94,7 @@ impl Observer {
         Self {
             a12: (1i32 << 30).saturating_sub(k.c1),
             a22: (1i32 << 30).saturating_sub(k.c2),
+            switch: k.switch_q8.unsigned_abs(),
             k,
             x: Estimate::default(),
             fast_left: 0,
@@ -125,17 +112,18 @@ impl Observer {
 
     /// One tick: `u_prev_q8` is the DAC code written on the previous tick
     /// (Q8), `y_q8` the gauge now (Q8, |y| < 2²⁸).
-    #[inline]
+    #[inline(always)]
     pub fn update(&mut self, u_prev_q8: i32, y_q8: i32) -> Estimate {
         let k = &self.k;
         let x = &mut self.x;
         let v = x.v_q16;
-        let w = ssat::<30>(u_prev_q8.saturating_add(x.d_q8));
-        // |a12·v|/2³⁸ < 2²³, |b1·w|/2³⁰ < 2³⁰, |ẑ| < 2²⁹: no overflow.
+        let w = ssat::<29>(u_prev_q8.saturating_add(x.d_q8));
+        // |a12·v|/2³⁸ < 2²², |b1·w|/2³⁰ < 2²⁹, |ẑ| < 2²⁹: no overflow.
         let z_pred = x.z_q8 + mul_shr::<38>(self.a12, v) as i32 + mul_shr::<30>(k.b1, w) as i32;
-        let v_pred = sat_i32(mul_shr::<30>(self.a22, v) + mul_shr::<22>(k.b2, w));
+        // |a22·v|/2³⁰ < 2³⁰; the input's term saturates at 2³⁰.
+        let v_pred = qadd_mul::<22>(mul_shr::<30>(self.a22, v) as i32, k.b2, w);
         let innovation = ssat::<29>(y_q8.saturating_sub(z_pred));
-        if innovation.unsigned_abs() > k.switch_q8.unsigned_abs() {
+        if innovation.unsigned_abs() > self.switch {
             self.fast_left = k.hold_ticks;
         }
         let (l1, l2, l3) = if self.fast_left > 0 {
@@ -144,9 +132,10 @@ impl Observer {
         } else {
             (k.l1, k.l2, k.l3)
         };
-        x.z_q8 = ssat::<30>(z_pred.saturating_add(mul_shr::<30>(l1, innovation) as i32));
-        x.v_q16 = ssat::<31>(sat_i32(i64::from(v_pred) + mul_shr::<22>(l2, innovation)));
-        x.d_q8 = ssat::<29>(sat_i32(i64::from(x.d_q8) + mul_shr::<24>(l3, innovation)));
+        // |l1·innovation|/2³⁰ < 2²⁹, |z_pred| < 2³⁰·¹: no overflow.
+        x.z_q8 = ssat::<30>(z_pred + mul_shr::<30>(l1, innovation) as i32);
+        x.v_q16 = ssat::<31>(qadd_mul::<22>(v_pred, l2, innovation));
+        x.d_q8 = ssat::<29>(qadd_mul::<24>(x.d_q8, l3, innovation));
         *x
     }
 

@@ -42,7 +42,7 @@
 //! angle step (< 2²²) are single 32×32 → 64-bit multiplies, shifted back to
 //! 32 bits once.
 
-use super::observer::sat_i32;
+use super::fixed::sat_i32;
 use crate::units::SpindleAngle;
 
 /// Bins per revolution.

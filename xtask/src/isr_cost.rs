@@ -18,18 +18,31 @@ use std::time::Instant;
 
 use crate::elf::{self, Symbol};
 
-/// What to measure: report name, and a predicate on symbol names.
-const TARGETS: [(&str, &str); 5] = [
+/// Which image variants hold an entry point.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum In {
+    Both,
+    /// The plain image only (legacy X events).
+    Legacy,
+    /// The `modern-x` image only (X count events).
+    Modern,
+}
+
+/// What to measure: report name, a predicate on symbol names, and the
+/// variants that must hold it.
+const TARGETS: [(&str, &str, In); 6] = [
     // The firmware's entry points (monomorphised in the QEMU image): the
-    // loop tick with its converter drivers, the legacy X event, the index.
-    ("loop_tick", "9LoopState9loop_tick"),
-    ("x_event", "10EventState7x_event"),
-    ("index_event", "10EventState11index_event"),
+    // loop tick with its converter drivers, the legacy X event, the modern
+    // X count event, the index.
+    ("loop_tick", "9LoopState9loop_tick", In::Both),
+    ("x_event", "10EventState7x_event", In::Legacy),
+    ("x_count_event", "10EventState13x_count_event", In::Modern),
+    ("index_event", "10EventState11index_event", In::Both),
     // The whole timer handlers: timer 0 = loop tick plus the slide model's
     // step (the simulated world, not firmware) and the board glue; timer 1 =
-    // the synthetic machine's event playback around x_event/index_event.
-    ("TIMER0_handler_with_plant", "TIMER0"),
-    ("TIMER1_handler_with_machine", "TIMER1"),
+    // the synthetic machine's event playback around the X and index events.
+    ("TIMER0_handler_with_plant", "TIMER0", In::Both),
+    ("TIMER1_handler_with_machine", "TIMER1", In::Both),
 ];
 
 #[derive(Default)]
@@ -58,10 +71,14 @@ fn qemu_major() -> u32 {
         .unwrap_or(0)
 }
 
-/// Image variants measured: the `boards/qemu` cargo features and the suffix
-/// of their report names. The modern X mode (X count re-interpolated in the
-/// loop tick) first, so the plain (legacy X) image is the one left built.
-const VARIANTS: [(Option<&str>, &str); 2] = [(Some("modern-x"), "_modern"), (None, "")];
+/// Image variants measured: the `boards/qemu` cargo features, the suffix
+/// of their report names and which targets they hold. The modern X mode (X
+/// count re-interpolated by the X handler) first, so the plain (legacy X)
+/// image is the one left built.
+const VARIANTS: [(Option<&str>, &str, In); 2] = [
+    (Some("modern-x"), "_modern", In::Modern),
+    (None, "", In::Legacy),
+];
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -80,7 +97,8 @@ pub struct Args {
     call: Option<u64>,
 }
 
-/// Report names `--profile` accepts: each target in each variant.
+/// Report names `--profile` accepts: each target in each variant that
+/// holds it.
 const REPORTS: [&str; 10] = [
     "loop_tick",
     "x_event",
@@ -88,7 +106,7 @@ const REPORTS: [&str; 10] = [
     "TIMER0_handler_with_plant",
     "TIMER1_handler_with_machine",
     "loop_tick_modern",
-    "x_event_modern",
+    "x_count_event_modern",
     "index_event_modern",
     "TIMER0_handler_with_plant_modern",
     "TIMER1_handler_with_machine_modern",
@@ -97,7 +115,7 @@ const REPORTS: [&str; 10] = [
 pub fn run(args: &Args) -> Result<u8, String> {
     crate::require_for_qemu()?;
     let mut stats: BTreeMap<String, Stats> = BTreeMap::new();
-    for (features, suffix) in VARIANTS {
+    for (features, suffix, _) in VARIANTS {
         let name = if suffix.is_empty() {
             "legacy"
         } else {
@@ -162,16 +180,21 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
     funcs.sort_by_key(|f| f.addr);
     funcs.dedup_by_key(|f| f.addr);
     let mut targets: BTreeMap<u32, String> = BTreeMap::new();
-    for (report, pattern) in TARGETS {
+    let holds = VARIANTS
+        .iter()
+        .find(|v| v.1 == suffix)
+        .map_or(In::Both, |v| v.2);
+    for (report, pattern, only) in TARGETS {
+        if only != In::Both && only != holds {
+            continue;
+        }
         let found = funcs
             .iter()
             .find(|f| f.name == pattern || (pattern.len() > 8 && f.name.contains(pattern)));
-        let f = match found {
-            Some(f) => f,
-            // A variant may not call every entry point (the modern X image
-            // has no X event); the plain image must have them all.
-            None if !suffix.is_empty() => continue,
-            None => return Err(format!("isr-cost: no function `{pattern}` in the image")),
+        let Some(f) = found else {
+            return Err(format!(
+                "isr-cost: no function `{pattern}` in the {variant} image"
+            ));
         };
         targets.insert(f.addr, format!("{report}{suffix}"));
     }
@@ -305,7 +328,12 @@ mod tests {
     fn profile_reports_are_every_target_in_every_variant() {
         let mut want: Vec<String> = VARIANTS
             .iter()
-            .flat_map(|(_, suffix)| TARGETS.iter().map(move |(r, _)| format!("{r}{suffix}")))
+            .flat_map(|&(_, suffix, holds)| {
+                TARGETS
+                    .iter()
+                    .filter(move |t| t.2 == In::Both || t.2 == holds)
+                    .map(move |(r, _, _)| format!("{r}{suffix}"))
+            })
             .collect();
         let mut got: Vec<String> = REPORTS.iter().map(|r| r.to_string()).collect();
         want.sort();

@@ -766,7 +766,14 @@ mod tests {
             parse(&["isr-cost", "--call", "3"]).err(),
             Some(ErrorKind::MissingRequiredArgument)
         );
-        assert!(parse(&["isr-cost", "--profile", "x_event_modern", "--call", "3"]).is_ok());
+        assert!(parse(&[
+            "isr-cost",
+            "--profile",
+            "x_count_event_modern",
+            "--call",
+            "3"
+        ])
+        .is_ok());
         assert_eq!(
             parse(&["test", "--fuzz-seconds", "-1"]).err(),
             Some(ErrorKind::UnknownArgument)

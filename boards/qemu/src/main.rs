@@ -13,12 +13,12 @@
 //!   (with duplicate words the debounce must ignore and a reversal), and the
 //!   spindle's index pulses, into `EventState::x_event` / `index_event`.
 //! * The two handlers share only `SHARED` (atomics, `zslide::firmware`).
-//! * With the `modern-x` feature X is instead a count (0.5 µin per count)
-//!   read by the loop tick, moving at the same 20 in/min from 2.0 in (a new
-//!   count nearly every tick, so the tick re-interpolates the coefficients
-//!   nearly every time: the worst case of that mode); timer 1 plays only
-//!   the index pulses, and check 2 asks for no X events and the loop's
-//!   coefficients at the last count's X.
+//! * With the `modern-x` feature X is instead a count (0.5 µin per count),
+//!   moving at the same 20 in/min from 2.0 in, that timer 1 hands to
+//!   `EventState::x_count_event` each time it runs (a new count every time,
+//!   so it re-interpolates every time: the worst case of that mode) before
+//!   it plays the index pulses; check 2 asks for no X events and the
+//!   loop's coefficients at the last count's X.
 //!
 //! World time is the loop tick count × 50 µs (the firmware's clock counts
 //! 25 MHz from it), so the run and its log are deterministic. defmt goes out
@@ -319,6 +319,10 @@ fn TIMER1() {
     };
     let k = WORLD_TICK.load(Ordering::Acquire).min(EVENTS_UNTIL);
     let now = u64::from(k) * u64::from(CLOCK_PER_TICK);
+    if cfg!(feature = "modern-x") {
+        // A fault it finds reaches the loop tick through SHARED.
+        let _ = e.ev.x_count_event(&SHARED, x_count_at(k));
+    }
     loop {
         let x_at = (e.next_x < x_events())
             .then(|| u64::from(x_tick(e.next_x)) * u64::from(CLOCK_PER_TICK))
@@ -521,9 +525,15 @@ fn main() -> ! {
         last_x,
         s.coeff_null
     );
+    // Modern X publishes a set per count instead of per X event.
+    let sets_ok = if cfg!(feature = "modern-x") {
+        SHARED.coefficient_generation() > 0
+    } else {
+        SHARED.coefficient_generation() == scheduled
+    };
     if accepted != scheduled
         || ignored != dups
-        || SHARED.coefficient_generation() != scheduled
+        || !sets_ok
         || s.coeff_x_bits != last_x.to_bits()
         || s.coeff_null
     {
