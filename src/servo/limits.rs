@@ -47,7 +47,9 @@ pub struct SlewProfile {
     a_max_q16: i32,
     /// |offset| (Q8) within which the braking speed and the rate limit are
     /// both at least the distance: ⌊min(2a, v_max) / 2⁸⌋.
-    near_q8: i32,
+    near_q8: u32,
+    /// v_max², Q32.
+    v_max_sq: u64,
     /// Velocity of the command relative to the goal, Q16 codes per tick.
     v_q16: i32,
 }
@@ -59,7 +61,8 @@ impl SlewProfile {
         Self {
             v_max_q16,
             a_max_q16,
-            near_q8: (2 * a_max_q16).min(v_max_q16) >> 8,
+            near_q8: ((2 * a_max_q16).min(v_max_q16) >> 8) as u32,
+            v_max_sq: u64::from(v_max_q16.unsigned_abs()) * u64::from(v_max_q16.unsigned_abs()),
             v_q16: 0,
         }
     }
@@ -70,55 +73,56 @@ impl SlewProfile {
     /// overshooting, landing from at most 2a.
     #[inline]
     pub fn step(&mut self, offset_q8: i32) -> (i32, i32, i32) {
-        // The distance to go (toward the goal is the sign of `d`).
-        let d = -offset_q8.clamp(-(1 << 29) + 1, (1 << 29) - 1);
+        let offset_q8 = offset_q8.clamp(-(1 << 29) + 1, (1 << 29) - 1);
         let v0 = self.v_q16;
-        if d == 0 {
+        if offset_q8 == 0 {
             // On the goal (the steady state of every tick while tracking):
             // the arrival below, without the root it would not use.
             self.v_q16 = 0;
             return (0, 0, -v0);
         }
+        // Everything in the direction toward the goal: the distance to go
+        // (Q8, < 2²⁹) and the speed toward it (|v₀| ≤ v_max ≤ 2³⁰).
+        let up_goal = offset_q8 < 0;
+        let dist = offset_q8.unsigned_abs();
         let a = self.a_max_q16;
-        let dist_q8 = d.unsigned_abs();
-        let v = if dist_q8 <= self.near_q8 as u32 {
+        let u0 = if up_goal { v0 } else { -v0 };
+        let (down, up) = (u0 - a, u0 + a);
+        // The speed steps from u₀ toward the braking speed S = min(v_max,
+        // √(2·a·|d|)) by at most a: u = clamp(S, u₀ − a, u₀ + a).
+        let u = if dist <= self.near_q8 {
             // Near the goal (while tracking, the goal's moves differ from
-            // its velocity by a fraction of a code each tick): the braking
-            // speed √(2·a·|d|) and the rate limit are both ≥ |d|, so with
-            // u₀ the velocity toward the goal the step below arrives
-            // exactly when u₀ + a ≥ |d| and otherwise gives u₀ + a: the
-            // same result without the root. (|d|·2⁸ ≤ 2a < 2²⁷.)
-            let u0 = if d > 0 { v0 } else { -v0 };
-            let u = u0 + a;
-            let dist_q16 = (dist_q8 << 8) as i32;
-            if u >= dist_q16 {
-                self.v_q16 = 0;
-                return (0, d << 8, (d << 8) - v0);
-            }
-            if d > 0 {
-                u
-            } else {
-                -u
-            }
+            // its velocity by a fraction of a code each tick): S ≥ |d|, so
+            // either u₀ + a reaches the goal (arrival below) or u₀ + a < |d|
+            // ≤ S and the step is u₀ + a: no root.
+            up
         } else {
-            // 2·a·|d| in Q32 (a Q16, |d| Q8 · 2⁸): below 2⁶⁴ (a < 2²⁶,
-            // |d| < 2²⁹).
-            let two_a_d = 2 * u64::from(a.unsigned_abs()) * (u64::from(dist_q8) << 8);
-            let vmax = u64::from(self.v_max_q16.unsigned_abs());
-            // Far from the goal the rate limit holds and no root is needed.
-            let speed = if vmax * vmax <= two_a_d {
-                vmax
+            // 2·a·|d| in Q32 (a Q16, |d| Q8·2⁸): below 2⁶⁴. The root is
+            // needed only when S lies strictly inside the window; the
+            // squares decide the other cases (accelerating or at the rate
+            // limit: S ≥ u₀ + a; braking at the limit: S ≤ u₀ − a).
+            let x = 2 * u64::from(a.unsigned_abs()) * (u64::from(dist) << 8);
+            let sq = |v: i32| u64::from(v.unsigned_abs()) * u64::from(v.unsigned_abs());
+            let s = if self.v_max_sq <= x {
+                self.v_max_q16
+            } else if up <= 0 || sq(up) <= x {
+                up
+            } else if down >= 0 && sq(down + 1) > x {
+                down
             } else {
-                sqrt_u64(two_a_d).min(vmax)
-            } as i32;
-            step_toward(v0, if d > 0 { speed } else { -speed }, a)
+                // u₀ is within a of the root: a close seed.
+                sqrt_u64(x, u0.unsigned_abs()) as i32
+            };
+            s.max(down).min(up)
         };
-        let toward = (v > 0) == (d > 0);
-        if toward && i64::from(v).abs() >= i64::from(d).abs() << 8 {
+        // u ≥ |d|·2⁸ exactly when ⌊u/2⁸⌋ ≥ |d|.
+        if u > 0 && (u >> 8).unsigned_abs() >= dist {
             // Arrives this tick (from at most about 2a): stop on the goal.
             self.v_q16 = 0;
-            return (0, d << 8, (d << 8) - v0);
+            let v = -(offset_q8 << 8);
+            return (0, v, v - v0);
         }
+        let v = if up_goal { u } else { -u };
         self.v_q16 = v;
         (offset_q8 + ((v + (1 << 7)) >> 8), v, v - v0)
     }
@@ -136,38 +140,30 @@ impl SlewProfile {
     }
 }
 
-/// √x for the braking speed: ⌊√x⌋ exactly for x < 2³², else the root of x
-/// with its low bits dropped to 32 significant bits (an even shift 2k),
-/// times 2ᵏ: below the true root by less than 2ᵏ⁺¹, a relative 2⁻¹⁴ at
-/// most (the braking curve is followed that much below its limit). Integer
-/// only, no panic path, at most a handful of hardware divisions (Newton's
-/// iteration from above, [`isqrt_u32`]).
+/// √x for the braking speed: ⌊√x⌋ exactly for x < 2³¹, else the floor root
+/// of x with its low bits dropped to 31 significant bits (an even shift
+/// 2k), times 2ᵏ: below the true root by less than 2ᵏ⁺¹, a relative 2⁻¹⁴
+/// at most (the braking curve is followed that much below its limit).
+/// Newton's iteration on hardware division from `seed` (any value; near
+/// the root it takes two or three rounds): its first step lands at or
+/// above the floor root (the arithmetic-geometric mean), and from there it
+/// descends to it and stops. Integer only, no panic path.
 #[inline]
-pub fn sqrt_u64(x: u64) -> u64 {
+pub fn sqrt_u64(x: u64, seed: u32) -> u64 {
     let bits = 64 - x.leading_zeros();
-    let k = bits.saturating_sub(31) / 2;
-    u64::from(isqrt_u32((x >> (2 * k)) as u32)) << k
-}
-
-/// ⌊√x⌋ by Newton's iteration `g ← (g + x/g)/2` from 2¹⁶ (above every
-/// root of a u32): it decreases monotonically to ⌊√x⌋ and stops there
-/// (the integer form of the iteration never undershoots the floor root).
-/// Starting from above the root: at most 17 rounds, 8 for x ≥ 2¹⁶ (tested).
-#[inline]
-pub fn isqrt_u32(x: u32) -> u32 {
-    if x == 0 {
-        return 0;
-    }
-    // An upper bound from the bit length: 2^⌈bits/2⌉ > √x.
-    let bits = 32 - x.leading_zeros();
-    let mut g: u32 = 1 << bits.div_ceil(2);
+    let k = bits.saturating_sub(30) / 2;
+    // xs < 2³¹ and g < 2³¹ below: g + xs/g never overflows.
+    let xs = (x >> (2 * k)) as u32;
+    let g0 = (seed >> k).clamp(1, 1 << 30);
+    let step = |g: u32| match core::num::NonZeroU32::new(g) {
+        Some(nz) => (g + xs / nz) >> 1,
+        None => 0,
+    };
+    let mut g = step(g0);
     loop {
-        let Some(nz) = core::num::NonZeroU32::new(g) else {
-            return 0;
-        };
-        let y = (g + x / nz) >> 1;
+        let y = step(g);
         if y >= g {
-            return g;
+            return u64::from(g) << k;
         }
         g = y;
     }
@@ -258,51 +254,60 @@ impl FollowingError {
 mod tests {
     use super::*;
 
-    /// The Newton rounds of [`isqrt_u32`] for x, counted the same way.
-    fn rounds(x: u32) -> u32 {
-        let bits = 32 - x.leading_zeros();
-        let mut g: u64 = 1 << bits.div_ceil(2);
-        let mut n = 0;
-        loop {
-            n += 1;
-            let y = (g + u64::from(x) / g) >> 1;
-            if y >= g {
-                return n;
-            }
-            g = y;
-        }
-    }
-
+    /// ⌊√x⌋ at every perfect square below 2³¹ and its neighbours, from
+    /// the worst seed (1: the first step lands far above the root).
     #[test]
-    fn isqrt_u32_is_the_floor_square_root_in_few_rounds() {
-        let edges = [0u32, 1, 2, 3, 4, 15, 16, 17, 65_535, 65_536, u32::MAX];
-        let squares = (0..=65_535u32).flat_map(|r| [r * r, (r * r).wrapping_sub(1), r * r + 1]);
-        let mut worst = 0;
-        for x in edges.into_iter().chain(squares) {
-            let r = u64::from(isqrt_u32(x));
-            let xx = u64::from(x);
-            assert!(r * r <= xx && (r + 1) * (r + 1) > xx, "{x}: {r}");
-            if x > 0 {
-                worst = worst.max(rounds(x));
+    fn sqrt_is_the_floor_root_at_every_square() {
+        for r in 0..46_341u64 {
+            for x in [r * r, (r * r).saturating_sub(1), r * r + 1] {
+                let got = sqrt_u64(x, 1);
+                assert!(got * got <= x && (got + 1) * (got + 1) > x, "{x}: {got}");
             }
         }
-        assert!(worst <= 8, "{worst} rounds");
     }
 
     proptest::proptest! {
-        /// ⌊√x⌋ for every magnitude of a u32, and within the stated bound
-        /// below the true root for a u64.
+        /// ⌊√x⌋ below 2³¹, and within the stated bound below the true root
+        /// at any magnitude, from any seed.
         #[test]
-        fn sqrt_is_the_floor_root_or_within_its_bound(x in proptest::num::u64::ANY, shift in 0u32..64) {
+        fn sqrt_is_the_floor_root_or_within_its_bound(x in proptest::num::u64::ANY, shift in 0u32..64, seed in proptest::num::u32::ANY) {
             let x = x >> shift;
-            let r = u128::from(sqrt_u64(x));
+            let r = u128::from(sqrt_u64(x, seed));
             let xx = u128::from(x);
             proptest::prop_assert!(r * r <= xx);
-            let k = (64 - x.leading_zeros()).saturating_sub(31) / 2;
+            let k = (64 - x.leading_zeros()).saturating_sub(30) / 2;
             let slack = 2u128 << k;
             proptest::prop_assert!((r + slack) * (r + slack) > xx, "{x}: {r}");
-            if x >> 32 == 0 {
+            if x >> 31 == 0 {
                 proptest::prop_assert!((r + 1) * (r + 1) > xx);
+            }
+        }
+    }
+
+    /// From a seed within 10 % of the root (the braking case: u₀ is within
+    /// a of it), at most four rounds.
+    #[test]
+    fn sqrt_from_a_near_seed_is_quick() {
+        for x in [1u64 << 20, 3 << 33, 12_345_678_901, 1 << 50, (1 << 61) + 7] {
+            let root = (x as f64).sqrt();
+            for f in [0.9, 0.97, 1.0, 1.03, 1.1] {
+                let seed = (root * f) as u32;
+                let r = sqrt_u64(x, seed);
+                assert_eq!(r, sqrt_u64(x, 1), "{x} from {seed}");
+                let k = (64 - x.leading_zeros()).saturating_sub(30) / 2;
+                let xs = (x >> (2 * k)) as u64;
+                let mut g = u64::from(seed >> k).clamp(1, 1 << 30);
+                g = (g + xs / g) >> 1;
+                let mut rounds = 1;
+                loop {
+                    rounds += 1;
+                    let y = (g + xs / g) >> 1;
+                    if y >= g {
+                        break;
+                    }
+                    g = y;
+                }
+                assert!(rounds <= 4, "{x} from {seed}: {rounds}");
             }
         }
     }
@@ -332,6 +337,31 @@ mod tests {
                     (-d + ((v + 128) >> 8), v, v - v0)
                 };
                 assert_eq!(got, want, "d {d} v0 {v0}");
+            }
+        }
+    }
+
+    /// Beyond the near region, the step against the braking formula with
+    /// the exact root: the same, or (where the root drops bits, x ≥ 2³¹)
+    /// at most the root's stated shortfall below it; never beyond the
+    /// acceleration limit.
+    #[test]
+    fn slew_step_follows_the_braking_speed() {
+        let (vm, am) = (42_949_672i32, 171_798i32);
+        for d in (1..2_000_000i32).step_by(9_973).flat_map(|d| [d, -d]) {
+            for v0 in (-vm..=vm).step_by(2_147_483).chain([0, am, -am]) {
+                let mut p = SlewProfile::new(vm.into(), am.into());
+                p.set_velocity(v0);
+                let (_, v, acc) = p.step(-d);
+                let x = 2 * u64::from(am.unsigned_abs()) * (u64::from(d.unsigned_abs()) << 8);
+                let s = isqrt_slow(x).min(vm as u64) as i32;
+                let want = step_toward(v0, if d > 0 { s } else { -s }, am);
+                let k = (64 - x.leading_zeros()).saturating_sub(30) / 2;
+                let arrived = v == d << 8;
+                if !arrived {
+                    assert!((v - want).abs() < 2 << k, "d {d} v0 {v0}: {v} vs {want}");
+                    assert!(acc.abs() <= am, "d {d} v0 {v0}");
+                }
             }
         }
     }
