@@ -40,6 +40,7 @@
 pub use crate::codes::{gauge_code_from_z, CODE_MAX, CODE_MIN};
 pub use crate::config::{load_table, ConfigError, FirmwareConfig, SpindleMode, XMode};
 pub use crate::handoff::{Request, Shared};
+pub use crate::learning::LearnState;
 pub use crate::looptick::{LoopState, SpindleReading, TickInput};
 pub use crate::xevent::{EventState, NoCoefficientDac};
 
@@ -58,6 +59,7 @@ use crate::xpos::{CountX, XEvent};
 pub struct Firmware {
     lp: LoopState,
     ev: EventState,
+    learn: LearnState,
     shared: Shared,
 }
 
@@ -74,6 +76,7 @@ impl Firmware {
         Self {
             lp: LoopState::new(cfg),
             ev: EventState::new(None, &fc, None),
+            learn: LearnState::new(&cfg),
             shared: Shared::new(),
         }
     }
@@ -105,6 +108,7 @@ impl Firmware {
         }
         Ok(Self {
             ev: EventState::new(gen, &cfg, count),
+            learn: LearnState::new(&cfg.loop_cfg),
             lp,
             shared: Shared::new(),
         })
@@ -114,8 +118,8 @@ impl Firmware {
     /// share a `static` [`Shared`] (this bundle's own is dropped: nothing has
     /// been published into it that the parts would need, as long as no entry
     /// point ran before the split).
-    pub fn into_parts(self) -> (LoopState, EventState) {
-        (self.lp, self.ev)
+    pub fn into_parts(self) -> (LoopState, EventState, LearnState) {
+        (self.lp, self.ev, self.learn)
     }
 
     /// See [`LoopState::loop_tick`]. In the modern X mode the tick's X
@@ -129,7 +133,10 @@ impl Firmware {
         dac: &mut impl AmplifierDac,
     ) {
         self.lp.loop_tick(&self.shared, input, gauge, dac);
-        // A fault it finds is raised in `Shared` for the next tick.
+        // Then what the boards run below the tick: the learning on this
+        // tick's sample, the X count (a fault it finds is raised in
+        // `Shared` for the next tick).
+        self.learn.run(&self.shared);
         let _ = self.ev.x_count_event(&self.shared, input.x_count);
     }
 
@@ -153,6 +160,11 @@ impl Firmware {
     }
     pub fn loop_state(&self) -> &LoopState {
         &self.lp
+    }
+    /// The learning (why it is frozen, revolutions learned); the table is
+    /// [`Shared::learned`].
+    pub fn learning(&self) -> &crate::servo::Learner {
+        self.learn.learner()
     }
     /// The command generator of the loaded table (`None`: no table or refused).
     pub fn command_gen(&self) -> Option<&CommandGen<'static>> {
@@ -772,11 +784,7 @@ mod tests {
             count += 2;
         }
         assert_eq!(fw.fault(), None);
-        assert_eq!(
-            fw.servo().learning().frozen(),
-            None,
-            "learning runs while X feeds"
-        );
+        assert_eq!(fw.learning().frozen(), None, "learning runs while X feeds");
         // 0.03 in at once (within the count's step limit, beyond 0.01 in).
         count += 3_000;
         for _ in 0..10 {
@@ -790,7 +798,7 @@ mod tests {
             n += 1;
         }
         assert_eq!(fw.fault(), None);
-        assert_eq!(fw.servo().learning().frozen(), Some(Freeze::XJump));
+        assert_eq!(fw.learning().frozen(), Some(Freeze::XJump));
         // Into the null zone (beyond 7.2 in): the command is null.
         let mut fw2 = Firmware::with_table(DEFAULT_TABLE, fw_cfg(XMode::Count(cc), false)).unwrap();
         fw2.request(Request::Arm);
@@ -802,7 +810,7 @@ mod tests {
             input.x_count = 760_000;
             fw2.loop_tick(&input, &mut g, &mut d);
         }
-        assert_eq!(fw2.servo().learning().frozen(), Some(Freeze::Null));
+        assert_eq!(fw2.learning().frozen(), Some(Freeze::Null));
     }
 
     /// The modern X mode's cached re-interpolation equals the command path
@@ -1029,7 +1037,7 @@ mod tests {
         use std::sync::atomic::AtomicBool;
         let fw = legacy(DEFAULT_TABLE, false);
         let gen = *fw.command_gen().unwrap();
-        let (mut lp, mut ev) = fw.into_parts();
+        let (mut lp, mut ev, _) = fw.into_parts();
         let shared = Shared::new();
         let stop = AtomicBool::new(false);
         /// Stops the writer however the reader leaves (a failed assert too).

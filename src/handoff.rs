@@ -42,9 +42,20 @@
 //! * Operator requests (arm, disarm, clear a fault; [`Request`]) are bits of
 //!   one atomic word any priority may set; the loop tick takes them all at
 //!   its next tick.
+//! * Learning (loop tick → learner, `crate::learning`): each tick's
+//!   [`LearnSample`] goes into a single-producer single-consumer ring of
+//!   [`LEARN_QUEUE`] slots (the tick writes a slot, then publishes it with
+//!   one `Release` store of its head index; the learner reads the slots up
+//!   to it and frees them with one `Release` store of its tail index). A
+//!   full ring drops the sample and marks the next one, and the learner
+//!   then restarts its bin accounting. The learned table itself
+//!   ([`LearnedTable`]) is atomic words: the tick reads bins the learner
+//!   is not writing (see `servo::repetitive`).
 
 use crate::config::COLS;
 use crate::safety::{Device, Fault};
+use crate::servo::{Freeze, LearnSample, LearnedTable};
+use crate::units::SpindleAngle;
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
 /// One published coefficient set: the column values at X, all the loop
@@ -111,6 +122,94 @@ pub struct Shared {
     pub(crate) x_ignored: AtomicU32,
     /// Operator requests ([`Request`] bits), taken by the next loop tick.
     pub(crate) requests: AtomicU32,
+    /// The learned correction table (written by the learner).
+    pub(crate) learned: LearnedTable,
+    pub(crate) learn: LearnQueue,
+}
+
+/// Slots of the learning ring: the learner may fall this many ticks behind
+/// (it runs after every tick on the boards).
+pub const LEARN_QUEUE: usize = 8;
+
+/// The learning samples in flight (see the module docs).
+pub(crate) struct LearnQueue {
+    /// `[error, angle, angle step, flags, hold ticks]` per slot.
+    slots: [[AtomicU32; 5]; LEARN_QUEUE],
+    /// Samples written (the tick's), and read (the learner's).
+    head: AtomicU32,
+    tail: AtomicU32,
+}
+
+/// Flag bits of a packed sample: freeze code (3 bits), hold reason (3),
+/// angle known, clear, samples lost before this one.
+const F_HOLD_SHIFT: u32 = 3;
+const F_ANGLE: u32 = 1 << 6;
+const F_CLEAR: u32 = 1 << 7;
+const F_HOLD: u32 = 1 << 8;
+const F_LOST: u32 = 1 << 9;
+
+impl LearnQueue {
+    const fn new() -> Self {
+        Self {
+            slots: [const { [const { AtomicU32::new(0) }; 5] }; LEARN_QUEUE],
+            head: AtomicU32::new(0),
+            tail: AtomicU32::new(0),
+        }
+    }
+
+    /// Appends a sample (the loop tick, the only writer); false when the
+    /// ring is full (the sample is dropped).
+    #[inline(always)]
+    pub(crate) fn push(&self, s: &LearnSample, lost: bool) -> bool {
+        let h = self.head.load(Ordering::Relaxed);
+        if h.wrapping_sub(self.tail.load(Ordering::Acquire)) >= LEARN_QUEUE as u32 {
+            return false;
+        }
+        let (phi, dphi) = s.angle.map_or((0, 0), |(p, d)| (p.0, d));
+        let (hold_code, hold_ticks) = s.hold.map_or((0, 0), |(r, t)| {
+            (Freeze::code(Some(r)) << F_HOLD_SHIFT | F_HOLD, t)
+        });
+        let flags = Freeze::code(s.freeze)
+            | hold_code
+            | if s.angle.is_some() { F_ANGLE } else { 0 }
+            | if s.clear { F_CLEAR } else { 0 }
+            | if lost { F_LOST } else { 0 };
+        let slot = &self.slots[h as usize % LEARN_QUEUE];
+        for (w, v) in slot
+            .iter()
+            .zip([s.error_q8 as u32, phi, dphi as u32, flags, hold_ticks])
+        {
+            w.store(v, Ordering::Relaxed);
+        }
+        self.head.store(h.wrapping_add(1), Ordering::Release);
+        true
+    }
+
+    /// Takes the oldest sample (the learner, the only reader), with whether
+    /// samples were lost before it.
+    #[inline(always)]
+    pub(crate) fn pop(&self) -> Option<(LearnSample, bool)> {
+        let t = self.tail.load(Ordering::Relaxed);
+        if t == self.head.load(Ordering::Acquire) {
+            return None;
+        }
+        let slot = &self.slots[t as usize % LEARN_QUEUE];
+        let [e, phi, dphi, flags, hold_ticks] =
+            [0, 1, 2, 3, 4].map(|k| slot[k].load(Ordering::Relaxed));
+        self.tail.store(t.wrapping_add(1), Ordering::Release);
+        let s = LearnSample {
+            error_q8: e as i32,
+            angle: (flags & F_ANGLE != 0).then_some((SpindleAngle(phi), dphi as i32)),
+            freeze: Freeze::from_code(flags & 7),
+            hold: if flags & F_HOLD != 0 {
+                Freeze::from_code((flags >> F_HOLD_SHIFT) & 7).map(|r| (r, hold_ticks))
+            } else {
+                None
+            },
+            clear: flags & F_CLEAR != 0,
+        };
+        Some((s, flags & F_LOST != 0))
+    }
 }
 
 /// What the operator (a switch, the host link, host-sim) asks of the loop.
@@ -150,7 +249,13 @@ impl Shared {
             x_accepted: AtomicU32::new(0),
             x_ignored: AtomicU32::new(0),
             requests: AtomicU32::new(0),
+            learned: LearnedTable::new(),
+            learn: LearnQueue::new(),
         }
+    }
+    /// The learned correction table (reports: its peak, a snapshot).
+    pub fn learned(&self) -> &LearnedTable {
+        &self.learned
     }
     /// Posts an operator request for the next loop tick (any priority,
     /// lock-free).

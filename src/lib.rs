@@ -30,6 +30,7 @@ pub mod command;
 pub mod setpoint;
 pub mod servo;
 pub mod looptick;
+pub mod learning;
 pub mod drivers;
 pub mod watchdog;
 // The bundle the boards and host-sim use.

@@ -102,6 +102,8 @@ pub struct LoopState {
     pub(crate) dac_clamped: bool,
     /// The DAC holds code 0 (disarmed).
     pub(crate) dac_zeroed: bool,
+    /// A learning sample could not be handed over (the learner fell behind).
+    pub(crate) learn_lost: bool,
 }
 
 /// |ΔX| between two coefficient sets beyond which the learned table no
@@ -136,6 +138,7 @@ impl LoopState {
             clear_refused: None,
             dac_clamped: false,
             dac_zeroed: false,
+            learn_lost: false,
         }
     }
 
@@ -329,19 +332,26 @@ impl LoopState {
             }
         };
         self.last_target = self.target;
-        let out = self.servo.update(&ServoInput {
-            gauge_code: y,
-            reference,
-            angle: phi.map(|p| (p, dphi)),
-            freeze: if faulted {
-                Some(Freeze::Fault)
-            } else if self.coeffs.null || self.gen.is_none() {
-                Some(Freeze::Null)
-            } else {
-                None
+        let out = self.servo.update(
+            &ServoInput {
+                gauge_code: y,
+                reference,
+                angle: phi.map(|p| (p, dphi)),
+                freeze: if faulted {
+                    Some(Freeze::Fault)
+                } else if self.coeffs.null || self.gen.is_none() {
+                    Some(Freeze::Null)
+                } else {
+                    None
+                },
+                amplifier_tripped: input.amplifier_fault,
             },
-            amplifier_tripped: input.amplifier_fault,
-        });
+            &sh.learned,
+        );
+        if let Some(s) = &out.learn {
+            // The learner runs below this priority (`crate::learning`).
+            self.learn_lost = !sh.learn.push(s, self.learn_lost);
+        }
         if let Some(f) = out.fault {
             self.trip(f);
             if self.amplifier_must_be_off() {

@@ -10,6 +10,7 @@
 //! | 0x00 | `TIM3` | loop tick, 20 kHz, TIM3 CC2 | `LoopState::loop_tick`: gauge, spindle angle, command, loop, DAC; watchdog |
 //! | 0x10 | `EXTI2` | legacy X half-mil interrupt, PG2 | `EventState::x_event` on the latched word |
 //! | 0x10 | `EXTI3` | spindle index, PG3 | `Shared::index_event` with the count and time |
+//! | 0x20 | `TIM7` | pended by the loop tick (TIM7 itself unused) | `LearnState::run`: the learning on the tick's sample |
 //! | thread | `main` loop | - | background: status and fault logging |
 //!
 //! Each handler owns its part of the firmware outright (moved in once,
@@ -33,7 +34,7 @@ mod app {
     use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI3, SPI4};
     use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686, ad5791::Ad5791};
     use zslide::firmware::{
-        EventState, Firmware, FirmwareConfig, LoopState, Request, Shared, SpindleMode,
+        EventState, Firmware, FirmwareConfig, LearnState, LoopState, Request, Shared, SpindleMode,
         SpindleReading, TickInput, XMode,
     };
     use zslide::hw::{Encoder, XLatch};
@@ -54,6 +55,8 @@ mod app {
     const PRIO_LOOP_TICK: u8 = 0x00;
     const PRIO_X_EVENT: u8 = 0x10;
     const PRIO_INDEX: u8 = 0x10;
+    /// The learning: below the X events (it may wait a tick or two).
+    const PRIO_LEARN: u8 = 0x20;
 
     /// The spindle encoder's counts per turn after ×4 decoding (a board
     /// setting: 1024-line encoder).
@@ -106,6 +109,7 @@ mod app {
     static SHARED: Shared = Shared::new();
     static HANDOFF: Mutex<Cell<Option<Loop>>> = Mutex::new(Cell::new(None));
     static HANDOFF_X: Mutex<Cell<Option<XHandler>>> = Mutex::new(Cell::new(None));
+    static HANDOFF_LEARN: Mutex<Cell<Option<LearnState>>> = Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The first fault the loop latched, published once for the background.
     static FAULT: Mutex<Cell<Option<Fault>>> = Mutex::new(Cell::new(None));
@@ -160,7 +164,7 @@ mod app {
         let Ok(fw) = Firmware::with_table(zslide::DEFAULT_TABLE, config()) else {
             boot_failure("firmware configuration refused");
         };
-        let (mut lp, ev) = fw.into_parts();
+        let (mut lp, ev, learn) = fw.into_parts();
         if let Some(f) = lp.fault() {
             defmt::error!("coefficient table refused: {}", f);
         }
@@ -183,6 +187,7 @@ mod app {
         critical_section::with(|cs| {
             HANDOFF.borrow(cs).set(Some(lp));
             HANDOFF_X.borrow(cs).set(Some(XHandler { ev, quad }));
+            HANDOFF_LEARN.borrow(cs).set(Some(learn));
         });
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
@@ -195,9 +200,11 @@ mod app {
             cp.NVIC.set_priority(Interrupt::TIM3, PRIO_LOOP_TICK);
             cp.NVIC.set_priority(Interrupt::EXTI2, PRIO_X_EVENT);
             cp.NVIC.set_priority(Interrupt::EXTI3, PRIO_INDEX);
+            cp.NVIC.set_priority(Interrupt::TIM7, PRIO_LEARN);
             NVIC::unmask(Interrupt::TIM3);
             NVIC::unmask(Interrupt::EXTI2);
             NVIC::unmask(Interrupt::EXTI3);
+            NVIC::unmask(Interrupt::TIM7);
         }
 
         background()
@@ -297,6 +304,8 @@ mod app {
             amplifier_fault: pins::AMP_FAULT.is_high(),
         };
         l.lp.loop_tick(&SHARED, &input, &mut l.gauge, &mut l.dac);
+        // The learning on this tick's sample, once the tick is done.
+        NVIC::pend(Interrupt::TIM7);
         let enable = l.lp.amplifier_enable();
         pins::AMP_ENABLE.set(enable);
         ARMED.store(enable, Ordering::Relaxed);
@@ -324,6 +333,19 @@ mod app {
         if let Some(x) = X.as_mut() {
             // Faults reach the loop tick through SHARED.
             let _ = x.ev.x_event(&SHARED, word, now, &mut x.quad);
+        }
+    }
+
+    /// The learning (pended by every loop tick; the timer TIM7 itself is
+    /// not used): the tick's samples into the learned table.
+    #[interrupt]
+    fn TIM7() {
+        static mut LEARN: Option<LearnState> = None;
+        if LEARN.is_none() {
+            *LEARN = critical_section::with(|cs| HANDOFF_LEARN.borrow(cs).take());
+        }
+        if let Some(l) = LEARN.as_mut() {
+            l.run(&SHARED);
         }
     }
 

@@ -45,7 +45,7 @@ pub mod repetitive;
 
 pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};
 pub use engage::Phase;
-pub use repetitive::Freeze;
+pub use repetitive::{Freeze, LearnSample, LearnedTable, Learner};
 
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
@@ -54,7 +54,6 @@ use filters::Notch;
 use fixed::{mul_hi, qadd_mul, round_q8, ssat};
 use limits::{CurrentLimit, FollowingError, SlewProfile};
 use observer::{Estimate, Observer};
-use repetitive::Repetitive;
 
 /// Largest 20-bit code.
 const CODE_MAX: i32 = (1 << 19) - 1;
@@ -95,6 +94,9 @@ pub struct ServoOutput {
     pub enable: bool,
     /// A fault the servo detected this tick.
     pub fault: Option<Fault>,
+    /// This tick's sample for the learner ([`Learner::apply`], below the
+    /// loop tick's priority), while the loop is closed.
+    pub learn: Option<LearnSample>,
 }
 
 /// The sign check's last verdict, for the fault log.
@@ -111,10 +113,17 @@ pub struct Servo {
     phase: Phase,
     arm_requested: bool,
     hum: Option<Notch>,
-    learn_hum: Option<Notch>,
     mode: Option<Notch>,
     observer: Observer,
-    learning: Repetitive,
+    /// Requests for the learner, sent with the next sample: forget the
+    /// table (arming), hold the learning frozen (reason, ticks).
+    learn_clear: bool,
+    learn_hold: Option<(Freeze, u32)>,
+    /// Ticks of the engagement's settling left, during which the learning
+    /// is held and the (freshly cleared) table gives no correction: it is
+    /// not read then, which also keeps a learner that has not yet run its
+    /// clear from handing an old table to the first engaged ticks.
+    settle_left: u32,
     sign: SignCheck,
     current: CurrentLimit,
     following: FollowingError,
@@ -148,14 +157,11 @@ impl Servo {
             phase: Phase::Disarmed,
             arm_requested: false,
             hum: notch(cfg.hum_notch),
-            learn_hum: notch(cfg.hum_notch),
             mode: notch(cfg.mode_notch),
             observer: Observer::new(cfg.observer),
-            learning: Repetitive::new(
-                cfg.learning_gain_q16,
-                cfg.learning_lead_bins,
-                cfg.learning_q_shift,
-            ),
+            learn_clear: false,
+            learn_hold: None,
+            settle_left: 0,
             sign: SignCheck::new(
                 cfg.sign_check_code,
                 cfg.sign_check_ticks,
@@ -201,9 +207,12 @@ impl Servo {
     }
 
     /// Freezes the learning for `ticks` (X jumped: the table belongs to
-    /// another radius).
+    /// another radius); sent to the learner with the next sample.
     pub fn freeze_learning(&mut self, reason: Freeze, ticks: u32) {
-        self.learning.hold_for(reason, ticks);
+        // Two holds before one sample: the longer time, the later reason
+        // (what two holds in a row leave in the learner).
+        let t = self.learn_hold.map_or(ticks, |(_, t)| t.max(ticks));
+        self.learn_hold = Some((reason, t));
     }
 
     /// Opens the loop at once (a fault that disables the amplifier).
@@ -215,9 +224,10 @@ impl Servo {
         self.following.reset();
     }
 
-    /// One loop tick.
+    /// One loop tick; `learned` is the learner's table (the correction is
+    /// read from it).
     #[inline]
-    pub fn update(&mut self, input: &ServoInput) -> ServoOutput {
+    pub fn update(&mut self, input: &ServoInput, learned: &LearnedTable) -> ServoOutput {
         // A 20-bit code (the loop tick's gauge reading), Q8.
         let measured = input.gauge_code.clamp(-CODE_MAX - 1, CODE_MAX) << 8;
         self.measured_q8 = measured;
@@ -229,7 +239,7 @@ impl Servo {
                 return self.idle();
             }
             self.arm_requested = false;
-            self.learning.clear();
+            self.learn_clear = true;
             self.current.reset();
             self.following.reset();
             if self.sign.enabled() {
@@ -256,6 +266,7 @@ impl Servo {
                         dac_code: code,
                         enable: true,
                         fault: None,
+                        learn: None,
                     };
                 }
                 SignStep::Passed => self.engage(measured, false, input.reference.velocity_q16),
@@ -327,8 +338,8 @@ impl Servo {
                 self.phase = Phase::Engaged;
                 // The engagement transient is not a periodic error: let the
                 // loop settle (ten of its time constants) before learning.
-                self.learning
-                    .hold_for(Freeze::NotEngaged, self.cfg.settle_ticks);
+                self.freeze_learning(Freeze::NotEngaged, self.cfg.settle_ticks);
+                self.settle_left = self.cfg.settle_ticks;
             }
             Phase::Disarming if self.command_q8 == 0 => {
                 self.stop();
@@ -339,9 +350,11 @@ impl Servo {
 
         // Learned correction, by spindle angle (|c| ≤ 2²⁵ Q8).
         let mut reference = self.command_q8;
+        let settled = self.settle_left == 0;
+        self.settle_left = self.settle_left.saturating_sub(1);
         if let Some((phi, dphi)) = input.angle {
-            if self.phase == Phase::Engaged {
-                let c = self.learning.correction(phi, dphi);
+            if self.phase == Phase::Engaged && settled {
+                let c = learned.correction(phi, dphi);
                 reference += c.position_q8;
                 v_ref = v_ref.saturating_add(c.velocity_q16);
                 a_ref += c.accel_q16;
@@ -353,24 +366,19 @@ impl Servo {
         // to the corrected reference, which the loop itself removes), as
         // the gauge measures it (the observer's estimate would carry the
         // model's error into the table when the plant differs from it).
-        // The hum (at 300 rpm exactly the 24th spindle harmonic) goes
-        // through its own notch.
-        let learn_raw = self.command_q8 - measured;
-        let learn_error_q8 = match &mut self.learn_hum {
-            Some(n) => n.process(learn_raw),
-            None => learn_raw,
-        };
-        if let Some((phi, dphi)) = input.angle {
-            let freeze = if self.phase != Phase::Engaged {
+        // The learner runs below this priority: it gets the error, the
+        // angle and why it must not learn now.
+        let learn = LearnSample {
+            error_q8: self.command_q8 - measured,
+            angle: input.angle,
+            freeze: if self.phase != Phase::Engaged {
                 Some(Freeze::NotEngaged)
             } else {
                 input.freeze
-            };
-            self.learning.learn(phi, dphi, learn_error_q8, freeze);
-        } else {
-            self.learning.hold_for(Freeze::NoAngle, 0);
-        }
-
+            },
+            hold: self.learn_hold.take(),
+            clear: core::mem::take(&mut self.learn_clear),
+        };
         let (fb_q8, ff_q8) = self.control(&est, reference, v_ref, a_ref);
         // The hum notch acts on the feedback only: what the loop corrects
         // from the gauge loses its 120 Hz, while the feedforward (the
@@ -400,6 +408,7 @@ impl Servo {
             dac_code: u_code,
             enable: true,
             fault,
+            learn: Some(learn),
         }
     }
 
@@ -448,6 +457,7 @@ impl Servo {
             dac_code: 0,
             enable: false,
             fault: None,
+            learn: None,
         }
     }
 
@@ -469,9 +479,6 @@ impl Servo {
     }
     pub fn estimate(&self) -> Estimate {
         self.observer.estimate()
-    }
-    pub fn learning(&self) -> &Repetitive {
-        &self.learning
     }
     pub fn current_limited(&self) -> bool {
         self.current_limited

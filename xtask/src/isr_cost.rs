@@ -30,14 +30,15 @@ enum In {
 
 /// What to measure: report name, a predicate on symbol names, and the
 /// variants that must hold it.
-const TARGETS: [(&str, &str, In); 6] = [
+const TARGETS: [(&str, &str, In); 7] = [
     // The firmware's entry points (monomorphised in the QEMU image): the
     // loop tick with its converter drivers, the legacy X event, the modern
-    // X count event, the index.
+    // X count event, the index, the learning (all its pending samples).
     ("loop_tick", "9LoopState9loop_tick", In::Both),
     ("x_event", "10EventState7x_event", In::Legacy),
     ("x_count_event", "10EventState13x_count_event", In::Modern),
     ("index_event", "10EventState11index_event", In::Both),
+    ("learn", "10LearnState3run", In::Both),
     // The whole timer handlers: timer 0 = loop tick plus the slide model's
     // step (the simulated world, not firmware) and the board glue; timer 1 =
     // the synthetic machine's event playback around the X and index events.
@@ -99,15 +100,17 @@ pub struct Args {
 
 /// Report names `--profile` accepts: each target in each variant that
 /// holds it.
-const REPORTS: [&str; 10] = [
+const REPORTS: [&str; 12] = [
     "loop_tick",
     "x_event",
     "index_event",
+    "learn",
     "TIMER0_handler_with_plant",
     "TIMER1_handler_with_machine",
     "loop_tick_modern",
     "x_count_event_modern",
     "index_event_modern",
+    "learn_modern",
     "TIMER0_handler_with_plant_modern",
     "TIMER1_handler_with_machine_modern",
 ];

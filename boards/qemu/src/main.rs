@@ -12,6 +12,8 @@
 //!   the present world time: legacy half-mil X events from a synthetic feed
 //!   (with duplicate words the debounce must ignore and a reversal), and the
 //!   spindle's index pulses, into `EventState::x_event` / `index_event`.
+//!   Each time it runs it then applies the loop tick's learning samples
+//!   (`LearnState::run`, the learning below the tick).
 //! * The two handlers share only `SHARED` (atomics, `zslide::firmware`).
 //! * With the `modern-x` feature X is instead a count (0.5 µin per count),
 //!   moving at the same 20 in/min from 2.0 in, that timer 1 hands to
@@ -54,8 +56,8 @@ use board::{interrupt, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS};
 use plant::{Dac, DacSpi, GaugeSpi, Plant};
 use zslide::drivers::{ad4020::Ad4020, ad5791::Ad5791};
 use zslide::firmware::{
-    EventState, Firmware, FirmwareConfig, LoopState, NoCoefficientDac, Request, Shared,
-    SpindleMode, SpindleReading, TickInput, XMode,
+    EventState, Firmware, FirmwareConfig, LearnState, LoopState, NoCoefficientDac, Request,
+    Shared, SpindleMode, SpindleReading, TickInput, XMode,
 };
 use zslide::hw::EncoderSample;
 use zslide::safety::{Device, Fault};
@@ -220,6 +222,7 @@ struct Run {
 /// Everything the event handler owns.
 struct Events {
     ev: EventState,
+    learn: LearnState,
     next_x: u32,
     next_index: u32,
 }
@@ -349,6 +352,7 @@ fn TIMER1() {
             _ => break,
         }
     }
+    e.learn.run(&SHARED);
 }
 
 #[entry]
@@ -400,7 +404,7 @@ fn main() -> ! {
             g.x_null()
         );
     }
-    let (mut lp, ev) = fw.into_parts();
+    let (mut lp, ev, learn) = fw.into_parts();
     if let Some(f) = lp.fault() {
         defmt::error!("table refused: {}", f);
     }
@@ -431,6 +435,7 @@ fn main() -> ! {
     };
     let events = Events {
         ev,
+        learn,
         next_x: 0,
         next_index: 0,
     };

@@ -348,7 +348,7 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
             );
         }
         let phase = w.fw.servo().phase();
-        let revs = w.fw.servo().learning().revolutions();
+        let revs = w.fw.learning().revolutions();
         if phase != Phase::Engaged || revs == 0 {
             bail!(
                 "{}: the loop is not engaged and learning at the injection (phase {phase:?}, {revs} learned revolutions)",
