@@ -1,15 +1,20 @@
-//! `cargo xtask isr-cost [--json] [--variant V] [--profile R [--call N]]`: instructions per interrupt handler of the
-//! QEMU image (Cortex-M4F), counted from an execution trace.
+//! `cargo xtask isr-cost [--json] [--variant V] [--profile R [--call N]]`:
+//! instructions per interrupt handler of the QEMU image (Cortex-M4F),
+//! counted from an execution trace.
 //!
 //! DWT CYCCNT reads 0 under QEMU, so the count comes from QEMU itself:
 //! `-d exec,nochain` with one instruction per translation block logs every
-//! executed instruction's PC. A call of a measured function starts when the
-//! PC reaches its first address; it ends when the PC is back in the function
-//! that was running just before (the caller, or for an exception handler the
-//! interrupted code). Everything in between is counted, callees included,
-//! except the instructions of a measured exception handler that preempted
-//! it (the loop tick preempting an X event counts for the loop tick only). Instruction counts, not cycles: a Cortex-M4 needs about 1.2-1.5
-//! cycles per instruction on such code, plus 12 cycles of exception entry.
+//! executed instruction's PC, and `-d int` every exception entry and
+//! return. A call of a measured function starts when the PC reaches its
+//! first address; it ends when the PC is back in the function that was
+//! running just before (its caller); a measured exception handler's call
+//! ends at its exception return (also when the core tail-chains into the
+//! next handler without running the interrupted code in between).
+//! Everything in between is counted, callees included, except the
+//! instructions of an exception that preempted it (the loop tick
+//! preempting an X event counts for the loop tick only). Instruction
+//! counts, not cycles: a Cortex-M4 needs about 1.2-1.5 cycles per
+//! instruction on such code, plus 12 cycles of exception entry.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
@@ -208,7 +213,10 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
     } else {
         cmd.arg("-singlestep");
     }
-    cmd.args(["-d", "exec,nochain"])
+    // `int`: exception entries and returns, so that a handler's call ends
+    // at its exception return even when the core tail-chains straight into
+    // the next handler without running the interrupted code in between.
+    cmd.args(["-d", "exec,nochain,int"])
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
@@ -224,75 +232,31 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
         .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
     let trace = child.stderr.take().ok_or("no QEMU stderr")?;
 
-    let mut stats: BTreeMap<String, Stats> = BTreeMap::new();
-    // Open measurements: (report, caller range start, caller range end, count).
-    let mut open: Vec<(&str, u32, u32, u64)> = Vec::new();
-    let mut prev_pc: Option<u32> = None;
     // `--profile <report>`: that report's count per call and its
     // executions per instruction address (to stderr), for finding where a
     // handler's budget goes; `--call <n>` limits the histogram to call n.
-    let profile = args.profile.clone();
-    let mut histogram: BTreeMap<u32, u64> = BTreeMap::new();
+    let mut tracker = Tracker::new(&funcs, &targets, args.profile.clone(), args.call);
     for line in BufReader::new(trace).lines().map_while(Result::ok) {
-        // "Trace 0: 0x7f.. [00800408/000024ae/00000110/ff020201] name"
-        let Some(pc) = line
-            .split_once('[')
-            .and_then(|(_, r)| r.split('/').nth(1))
-            .and_then(|h| u32::from_str_radix(h, 16).ok())
-        else {
-            continue;
-        };
-        traced += 1;
+        match parse_line(&line) {
+            Some(Event::Pc(pc)) => {
+                traced += 1;
+                tracker.pc(pc);
+            }
+            Some(Event::ExceptionEntry) => tracker.exception_entry(),
+            Some(Event::ExceptionReturn) => tracker.exception_return(),
+            None => continue,
+        }
         if traced.is_multiple_of(1 << 20) && last_report.elapsed().as_secs() >= 10 {
             last_report = Instant::now();
-            let calls: u64 = stats.values().map(|s| s.calls).sum();
+            let calls: u64 = tracker.stats.values().map(|s| s.calls).sum();
             eprintln!(
                 "isr-cost: {variant} image: {:.0} M instructions traced, {calls} handler calls measured, {:.0} s",
                 traced as f64 / 1e6,
                 started.elapsed().as_secs_f64()
             );
         }
-        // Close measurements whose caller is running again (innermost first).
-        while let Some(&(report, lo, hi, n)) = open.last() {
-            if pc >= lo && pc < hi {
-                open.pop();
-                let s = stats.entry(report.to_string()).or_default();
-                if profile.as_deref() == Some(report) {
-                    eprintln!("  call {} {n}", s.calls);
-                }
-                s.calls += 1;
-                s.total += n;
-                s.max = s.max.max(n);
-                s.min = if s.calls == 1 { n } else { s.min.min(n) };
-            } else {
-                break;
-            }
-        }
-        // Every open measurement counts the instruction, down to (and
-        // including) the innermost exception handler: a handler that
-        // preempted a measured function is not that function's cost.
-        for m in open.iter_mut().rev() {
-            m.3 += 1;
-            if profile.as_deref() == Some(m.0) {
-                let call = stats.get(m.0).map_or(0, |s| s.calls);
-                if args.call.is_none_or(|c| c == call) {
-                    *histogram.entry(pc).or_default() += 1;
-                }
-            }
-            if m.0.starts_with("TIMER") {
-                break;
-            }
-        }
-        if let Some(report) = targets.get(&pc) {
-            let caller = prev_pc.and_then(|p| find(&funcs, p));
-            if let Some(c) = caller {
-                if !(pc >= c.addr && pc < c.addr + c.size) {
-                    open.push((report.as_str(), c.addr, c.addr + c.size, 1));
-                }
-            }
-        }
-        prev_pc = Some(pc);
     }
+    let (stats, histogram, profile) = (tracker.stats, tracker.histogram, tracker.profile);
     let status = child.wait().map_err(|e| format!("qemu: {e}"))?;
     eprintln!(
         "isr-cost: {variant} image: done, {:.0} M instructions traced in {:.0} s",
@@ -323,9 +287,264 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
     Ok(stats)
 }
 
+/// What one line of QEMU's log says.
+#[derive(Debug, PartialEq, Eq)]
+enum Event {
+    /// An instruction executed at this address (`-d exec`, one per block).
+    Pc(u32),
+    /// The core took an exception (normal entry or tail-chained, `-d int`).
+    ExceptionEntry,
+    /// An exception handler returned (`-d int`).
+    ExceptionReturn,
+}
+
+fn parse_line(line: &str) -> Option<Event> {
+    if line.starts_with("Trace ") {
+        // "Trace 0: 0x7f.. [00800408/000024ae/00000110/ff020201] name"
+        return line
+            .split_once('[')
+            .and_then(|(_, r)| r.split('/').nth(1))
+            .and_then(|h| u32::from_str_radix(h, 16).ok())
+            .map(Event::Pc);
+    }
+    if line.starts_with("...taking pending") && line.contains("exception") {
+        return Some(Event::ExceptionEntry);
+    }
+    if line.starts_with("Exception return:") {
+        return Some(Event::ExceptionReturn);
+    }
+    None
+}
+
+/// An open measurement: its report, the range of the function whose code
+/// running again ends it (none for an exception handler: its exception
+/// return does), and its count so far.
+struct Open {
+    report: String,
+    caller: Option<(u32, u32)>,
+    count: u64,
+    handler: bool,
+}
+
+/// The measurement state machine over the trace: per report, instructions
+/// per call. A call of a measured function starts when the PC reaches its
+/// first address from another function and ends when that function runs
+/// again; a measured exception handler's call ends at its exception return.
+/// An exception counts for the handler it enters (and what it calls), not
+/// for the code it preempted.
+struct Tracker<'a> {
+    funcs: &'a [Symbol],
+    targets: &'a BTreeMap<u32, String>,
+    open: Vec<Open>,
+    /// `open.len()` at each exception entry not yet returned from.
+    exceptions: Vec<usize>,
+    /// An exception was just taken: the next PC is its handler's first.
+    entering: bool,
+    prev_pc: Option<u32>,
+    stats: BTreeMap<String, Stats>,
+    profile: Option<String>,
+    call: Option<u64>,
+    histogram: BTreeMap<u32, u64>,
+}
+
+impl<'a> Tracker<'a> {
+    fn new(
+        funcs: &'a [Symbol],
+        targets: &'a BTreeMap<u32, String>,
+        profile: Option<String>,
+        call: Option<u64>,
+    ) -> Self {
+        Self {
+            funcs,
+            targets,
+            open: Vec::new(),
+            exceptions: Vec::new(),
+            entering: false,
+            prev_pc: None,
+            stats: BTreeMap::new(),
+            profile,
+            call,
+            histogram: BTreeMap::new(),
+        }
+    }
+
+    fn close(&mut self, m: Open) {
+        let s = self.stats.entry(m.report.clone()).or_default();
+        if self.profile.as_deref() == Some(m.report.as_str()) {
+            eprintln!("  call {} {}", s.calls, m.count);
+        }
+        s.calls += 1;
+        s.total += m.count;
+        s.max = s.max.max(m.count);
+        s.min = if s.calls == 1 {
+            m.count
+        } else {
+            s.min.min(m.count)
+        };
+    }
+
+    fn exception_entry(&mut self) {
+        self.exceptions.push(self.open.len());
+        self.entering = true;
+    }
+
+    /// Everything opened since the returning exception's entry ends here.
+    fn exception_return(&mut self) {
+        let depth = self.exceptions.pop().unwrap_or(0);
+        while self.open.len() > depth {
+            if let Some(m) = self.open.pop() {
+                self.close(m);
+            }
+        }
+    }
+
+    fn pc(&mut self, pc: u32) {
+        // Close measurements whose caller is running again (innermost first).
+        while let Some(m) = self.open.last() {
+            match m.caller {
+                Some((lo, hi)) if pc >= lo && pc < hi => {
+                    if let Some(m) = self.open.pop() {
+                        self.close(m);
+                    }
+                }
+                _ => break,
+            }
+        }
+        // Every measurement opened in the running context counts the
+        // instruction (those below the innermost exception's entry belong
+        // to the code it preempted), down to a measured handler.
+        let floor = self.exceptions.last().copied().unwrap_or(0);
+        for m in self.open.iter_mut().skip(floor).rev() {
+            m.count += 1;
+            if self.profile.as_deref() == Some(m.report.as_str()) {
+                let call = self.stats.get(&m.report).map_or(0, |s| s.calls);
+                if self.call.is_none_or(|c| c == call) {
+                    *self.histogram.entry(pc).or_default() += 1;
+                }
+            }
+            if m.handler {
+                break;
+            }
+        }
+        if let Some(report) = self.targets.get(&pc) {
+            if self.entering {
+                self.open.push(Open {
+                    report: report.clone(),
+                    caller: None,
+                    count: 1,
+                    handler: true,
+                });
+            } else if let Some(c) = self.prev_pc.and_then(|p| find(self.funcs, p)) {
+                if !(pc >= c.addr && pc < c.addr + c.size) {
+                    self.open.push(Open {
+                        report: report.clone(),
+                        caller: Some((c.addr, c.addr + c.size)),
+                        count: 1,
+                        handler: false,
+                    });
+                }
+            }
+        }
+        self.entering = false;
+        self.prev_pc = Some(pc);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn sym(name: &str, addr: u32, size: u32) -> Symbol {
+        Symbol {
+            name: name.to_string(),
+            addr,
+            size,
+        }
+    }
+
+    /// Tail-chaining: TIMER1 (calling the measured `work`) returns straight
+    /// into TIMER0 (calling the measured `tick`), which returns to thread
+    /// mode; and TIMER0 preempting `work` inside TIMER1. Each call counts
+    /// its own instructions only, and every call ends.
+    #[test]
+    fn calls_end_at_their_exception_return_even_when_tail_chained() {
+        let funcs = vec![
+            sym("main", 0x100, 0x10),
+            sym("TIMER0", 0x200, 0x10),
+            sym("TIMER1", 0x300, 0x10),
+            sym("tick", 0x400, 0x10),
+            sym("work", 0x500, 0x10),
+        ];
+        let targets: BTreeMap<u32, String> = [
+            (0x200, "T0"),
+            (0x300, "T1"),
+            (0x400, "tick"),
+            (0x500, "work"),
+        ]
+        .into_iter()
+        .map(|(a, r)| (a, r.to_string()))
+        .collect();
+        let mut t = Tracker::new(&funcs, &targets, None, None);
+        use Event::*;
+        let trace = [
+            Pc(0x100),
+            ExceptionEntry,
+            Pc(0x300), // T1: 3 of its own + work 3 (none of T0's)
+            Pc(0x302),
+            Pc(0x500),
+            Pc(0x502),
+            ExceptionEntry,
+            Pc(0x200), // T0 preempting work: 2 of its own + tick 2
+            Pc(0x400),
+            Pc(0x402),
+            Pc(0x204),
+            ExceptionReturn,
+            Pc(0x504),
+            Pc(0x306),
+            ExceptionReturn, // tail-chained into T0 again
+            ExceptionEntry,
+            Pc(0x200),
+            Pc(0x400),
+            Pc(0x402),
+            Pc(0x404),
+            Pc(0x206),
+            ExceptionReturn,
+            Pc(0x102),
+        ];
+        for e in trace {
+            match e {
+                Pc(pc) => t.pc(pc),
+                ExceptionEntry => t.exception_entry(),
+                ExceptionReturn => t.exception_return(),
+            }
+        }
+        assert!(t.open.is_empty());
+        let s = |r: &str| {
+            let s = &t.stats[r];
+            (s.calls, s.max, s.min)
+        };
+        assert_eq!(s("T1"), (1, 6, 6));
+        assert_eq!(s("work"), (1, 3, 3));
+        assert_eq!(s("T0"), (2, 5, 4));
+        assert_eq!(s("tick"), (2, 3, 2));
+    }
+
+    #[test]
+    fn log_lines_are_parsed() {
+        assert_eq!(
+            parse_line("Trace 0: 0x7f30 [00800408/000024ae/00000110/ff020201] f"),
+            Some(Event::Pc(0x24ae))
+        );
+        assert_eq!(
+            parse_line("...taking pending nonsecure exception 25"),
+            Some(Event::ExceptionEntry)
+        );
+        assert_eq!(
+            parse_line("Exception return: magic PC ffffffe9 previous exception 24"),
+            Some(Event::ExceptionReturn)
+        );
+        assert_eq!(parse_line("...tailchaining to pending exception"), None);
+    }
 
     #[test]
     fn profile_reports_are_every_target_in_every_variant() {
