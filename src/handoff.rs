@@ -47,15 +47,14 @@
 //!   [`LEARN_QUEUE`] slots (the tick writes a slot, then publishes it with
 //!   one `Release` store of its head index; the learner reads the slots up
 //!   to it and frees them with one `Release` store of its tail index). A
-//!   full ring drops the sample and marks the next one, and the learner
-//!   then restarts its bin accounting. The learned table itself
+//!   full ring drops the sample and counts it lost; the learner, seeing the
+//!   count change, restarts its bin accounting. The learned table itself
 //!   ([`LearnedTable`]) is atomic words: the tick reads bins the learner
 //!   is not writing (see `servo::repetitive`).
 
 use crate::config::COLS;
 use crate::safety::{Device, Fault};
-use crate::servo::{Freeze, LearnSample, LearnedTable};
-use crate::units::SpindleAngle;
+use crate::servo::{LearnSample, LearnedTable};
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
 /// One published coefficient set: the column values at X, all the loop
@@ -133,82 +132,58 @@ pub const LEARN_QUEUE: usize = 8;
 
 /// The learning samples in flight (see the module docs).
 pub(crate) struct LearnQueue {
-    /// `[error, angle, angle step, flags, hold ticks]` per slot.
-    slots: [[AtomicU32; 5]; LEARN_QUEUE],
+    slots: [[AtomicU32; 4]; LEARN_QUEUE],
     /// Samples written (the tick's), and read (the learner's).
     head: AtomicU32,
     tail: AtomicU32,
+    /// Samples the tick dropped (the ring was full), so far.
+    lost: AtomicU32,
 }
-
-/// Flag bits of a packed sample: freeze code (3 bits), hold reason (3),
-/// angle known, clear, samples lost before this one.
-const F_HOLD_SHIFT: u32 = 3;
-const F_ANGLE: u32 = 1 << 6;
-const F_CLEAR: u32 = 1 << 7;
-const F_HOLD: u32 = 1 << 8;
-const F_LOST: u32 = 1 << 9;
 
 impl LearnQueue {
     const fn new() -> Self {
         Self {
-            slots: [const { [const { AtomicU32::new(0) }; 5] }; LEARN_QUEUE],
+            slots: [const { [const { AtomicU32::new(0) }; 4] }; LEARN_QUEUE],
             head: AtomicU32::new(0),
             tail: AtomicU32::new(0),
+            lost: AtomicU32::new(0),
         }
     }
 
-    /// Appends a sample (the loop tick, the only writer); false when the
-    /// ring is full (the sample is dropped).
+    /// Appends a sample (the loop tick, the only writer); a full ring
+    /// drops it and counts it lost.
     #[inline(always)]
-    pub(crate) fn push(&self, s: &LearnSample, lost: bool) -> bool {
+    pub(crate) fn push(&self, s: &LearnSample) {
         let h = self.head.load(Ordering::Relaxed);
         if h.wrapping_sub(self.tail.load(Ordering::Acquire)) >= LEARN_QUEUE as u32 {
-            return false;
+            let n = self.lost.load(Ordering::Relaxed);
+            self.lost.store(n.wrapping_add(1), Ordering::Relaxed);
+            return;
         }
-        let (phi, dphi) = s.angle.map_or((0, 0), |(p, d)| (p.0, d));
-        let (hold_code, hold_ticks) = s.hold.map_or((0, 0), |(r, t)| {
-            (Freeze::code(Some(r)) << F_HOLD_SHIFT | F_HOLD, t)
-        });
-        let flags = Freeze::code(s.freeze)
-            | hold_code
-            | if s.angle.is_some() { F_ANGLE } else { 0 }
-            | if s.clear { F_CLEAR } else { 0 }
-            | if lost { F_LOST } else { 0 };
         let slot = &self.slots[h as usize % LEARN_QUEUE];
-        for (w, v) in slot
-            .iter()
-            .zip([s.error_q8 as u32, phi, dphi as u32, flags, hold_ticks])
-        {
+        for (w, v) in slot.iter().zip(s.0) {
             w.store(v, Ordering::Relaxed);
         }
         self.head.store(h.wrapping_add(1), Ordering::Release);
-        true
     }
 
-    /// Takes the oldest sample (the learner, the only reader), with whether
-    /// samples were lost before it.
+    /// Takes the oldest sample (the learner, the only reader).
     #[inline(always)]
-    pub(crate) fn pop(&self) -> Option<(LearnSample, bool)> {
+    pub(crate) fn pop(&self) -> Option<LearnSample> {
         let t = self.tail.load(Ordering::Relaxed);
         if t == self.head.load(Ordering::Acquire) {
             return None;
         }
         let slot = &self.slots[t as usize % LEARN_QUEUE];
-        let [e, phi, dphi, flags, hold_ticks] =
-            [0, 1, 2, 3, 4].map(|k| slot[k].load(Ordering::Relaxed));
+        let s = LearnSample(core::array::from_fn(|k| slot[k].load(Ordering::Relaxed)));
         self.tail.store(t.wrapping_add(1), Ordering::Release);
-        let s = LearnSample {
-            error_q8: e as i32,
-            angle: (flags & F_ANGLE != 0).then_some((SpindleAngle(phi), dphi as i32)),
-            freeze: Freeze::from_code(flags & 7),
-            hold: if flags & F_HOLD != 0 {
-                Freeze::from_code((flags >> F_HOLD_SHIFT) & 7).map(|r| (r, hold_ticks))
-            } else {
-                None
-            },
-            clear: flags & F_CLEAR != 0,
-        };
-        Some((s, flags & F_LOST != 0))
+        Some(s)
+    }
+
+    /// Samples dropped so far (the learner compares it with the count it
+    /// last saw).
+    pub(crate) fn lost(&self) -> u32 {
+        self.lost.load(Ordering::Relaxed)
     }
 }
 

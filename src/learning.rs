@@ -19,12 +19,15 @@ use crate::servo::{Learner, ServoConfig};
 #[derive(Clone, Debug)]
 pub struct LearnState {
     learner: Learner,
+    /// The ring's lost-sample count when last seen.
+    lost_seen: u32,
 }
 
 impl LearnState {
     pub(crate) fn new(cfg: &ServoConfig) -> Self {
         Self {
             learner: Learner::new(cfg),
+            lost_seen: 0,
         }
     }
 
@@ -34,10 +37,14 @@ impl LearnState {
     /// Never inlined, so `cargo xtask isr-cost` can find and count it.
     #[inline(never)]
     pub fn run(&mut self, sh: &Shared) {
-        while let Some((s, lost)) = sh.learn.pop() {
-            if lost {
-                self.learner.lost_samples();
-            }
+        let lost = sh.learn.lost();
+        if lost != self.lost_seen {
+            // The tick dropped samples while this handler could not run: the
+            // ring holds what came after the gap.
+            self.lost_seen = lost;
+            self.learner.lost_samples();
+        }
+        while let Some(s) = sh.learn.pop() {
             self.learner.apply(&s, &sh.learned);
         }
     }

@@ -102,8 +102,6 @@ pub struct LoopState {
     pub(crate) dac_clamped: bool,
     /// The DAC holds code 0 (disarmed).
     pub(crate) dac_zeroed: bool,
-    /// A learning sample could not be handed over (the learner fell behind).
-    pub(crate) learn_lost: bool,
 }
 
 /// |ΔX| between two coefficient sets beyond which the learned table no
@@ -138,7 +136,6 @@ impl LoopState {
             clear_refused: None,
             dac_clamped: false,
             dac_zeroed: false,
-            learn_lost: false,
         }
     }
 
@@ -350,7 +347,7 @@ impl LoopState {
         );
         if let Some(s) = &out.learn {
             // The learner runs below this priority (`crate::learning`).
-            self.learn_lost = !sh.learn.push(s, self.learn_lost);
+            sh.learn.push(s);
         }
         if let Some(f) = out.fault {
             self.trip(f);

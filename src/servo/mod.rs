@@ -45,7 +45,7 @@ pub mod repetitive;
 
 pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};
 pub use engage::Phase;
-pub use repetitive::{Freeze, LearnSample, LearnedTable, Learner};
+pub use repetitive::{Freeze, LearnRequests, LearnSample, LearnedTable, Learner};
 
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
@@ -117,8 +117,7 @@ pub struct Servo {
     observer: Observer,
     /// Requests for the learner, sent with the next sample: forget the
     /// table (arming), hold the learning frozen (reason, ticks).
-    learn_clear: bool,
-    learn_hold: Option<(Freeze, u32)>,
+    learn_req: LearnRequests,
     /// Ticks of the engagement's settling left, during which the learning
     /// is held and the (freshly cleared) table gives no correction: it is
     /// not read then, which also keeps a learner that has not yet run its
@@ -159,8 +158,10 @@ impl Servo {
             hum: notch(cfg.hum_notch),
             mode: notch(cfg.mode_notch),
             observer: Observer::new(cfg.observer),
-            learn_clear: false,
-            learn_hold: None,
+            learn_req: LearnRequests {
+                clear: false,
+                hold: None,
+            },
             settle_left: 0,
             sign: SignCheck::new(
                 cfg.sign_check_code,
@@ -209,10 +210,7 @@ impl Servo {
     /// Freezes the learning for `ticks` (X jumped: the table belongs to
     /// another radius); sent to the learner with the next sample.
     pub fn freeze_learning(&mut self, reason: Freeze, ticks: u32) {
-        // Two holds before one sample: the longer time, the later reason
-        // (what two holds in a row leave in the learner).
-        let t = self.learn_hold.map_or(ticks, |(_, t)| t.max(ticks));
-        self.learn_hold = Some((reason, t));
+        self.learn_req.hold(reason, ticks);
     }
 
     /// Opens the loop at once (a fault that disables the amplifier).
@@ -239,7 +237,7 @@ impl Servo {
                 return self.idle();
             }
             self.arm_requested = false;
-            self.learn_clear = true;
+            self.learn_req.clear = true;
             self.current.reset();
             self.following.reset();
             if self.sign.enabled() {
@@ -368,17 +366,17 @@ impl Servo {
         // model's error into the table when the plant differs from it).
         // The learner runs below this priority: it gets the error, the
         // angle and why it must not learn now.
-        let learn = LearnSample {
-            error_q8: self.command_q8 - measured,
-            angle: input.angle,
-            freeze: if self.phase != Phase::Engaged {
-                Some(Freeze::NotEngaged)
-            } else {
-                input.freeze
-            },
-            hold: self.learn_hold.take(),
-            clear: core::mem::take(&mut self.learn_clear),
+        let freeze = if self.phase != Phase::Engaged {
+            Some(Freeze::NotEngaged)
+        } else {
+            input.freeze
         };
+        let learn = LearnSample::new(
+            self.command_q8 - measured,
+            input.angle,
+            freeze,
+            core::mem::take(&mut self.learn_req),
+        );
         let (fb_q8, ff_q8) = self.control(&est, reference, v_ref, a_ref);
         // The hum notch acts on the feedback only: what the loop corrects
         // from the gauge loses its 120 Hz, while the feedforward (the

@@ -121,20 +121,88 @@ impl Freeze {
 }
 
 /// What one loop tick hands the learner: the command's error as the gauge
-/// measures it, where and how fast the spindle was, and the requests of
-/// the tick (forget the table, hold the learning frozen).
+/// measures it (codes Q8, before the hum notch: that is the learner's),
+/// where and how fast the spindle was, why the learning must not run now,
+/// and the tick's requests (forget the table, hold the learning frozen).
+///
+/// Packed in four words, the form the hand-off ring carries (so the loop
+/// tick builds it with a few bit operations): `[error, angle, angle step,
+/// flags]`, flags = freeze code (bits 0..2, [`Freeze::code`]), angle known
+/// (3), clear (4), hold reason code (5..7), hold ticks (8..31, at most
+/// 2²⁴ − 1: 14 minutes at 20 kHz).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LearnSample {
-    /// Command − gauge, codes Q8 (before the hum notch: the learner's).
-    pub error_q8: i32,
+pub struct LearnSample(pub(crate) [u32; 4]);
+
+const S_ANGLE: u32 = 1 << 3;
+const S_CLEAR: u32 = 1 << 4;
+const S_HOLD_SHIFT: u32 = 5;
+const S_TICKS_SHIFT: u32 = 8;
+
+impl LearnSample {
+    pub fn new(
+        error_q8: i32,
+        angle: Option<(SpindleAngle, i32)>,
+        freeze: Option<Freeze>,
+        requests: LearnRequests,
+    ) -> Self {
+        let (phi, dphi, a) = match angle {
+            Some((p, d)) => (p.0, d, S_ANGLE),
+            None => (0, 0, 0),
+        };
+        Self([
+            error_q8 as u32,
+            phi,
+            dphi as u32,
+            Freeze::code(freeze) | a | requests.flags(),
+        ])
+    }
+    /// Command − gauge, codes Q8.
+    pub fn error_q8(&self) -> i32 {
+        self.0[0] as i32
+    }
     /// The spindle angle and its step over the tick, when known.
-    pub angle: Option<(SpindleAngle, i32)>,
-    /// Why the learning must not run this tick.
-    pub freeze: Option<Freeze>,
-    /// Hold it frozen for this many more ticks (engagement, an X jump).
-    pub hold: Option<(Freeze, u32)>,
+    pub fn angle(&self) -> Option<(SpindleAngle, i32)> {
+        (self.0[3] & S_ANGLE != 0).then_some((SpindleAngle(self.0[1]), self.0[2] as i32))
+    }
+    pub fn freeze(&self) -> Option<Freeze> {
+        Freeze::from_code(self.0[3] & 7)
+    }
+    pub fn requests(&self) -> LearnRequests {
+        let f = self.0[3];
+        LearnRequests {
+            clear: f & S_CLEAR != 0,
+            hold: Freeze::from_code((f >> S_HOLD_SHIFT) & 7).map(|r| (r, f >> S_TICKS_SHIFT)),
+        }
+    }
+}
+
+/// What the loop asks of the learning besides learning.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LearnRequests {
     /// Forget everything learned first (arming).
     pub clear: bool,
+    /// Hold it frozen for this many more ticks (engagement, an X jump).
+    pub hold: Option<(Freeze, u32)>,
+}
+
+impl LearnRequests {
+    /// Two holds before one sample: the longer time, the later reason
+    /// (what two holds in a row leave in the learner).
+    pub fn hold(&mut self, reason: Freeze, ticks: u32) {
+        let t = self.hold.map_or(ticks, |(_, t)| t.max(ticks));
+        self.hold = Some((reason, t));
+    }
+
+    fn flags(&self) -> u32 {
+        let hold = self.hold.map_or(0, |(r, t)| {
+            Freeze::code(Some(r)) << S_HOLD_SHIFT | t.min((1 << 24) - 1) << S_TICKS_SHIFT
+        });
+        if self.clear {
+            hold | S_CLEAR
+        } else {
+            hold
+        }
+    }
 }
 
 /// The learned reference correction at one angle.
@@ -290,20 +358,21 @@ impl Learner {
     /// the update (or the freeze it asks for).
     #[inline]
     pub fn apply(&mut self, s: &LearnSample, table: &LearnedTable) {
-        if s.clear {
+        let r = s.requests();
+        if r.clear {
             table.clear();
             self.last_bin = None;
             self.passes = 0;
         }
-        if let Some((reason, ticks)) = s.hold {
+        if let Some((reason, ticks)) = r.hold {
             self.hold_for(reason, ticks);
         }
         let error_q8 = match &mut self.hum {
-            Some(n) => n.process(s.error_q8),
-            None => s.error_q8,
+            Some(n) => n.process(s.error_q8()),
+            None => s.error_q8(),
         };
-        match s.angle {
-            Some((phi, dphi)) => self.learn(table, phi, dphi, error_q8, s.freeze),
+        match s.angle() {
+            Some((phi, dphi)) => self.learn(table, phi, dphi, error_q8, s.freeze()),
             None => self.hold_for(Freeze::NoAngle, 0),
         }
     }
@@ -419,12 +488,12 @@ mod tests {
     }
 
     fn sample(phi: u32, dphi: i32, error_q8: i32, freeze: Option<Freeze>) -> LearnSample {
-        LearnSample {
+        LearnSample::new(
             error_q8,
-            angle: Some((SpindleAngle(phi), dphi)),
+            Some((SpindleAngle(phi), dphi)),
             freeze,
-            ..LearnSample::default()
-        }
+            LearnRequests::default(),
+        )
     }
 
     /// A constant error at every angle is learned to κ·e per revolution
@@ -505,10 +574,9 @@ mod tests {
         assert_eq!(t.peak_code(), 0);
         r.apply(&sample(1000, 1000, 1 << 12, Some(Freeze::NoAngle)), &t);
         assert_eq!(r.frozen(), Some(Freeze::NoAngle));
-        let hold = LearnSample {
-            hold: Some((Freeze::XJump, 3)),
-            ..sample(1000, 1000, 1 << 12, None)
-        };
+        let mut req = LearnRequests::default();
+        req.hold(Freeze::XJump, 3);
+        let hold = LearnSample::new(1 << 12, Some((SpindleAngle(1000), 1000)), None, req);
         // The hold applies from its own sample on: three ticks frozen.
         r.apply(&hold, &t);
         assert_eq!(r.frozen(), Some(Freeze::XJump));
@@ -519,20 +587,15 @@ mod tests {
         r.apply(&sample(1000, 1 << 20, 1 << 24, None), &t);
         assert_eq!(r.frozen(), None);
         // No angle: frozen with that reason; a clear forgets the table.
-        let none = LearnSample {
-            angle: None,
-            ..LearnSample::default()
-        };
+        let none = LearnSample::new(0, None, None, LearnRequests::default());
         r.apply(&none, &t);
         assert_eq!(r.frozen(), Some(Freeze::NoAngle));
         assert!(t.peak_code() > 0);
-        r.apply(
-            &LearnSample {
-                clear: true,
-                ..none
-            },
-            &t,
-        );
+        let clear = LearnRequests {
+            clear: true,
+            hold: None,
+        };
+        r.apply(&LearnSample::new(0, None, None, clear), &t);
         assert_eq!(t.peak_code(), 0);
     }
 
@@ -550,10 +613,19 @@ mod tests {
     }
 
     #[test]
-    fn freeze_codes_round_trip() {
+    fn samples_round_trip_through_their_words() {
         assert_eq!(Freeze::from_code(Freeze::code(None)), None);
         for f in Freeze::ALL {
             assert_eq!(Freeze::from_code(Freeze::code(Some(f))), Some(f));
+        }
+        for (angle, freeze, clear, hold) in [
+            (None, None, false, None),
+            (Some((SpindleAngle(u32::MAX), -7)), Some(Freeze::Null), true, Some((Freeze::XJump, 20_000))),
+            (Some((SpindleAngle(12_345), 1 << 22)), Some(Freeze::Disabled), false, Some((Freeze::NotEngaged, 786))),
+        ] {
+            let req = LearnRequests { clear, hold };
+            let s = LearnSample::new(-123_456, angle, freeze, req);
+            assert_eq!((s.error_q8(), s.angle(), s.freeze(), s.requests()), (-123_456, angle, freeze, req));
         }
     }
 }
