@@ -83,6 +83,9 @@ pub struct LoopState {
     pub(crate) target: i32,
     /// The offset on the last tick.
     pub(crate) last_target: i32,
+    /// The slew rate, whole codes per tick (a target step within it is a
+    /// motion, not a jump).
+    pub(crate) slew_codes: u32,
     /// Table command of the last tick, gauge codes.
     pub(crate) table_code: i32,
     /// Velocity input of the last tick (∂Z/∂φ·Δφ), codes/tick Q16.
@@ -124,6 +127,7 @@ impl LoopState {
             last_coeff_x: None,
             target: 0,
             last_target: 0,
+            slew_codes: (cfg.slew_q16 >> 16).clamp(0, i64::from(u32::MAX)) as u32,
             table_code: 0,
             ff_q16: 0,
             accel_q16: 0,
@@ -241,21 +245,21 @@ impl LoopState {
         self.take_published(sh);
         // The gauge is read even with the amplifier off: a clear request
         // needs to see whether a gauge fault's cause is gone.
-        let read = gauge.read();
-        let gauge_fault = match read {
-            Err(_) => Some(Fault::Bus(Device::GaugeAdc)),
-            Ok(s) if s.overrange => Some(Fault::GaugeRange),
+        let read = match gauge.read() {
+            Err(_) => Err(Fault::Bus(Device::GaugeAdc)),
+            Ok(s) if s.overrange => Err(Fault::GaugeRange),
             // A reading on a rail without OV: the gauge's own output is
             // pinned, so the loop cannot see where the slide is beyond it.
-            Ok(s) if s.code <= CODE_MIN || s.code >= CODE_MAX => Some(Fault::GaugeSaturated),
-            Ok(_) => None,
+            // (Inside the rails the code is a 20-bit one.)
+            Ok(s) if s.code <= CODE_MIN || s.code >= CODE_MAX => Err(Fault::GaugeSaturated),
+            Ok(s) => Ok(s.code),
         };
-        self.gauge_bad = gauge_fault.is_some();
+        self.gauge_bad = read.is_err();
         self.take_requests(sh, input.amplifier_fault);
-        let sample = match (read, gauge_fault) {
-            (Ok(s), None) => s,
-            (_, f) => {
-                self.trip(f.unwrap_or(Fault::Bus(Device::GaugeAdc)));
+        let code = match read {
+            Ok(c) => c,
+            Err(f) => {
+                self.trip(f);
                 self.hold_safe(dac);
                 return;
             }
@@ -264,12 +268,7 @@ impl LoopState {
             self.hold_safe(dac);
             return;
         }
-        let code = if self.gauge_reversed {
-            sample.code.saturating_neg()
-        } else {
-            sample.code
-        };
-        let y = code.clamp(CODE_MIN, CODE_MAX);
+        let y = if self.gauge_reversed { -code } else { code };
         self.position = y;
 
         // Spindle angle.
@@ -311,8 +310,7 @@ impl LoopState {
             // motion (a step is approached by the servo's slew profile).
             // Both within the gauge's range: the step fits an i32.
             let step = self.target - self.last_target;
-            let slew_codes = self.servo.config().slew_q16 >> 16;
-            let target_step = if i64::from(step.abs()) <= slew_codes {
+            let target_step = if step != 0 && step.unsigned_abs() <= self.slew_codes {
                 step
             } else {
                 0

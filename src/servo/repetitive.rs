@@ -620,12 +620,25 @@ mod tests {
         }
         for (angle, freeze, clear, hold) in [
             (None, None, false, None),
-            (Some((SpindleAngle(u32::MAX), -7)), Some(Freeze::Null), true, Some((Freeze::XJump, 20_000))),
-            (Some((SpindleAngle(12_345), 1 << 22)), Some(Freeze::Disabled), false, Some((Freeze::NotEngaged, 786))),
+            (
+                Some((SpindleAngle(u32::MAX), -7)),
+                Some(Freeze::Null),
+                true,
+                Some((Freeze::XJump, 20_000)),
+            ),
+            (
+                Some((SpindleAngle(12_345), 1 << 22)),
+                Some(Freeze::Disabled),
+                false,
+                Some((Freeze::NotEngaged, 786)),
+            ),
         ] {
             let req = LearnRequests { clear, hold };
             let s = LearnSample::new(-123_456, angle, freeze, req);
-            assert_eq!((s.error_q8(), s.angle(), s.freeze(), s.requests()), (-123_456, angle, freeze, req));
+            assert_eq!(
+                (s.error_q8(), s.angle(), s.freeze(), s.requests()),
+                (-123_456, angle, freeze, req)
+            );
         }
     }
 }
