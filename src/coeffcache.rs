@@ -1,5 +1,5 @@
 //! Coefficients at X through a per-interval cache: the two node rows of
-//! the grid interval X is in, fetched once per interval, so an X event
+//! the grid interval X is in, fetched when X enters it, so an X event
 //! (legacy half-mil or modern X count) costs one multiply-add per column
 //! and no division; bit-identical to `CommandGen::coefficients_into`.
 
@@ -26,6 +26,9 @@ pub(crate) struct IntervalCache {
     /// Node 0 and the grid step, `I8F24` bits.
     pub(crate) x0: i32,
     pub(crate) dx: i32,
+    /// A binary grid's fraction as a shift of the remainder
+    /// ([`crate::interp::Interpolator::frac_shift`]).
+    pub(crate) frac_shift: Option<u32>,
 }
 
 /// The columns at `x` through the command path itself (tables the cached
@@ -89,6 +92,7 @@ impl IntervalCache {
                 let t = g.interpolator().table();
                 t.node_x(1).to_bits().wrapping_sub(t.node_x(0).to_bits())
             }),
+            frac_shift: gen.and_then(|g| g.interpolator().frac_shift()),
         }
     }
 
@@ -97,12 +101,12 @@ impl IntervalCache {
     /// [`crate::interp::Interpolator::locate`] gives:
     ///
     /// * the cached interval while X stays in it (X moves by half-mils,
-    ///   ~60 events per 1/32 in), its neighbour when X crosses a node, a
-    ///   search only after a jump; the fraction from the remainder exactly
-    ///   as `locate` forms it;
-    /// * at a crossing to a neighbour only the one new node row is read
-    ///   from flash: the shared node's values are the cached `lo` or
-    ///   `lo + d`, exactly (the change was formed from them);
+    ///   ~60 events per 1/32 in); otherwise the interval is found again
+    ///   (on a binary grid, 2ᵐ X bits, its node is the offset shifted by m:
+    ///   exactly `locate`'s node, with no search) and both of its node rows
+    ///   are read from flash, so a crossing costs what the first event does;
+    /// * the fraction from the remainder exactly as `locate` forms it (a
+    ///   shift on a binary grid);
     /// * no division anywhere.
     #[inline(always)]
     pub(crate) fn seek(
@@ -119,63 +123,45 @@ impl IntervalCache {
         let bits = x.to_bits();
         let inside = self.interval.is_some() && bits >= self.x_lo && bits < self.x_hi;
         if !inside {
-            let dx = self.dx;
-            let word = |b: &[u8]| i32::from_le_bytes(<[u8; 4]>::try_from(b).unwrap_or([0; 4]));
-            let node = match self.interval {
-                Some(k) if bits >= self.x_hi && bits - self.x_hi < dx && k + 2 < t.node_count() => {
-                    // Up: the old high node is the new low one.
-                    // Rows are stepped with `next`, never zipped: a zip of
-                    // `ChunksExact` sizes itself with a division by the
-                    // run-time chunk size, a `panic_const_div_by_zero` path
-                    // in the handler (`cargo xtask no-panic` finds it).
-                    let mut hi = t.node_row(k + 2).chunks_exact(4);
-                    for (lo, d) in self.lo.iter_mut().zip(self.d.iter_mut()).take(n) {
-                        let Some(b) = hi.next() else { break };
-                        // |values| ≤ 2²⁶ (checked at load): sums and
-                        // changes fit an i32.
-                        *lo = lo.wrapping_add(*d);
-                        *d = word(b).wrapping_sub(*lo);
-                    }
-                    k + 1
+            let offset = i64::from(bits) - i64::from(self.x0);
+            let node = match self.frac_shift {
+                // Binary grid: ⌊offset / 2ᵐ⌋ (m = 32 − shift), inside the
+                // table's intervals. Anything else (below the table, its
+                // last node, beyond it) goes through `locate`.
+                Some(s) if offset >= 0 && (offset >> (32 - s)) + 1 < i64::from(t.node_count()) => {
+                    (offset >> (32 - s)) as u32
                 }
-                Some(k) if bits < self.x_lo && self.x_lo - bits <= dx && k > 0 => {
-                    // Down: the old low node is the new high one.
-                    let mut lo_row = t.node_row(k - 1).chunks_exact(4);
-                    for (lo, d) in self.lo.iter_mut().zip(self.d.iter_mut()).take(n) {
-                        let Some(a) = lo_row.next() else { break };
-                        let v = word(a);
-                        *d = lo.wrapping_sub(v);
-                        *lo = v;
-                    }
-                    k - 1
-                }
-                _ => {
-                    let node = match g.locate(x)? {
-                        None => return Ok(Seek::Null),
-                        Some(at) if at.node + 1 < t.node_count() => at.node,
-                        Some(_) => return Ok(Seek::General),
-                    };
-                    let mut lo_row = t.node_row(node).chunks_exact(4);
-                    let mut hi_row = t.node_row(node + 1).chunks_exact(4);
-                    for (lo, d) in self.lo.iter_mut().zip(self.d.iter_mut()) {
-                        let (Some(a), Some(b)) = (lo_row.next(), hi_row.next()) else {
-                            break;
-                        };
-                        *lo = word(a);
-                        *d = word(b).wrapping_sub(*lo);
-                    }
-                    node
-                }
+                _ => match g.locate(x)? {
+                    None => return Ok(Seek::Null),
+                    Some(at) if at.node + 1 < t.node_count() => at.node,
+                    Some(_) => return Ok(Seek::General),
+                },
             };
+            // The rows as words of a compile-time size (`as_chunks`: no
+            // division by a run-time chunk size, which `chunks_exact` would
+            // bring into the handler as a panic path).
+            let (lo_row, _) = t.node_row(node).as_chunks::<4>();
+            let (hi_row, _) = t.node_row(node + 1).as_chunks::<4>();
+            let cache = self.lo.iter_mut().zip(self.d.iter_mut());
+            for ((lo, d), (a, b)) in cache.zip(lo_row.iter().zip(hi_row)).take(n) {
+                // |values| ≤ 2²⁶ (checked at load): changes fit an i32.
+                *lo = i32::from_le_bytes(*a);
+                *d = i32::from_le_bytes(*b).wrapping_sub(*lo);
+            }
             self.interval = Some(node);
             // The grid is exact in X bits (fast path): x0 + node·ΔX, no
             // overflow (the parser checked the last node fits).
             self.x_lo = self.x0.wrapping_add((node as i32).wrapping_mul(self.dx));
             self.x_hi = self.x_lo.wrapping_add(self.dx);
         }
-        let rem = u64::from(bits.wrapping_sub(self.x_lo) as u32);
+        let rem = bits.wrapping_sub(self.x_lo) as u32;
+        let frac = match self.frac_shift {
+            // rem < 2ᵐ: the shift loses nothing.
+            Some(s) => rem << s,
+            None => it.frac_of_rem(u64::from(rem)),
+        };
         // Interpolator::interval: Q31 position = the Q32 fraction >> 1.
-        Ok(Seek::In((it.frac_of_rem(rem) >> 1) as i32))
+        Ok(Seek::In((frac >> 1) as i32))
     }
 
     /// Column `lo + d·f` of the cached interval at Q31 position `f`:
