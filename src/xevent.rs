@@ -26,7 +26,10 @@ impl CoefficientDac for NoCoefficientDac {
 }
 
 /// State of the X and index handlers (one priority level below the tick).
+// In declaration order, the slope table last: every other field stays
+// within the M4's 12-bit load offset of the state's address.
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub struct EventState {
     pub(crate) gen: Option<CommandGen<'static>>,
     pub(crate) legacy: Option<LegacyX>,
@@ -36,13 +39,12 @@ pub struct EventState {
     pub(crate) last_count: Option<u32>,
     pub(crate) coefficient_output: bool,
     pub(crate) out: LegacyOutput,
-    pub(crate) cache: IntervalCache,
-    /// Q30 tables with every |coefficient| ≤ COEFF_LIMIT/2 (all real ones:
-    /// no clamp in `coefficients_into`, node changes fit an i32) take the
-    /// cached path; others the command path's general one.
+    /// Tables within the slope path's range ([`fast_and_terms`]: every
+    /// real one) take it; others the command path's general one.
     pub(crate) fast: bool,
     pub(crate) terms: u8,
     pub(crate) coeff_gen: u32,
+    pub(crate) cache: IntervalCache,
 }
 
 impl EventState {
