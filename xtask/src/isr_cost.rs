@@ -22,6 +22,7 @@ use std::process::Stdio;
 use std::time::Instant;
 
 use crate::elf::{self, Symbol};
+use crate::stack::{self, Depth, EXCEPTION_FRAME_BYTES};
 
 /// Which image variants hold an entry point.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -123,6 +124,7 @@ const REPORTS: [&str; 12] = [
 pub fn run(args: &Args) -> Result<u8, String> {
     crate::require_for_qemu()?;
     let mut stats: BTreeMap<String, Stats> = BTreeMap::new();
+    let mut depths: BTreeMap<String, Depth> = BTreeMap::new();
     for (features, suffix, _) in VARIANTS {
         let name = if suffix.is_empty() {
             "legacy"
@@ -136,36 +138,65 @@ pub fn run(args: &Args) -> Result<u8, String> {
             Some(f) => crate::build_qemu_image_with(f)?,
             None => crate::build_qemu_image()?,
         }
-        stats.extend(measure(name, suffix, args)?);
+        let (s, d) = measure(name, suffix, args)?;
+        stats.extend(s);
+        depths.extend(d);
     }
     let sizes = elf::sizes(&crate::qemu_elf())?;
 
+    // The stack entry: bytes, or null with the reason there is no bound.
+    let stack_json = |name: &str| match depths.get(name) {
+        Some(Depth::Bytes(b)) => format!("\"stack_bytes\": {b}"),
+        Some(Depth::Recursion(f)) => {
+            format!("\"stack_bytes\": null, \"stack\": \"recursion via {f}\"")
+        }
+        Some(Depth::Dynamic(f)) => {
+            format!("\"stack_bytes\": null, \"stack\": \"SP set by a register in {f}\"")
+        }
+        None => "\"stack_bytes\": null".to_string(),
+    };
+    let stack_text = |name: &str| match depths.get(name) {
+        Some(Depth::Bytes(b)) => format!("{b:6} B"),
+        Some(Depth::Recursion(f)) => format!("unbounded (recursion via {f})"),
+        Some(Depth::Dynamic(f)) => format!("unbounded (SP set by a register in {f})"),
+        None => "?".to_string(),
+    };
     if args.json {
         let mut out = String::from("{");
         for (i, (name, s)) in stats.iter().enumerate() {
             let mean = s.total.checked_div(s.calls).unwrap_or(0);
             out.push_str(&format!(
-                "{}\"{name}\": {{\"max\": {}, \"mean\": {mean}, \"min\": {}, \"calls\": {}}}",
+                "{}\"{name}\": {{\"max\": {}, \"mean\": {mean}, \"min\": {}, \"calls\": {}, {}}}",
                 if i > 0 { ", " } else { "" },
                 s.max,
                 s.min,
-                s.calls
+                s.calls,
+                stack_json(name)
             ));
         }
         out.push_str(&format!(
             ", \"image\": \"zslide-qemu (Cortex-M4F)\", \"unit\": \"instructions\", \
-             \"flash_bytes\": {}, \"ram_bytes\": {}}}",
+             \"flash_bytes\": {}, \"ram_bytes\": {}, \"exception_frame_bytes\": {}, \
+             \"stack_method\": \"static: SP decrements of each function's code, worst path of the call graph\"}}",
             sizes.flash(),
-            sizes.ram()
+            sizes.ram(),
+            EXCEPTION_FRAME_BYTES
         ));
         println!("{out}");
     } else {
-        println!("instructions per call, QEMU mps2-an386 image (Cortex-M4F):");
+        println!(
+            "instructions per call and worst-case stack depth (own frames and callees, from the code; \
+             plus {EXCEPTION_FRAME_BYTES} B of exception frame for a handler), QEMU mps2-an386 image (Cortex-M4F):"
+        );
         for (name, s) in &stats {
             let mean = s.total.checked_div(s.calls).unwrap_or(0);
             println!(
-                "  {name:28} max {:6}  mean {:6}  min {:6}  calls {}",
-                s.max, mean, s.min, s.calls
+                "  {name:28} max {:6}  mean {:6}  min {:6}  calls {:5}  stack {}",
+                s.max,
+                mean,
+                s.min,
+                s.calls,
+                stack_text(name)
             );
         }
         println!(
@@ -179,7 +210,11 @@ pub fn run(args: &Args) -> Result<u8, String> {
 
 /// Runs the image built last under an execution trace; reports named with
 /// `suffix` appended.
-fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, Stats>, String> {
+fn measure(
+    variant: &str,
+    suffix: &str,
+    args: &Args,
+) -> Result<(BTreeMap<String, Stats>, Vec<(String, Depth)>), String> {
     let elf_path = crate::qemu_elf();
     let mut funcs: Vec<Symbol> = elf::functions(&elf_path)?
         .into_iter()
@@ -206,6 +241,13 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
         };
         targets.insert(f.addr, format!("{report}{suffix}"));
     }
+    // The worst-case stack depth of each entry point, from the code.
+    let named: Vec<(String, &str)> = TARGETS
+        .iter()
+        .filter(|t| t.2 == In::Both || t.2 == holds)
+        .map(|t| (format!("{}{suffix}", t.0), t.1))
+        .collect();
+    let depths = stack::depths(&elf::image(&elf_path)?, &named);
 
     let mut cmd = crate::qemu_command(&elf_path);
     if qemu_major() >= 8 {
@@ -284,7 +326,7 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<BTreeMap<String, 
             eprintln!("  {pc:#010x} {:8.2}  {f}", *n as f64 / calls as f64);
         }
     }
-    Ok(stats)
+    Ok((stats, depths))
 }
 
 /// What one line of QEMU's log says.

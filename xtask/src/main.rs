@@ -23,6 +23,7 @@ mod elf;
 mod fuzz;
 mod isr_cost;
 mod nopanic;
+mod stack;
 
 use clap::{Parser, Subcommand};
 use std::env;
