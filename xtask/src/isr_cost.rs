@@ -210,11 +210,10 @@ pub fn run(args: &Args) -> Result<u8, String> {
 
 /// Runs the image built last under an execution trace; reports named with
 /// `suffix` appended.
-fn measure(
-    variant: &str,
-    suffix: &str,
-    args: &Args,
-) -> Result<(BTreeMap<String, Stats>, Vec<(String, Depth)>), String> {
+/// Per report: instructions per call, and the worst-case stack depth.
+type Measured = (BTreeMap<String, Stats>, Vec<(String, Depth)>);
+
+fn measure(variant: &str, suffix: &str, args: &Args) -> Result<Measured, String> {
     let elf_path = crate::qemu_elf();
     let mut funcs: Vec<Symbol> = elf::functions(&elf_path)?
         .into_iter()
