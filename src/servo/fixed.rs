@@ -25,10 +25,32 @@ pub(crate) fn mul_hi(a: i32, k: i32) -> i32 {
     ((i64::from(a) * i64::from(k) + (1 << 31)) >> 32) as i32
 }
 
-/// `v` saturated to `i32`.
+/// `v` saturated to `i32`: on the M4 by comparing the high word with the
+/// sign of the low word, on a 64-bit host by a clamp (tested equal).
 #[inline(always)]
 pub(crate) fn sat_i32(v: i64) -> i32 {
-    v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+    #[cfg(target_arch = "arm")]
+    {
+        sat_i32_words(v)
+    }
+    #[cfg(not(target_arch = "arm"))]
+    {
+        v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+    }
+}
+
+/// [`sat_i32`] by words: `v` fits when its high word is the sign of its
+/// low word.
+#[inline(always)]
+#[cfg_attr(all(not(target_arch = "arm"), not(test)), allow(dead_code))]
+fn sat_i32_words(v: i64) -> i32 {
+    let lo = v as i32;
+    let hi = (v >> 32) as i32;
+    if hi == lo >> 31 {
+        lo
+    } else {
+        (hi >> 31) ^ i32::MAX
+    }
 }
 
 /// `y + c·x / 2^SHIFT` (the product rounded to nearest and saturated to
@@ -105,6 +127,7 @@ mod tests {
         for v in edges {
             let want = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
             assert_eq!(sat_i32(v), want, "{v}");
+            assert_eq!(sat_i32_words(v), want, "{v}");
         }
         for x in [
             i32::MIN,
@@ -180,10 +203,9 @@ mod tests {
         #[test]
         fn sat_i32_is_the_clamp(v in proptest::num::i64::ANY, shift in 0u32..63) {
             let v = v >> shift;
-            proptest::prop_assert_eq!(
-                sat_i32(v),
-                v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
-            );
+            let want = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+            proptest::prop_assert_eq!(sat_i32(v), want);
+            proptest::prop_assert_eq!(sat_i32_words(v), want);
         }
     }
 }

@@ -295,7 +295,7 @@ mod tests {
                 let r = sqrt_u64(x, seed);
                 assert_eq!(r, sqrt_u64(x, 1), "{x} from {seed}");
                 let k = (64 - x.leading_zeros()).saturating_sub(30) / 2;
-                let xs = (x >> (2 * k)) as u64;
+                let xs = x >> (2 * k);
                 let mut g = u64::from(seed >> k).clamp(1, 1 << 30);
                 g = (g + xs / g) >> 1;
                 let mut rounds = 1;
