@@ -46,7 +46,9 @@ pub const COEFF_LIMIT: i32 = 1 << 27;
 pub struct Coefficients {
     /// Column values at X, Q30 inches.
     pub value: [i32; COLS],
-    /// Column changes across the interval holding X, Q30 inches (for ∂Z/∂X).
+    /// Column changes across the interval holding X, Q30 inches (for ∂Z/∂X;
+    /// filled by [`CommandGen::coefficients_into`], not by the loop tick's
+    /// hand-off, which carries values only).
     pub delta: [i32; COLS],
     /// Slope scale of the interval: `delta · per_inch_q16 >> 16` = in/in.
     terms: u8,
@@ -320,20 +322,26 @@ impl<'a> CommandGen<'a> {
             return Command::default();
         }
         let n = usize::from(c.terms).min(COLS);
+        let (v, d) = (&c.value[..n], &c.delta[..n]);
         let (z, d1, d2, dn) = match self.repr {
-            Representation::Harmonic => harmonic::<true>(&c.value[..n], &c.delta[..n], phi),
+            Representation::Harmonic => {
+                let (z, d1, d2, dn) = harmonic::<true>(v, d, phi);
+                (fx30(z), fx30(d1), fx30(d2), dn)
+            }
             Representation::SinPower => {
-                if self.small {
-                    sin_power::<true, true>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                let [z, d1, d2, dn] = if self.small {
+                    sin_power::<true, true>(v, d, sin_cos(phi))
                 } else {
-                    sin_power::<true, false>(&c.value[..n], &c.delta[..n], sin_cos(phi))
-                }
+                    sin_power::<true, false>(v, d, sin_cos(phi))
+                };
+                let q30 = I2F30::from_bits;
+                (q30(z), q30(d1), q30(d2), i64::from(dn))
             }
         };
         Command {
-            z: ZInches(fx30(z)),
-            dz_dphi: fx30(d1),
-            d2z_dphi2: fx30(d2),
+            z: ZInches(z),
+            dz_dphi: d1,
+            d2z_dphi2: d2,
             dz_dx: fx30(self.interp.per_inch(dn)),
         }
     }
@@ -341,25 +349,34 @@ impl<'a> CommandGen<'a> {
     /// Z, ∂Z/∂φ and ∂²Z/∂φ² (`dz_dx` left zero): the loop-tick path for
     /// feedforward, without the series of the coefficient changes (∂Z/∂X·Ẋ
     /// is below 1 % of ∂Z/∂φ·ω at any feed this machine uses).
+    #[inline]
     pub fn evaluate_phi(&self, c: &Coefficients, phi: SpindleAngle) -> Command {
         if c.null {
             return Command::default();
         }
         let n = usize::from(c.terms).min(COLS);
-        let (z, d1, d2, _) = match self.repr {
-            Representation::Harmonic => harmonic::<false>(&c.value[..n], &c.delta[..n], phi),
+        let (v, d) = (&c.value[..n], &c.delta[..n]);
+        let (z, d1, d2) = match self.repr {
+            Representation::Harmonic => {
+                let (z, d1, d2, _) = harmonic::<false>(v, d, phi);
+                (fx30(z), fx30(d1), fx30(d2))
+            }
             Representation::SinPower => {
-                if self.small {
-                    sin_power::<false, true>(&c.value[..n], &c.delta[..n], sin_cos(phi))
+                // The sin-power series is formed in i32 already: no
+                // saturation back from a wider type.
+                let [z, d1, d2, _] = if self.small {
+                    sin_power::<false, true>(v, d, sin_cos(phi))
                 } else {
-                    sin_power::<false, false>(&c.value[..n], &c.delta[..n], sin_cos(phi))
-                }
+                    sin_power::<false, false>(v, d, sin_cos(phi))
+                };
+                let q30 = I2F30::from_bits;
+                (q30(z), q30(d1), q30(d2))
             }
         };
         Command {
-            z: ZInches(fx30(z)),
-            dz_dphi: fx30(d1),
-            d2z_dphi2: fx30(d2),
+            z: ZInches(z),
+            dz_dphi: d1,
+            d2z_dphi2: d2,
             dz_dx: I2F30::ZERO,
         }
     }
@@ -507,11 +524,7 @@ fn sat(a: i32, b: i32) -> i32 {
 /// Z = Σ c_j sin^j φ (eq 2-19) by Horner, with P'(s) and P''(s) alongside:
 /// ∂Z/∂φ = P'(s) cos φ, ∂²Z/∂φ² = P''(s) cos²φ − P'(s) sin φ. All in i32
 /// Q30 with saturating adds (one instruction each on the M4's DSP unit).
-fn sin_power<const DX: bool, const SMALL: bool>(
-    v: &[i32],
-    d: &[i32],
-    sc: SinCos,
-) -> (i64, i64, i64, i64) {
+fn sin_power<const DX: bool, const SMALL: bool>(v: &[i32], d: &[i32], sc: SinCos) -> [i32; 4] {
     let (s, c) = (sc.sin, sc.cos);
     let mul = |a: i32, b: i32| {
         if SMALL {
@@ -532,7 +545,7 @@ fn sin_power<const DX: bool, const SMALL: bool>(
     }
     let d1 = mul(dp, c);
     let d2 = add(mul(mul(ddp, c), c), -mul(dp, s));
-    (i64::from(p), i64::from(d1), i64::from(d2), i64::from(pn))
+    [p, d1, d2, pn]
 }
 
 /// [`mul_q30`] for |a| < 2²⁹: `(4a·b + 2³¹) >> 32` is the same rounded

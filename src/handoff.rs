@@ -42,15 +42,26 @@
 //! * Operator requests (arm, disarm, clear a fault; [`Request`]) are bits of
 //!   one atomic word any priority may set; the loop tick takes them all at
 //!   its next tick.
+//! * Learning (loop tick → learner, `crate::learning`): each tick's
+//!   [`LearnSample`] goes into a single-producer single-consumer ring of
+//!   [`LEARN_QUEUE`] slots (the tick writes a slot, then publishes it with
+//!   one `Release` store of its head index; the learner reads the slots up
+//!   to it and frees them with one `Release` store of its tail index). A
+//!   full ring drops the sample and counts it lost; the learner, seeing the
+//!   count change, restarts its bin accounting. The learned table itself
+//!   ([`LearnedTable`]) is atomic words: the tick reads bins the learner
+//!   is not writing (see `servo::repetitive`).
 
 use crate::config::COLS;
 use crate::safety::{Device, Fault};
+use crate::servo::{LearnSample, LearnedTable};
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
-/// One published coefficient set.
+/// One published coefficient set: the column values at X, all the loop
+/// tick evaluates (Z and its φ-derivatives; the changes across the grid
+/// interval, for ∂Z/∂X, are not needed there and are not carried).
 pub(crate) struct CoeffSlot {
     pub(crate) value: [AtomicI32; COLS],
-    pub(crate) delta: [AtomicI32; COLS],
     pub(crate) x: AtomicI32,
     /// Live columns, or [`NULL_META`] for the null command.
     pub(crate) meta: AtomicU32,
@@ -66,7 +77,6 @@ impl CoeffSlot {
     pub(crate) const fn new() -> Self {
         Self {
             value: [const { AtomicI32::new(0) }; COLS],
-            delta: [const { AtomicI32::new(0) }; COLS],
             x: AtomicI32::new(0),
             meta: AtomicU32::new(NULL_META),
             seq: AtomicU32::new(0),
@@ -111,6 +121,70 @@ pub struct Shared {
     pub(crate) x_ignored: AtomicU32,
     /// Operator requests ([`Request`] bits), taken by the next loop tick.
     pub(crate) requests: AtomicU32,
+    /// The learned correction table (written by the learner).
+    pub(crate) learned: LearnedTable,
+    pub(crate) learn: LearnQueue,
+}
+
+/// Slots of the learning ring: the learner may fall this many ticks behind
+/// (it runs after every tick on the boards).
+pub const LEARN_QUEUE: usize = 8;
+
+/// The learning samples in flight (see the module docs).
+pub(crate) struct LearnQueue {
+    slots: [[AtomicU32; 4]; LEARN_QUEUE],
+    /// Samples written (the tick's), and read (the learner's).
+    head: AtomicU32,
+    tail: AtomicU32,
+    /// Samples the tick dropped (the ring was full), so far.
+    lost: AtomicU32,
+}
+
+impl LearnQueue {
+    const fn new() -> Self {
+        Self {
+            slots: [const { [const { AtomicU32::new(0) }; 4] }; LEARN_QUEUE],
+            head: AtomicU32::new(0),
+            tail: AtomicU32::new(0),
+            lost: AtomicU32::new(0),
+        }
+    }
+
+    /// Appends a sample (the loop tick, the only writer); a full ring
+    /// drops it and counts it lost.
+    #[inline(always)]
+    pub(crate) fn push(&self, s: &LearnSample) {
+        let h = self.head.load(Ordering::Relaxed);
+        if h.wrapping_sub(self.tail.load(Ordering::Acquire)) >= LEARN_QUEUE as u32 {
+            let n = self.lost.load(Ordering::Relaxed);
+            self.lost.store(n.wrapping_add(1), Ordering::Relaxed);
+            return;
+        }
+        let slot = &self.slots[h as usize % LEARN_QUEUE];
+        for (w, v) in slot.iter().zip(s.0) {
+            w.store(v, Ordering::Relaxed);
+        }
+        self.head.store(h.wrapping_add(1), Ordering::Release);
+    }
+
+    /// Takes the oldest sample (the learner, the only reader).
+    #[inline(always)]
+    pub(crate) fn pop(&self) -> Option<LearnSample> {
+        let t = self.tail.load(Ordering::Relaxed);
+        if t == self.head.load(Ordering::Acquire) {
+            return None;
+        }
+        let slot = &self.slots[t as usize % LEARN_QUEUE];
+        let s = LearnSample(core::array::from_fn(|k| slot[k].load(Ordering::Relaxed)));
+        self.tail.store(t.wrapping_add(1), Ordering::Release);
+        Some(s)
+    }
+
+    /// Samples dropped so far (the learner compares it with the count it
+    /// last saw).
+    pub(crate) fn lost(&self) -> u32 {
+        self.lost.load(Ordering::Relaxed)
+    }
 }
 
 /// What the operator (a switch, the host link, host-sim) asks of the loop.
@@ -150,7 +224,13 @@ impl Shared {
             x_accepted: AtomicU32::new(0),
             x_ignored: AtomicU32::new(0),
             requests: AtomicU32::new(0),
+            learned: LearnedTable::new(),
+            learn: LearnQueue::new(),
         }
+    }
+    /// The learned correction table (reports: its peak, a snapshot).
+    pub fn learned(&self) -> &LearnedTable {
+        &self.learned
     }
     /// Posts an operator request for the next loop tick (any priority,
     /// lock-free).
@@ -211,7 +291,7 @@ mod preemption_tests {
     extern crate std;
 
     use super::*;
-    use crate::looptick::{Estimator, LoopState, LoopX};
+    use crate::looptick::{Estimator, LoopState};
     use crate::servo::ServoDesign;
     use crate::spindle::{EdgeStamps, EncoderAngle, EncoderConfig};
     use crate::units::{SpindleAngle, XInches};
@@ -226,7 +306,6 @@ mod preemption_tests {
         null: bool,
         terms: usize,
         value: [i32; COLS],
-        delta: [i32; COLS],
     }
 
     #[derive(Clone, Copy, Debug)]
@@ -234,7 +313,6 @@ mod preemption_tests {
         Seq,
         X,
         Value(usize),
-        Delta(usize),
         Meta,
         Gen,
     }
@@ -247,7 +325,6 @@ mod preemption_tests {
         if !s.null {
             for i in 0..s.terms {
                 v.push(Step::Value(i));
-                v.push(Step::Delta(i));
             }
         }
         v.push(Step::Meta);
@@ -264,7 +341,6 @@ mod preemption_tests {
             }
             Step::X => slot.x.store(s.x, Ordering::Relaxed),
             Step::Value(i) => slot.value[i].store(s.value[i], Ordering::Relaxed),
-            Step::Delta(i) => slot.delta[i].store(s.delta[i], Ordering::Relaxed),
             Step::Meta => slot.meta.store(
                 if s.null { NULL_META } else { s.terms as u32 },
                 Ordering::Relaxed,
@@ -276,7 +352,7 @@ mod preemption_tests {
     fn loop_state() -> LoopState {
         let cfg = ServoDesign::brief(20_000).config().unwrap();
         let mut lp = LoopState::new(cfg);
-        lp.x = LoopX::Published;
+        lp.x_published = true;
         lp
     }
 
@@ -286,21 +362,17 @@ mod preemption_tests {
             prop::bool::weighted(0.2),
             1..=COLS,
             prop::array::uniform8(any::<i32>()),
-            prop::array::uniform8(any::<i32>()),
         )
-            .prop_map(|(x, null, terms, v, d)| {
+            .prop_map(|(x, null, terms, v)| {
                 let mut value = [0; COLS];
-                let mut delta = [0; COLS];
                 for i in 0..COLS {
                     value[i] = v[i % 8];
-                    delta[i] = d[i % 8];
                 }
                 Set {
                     x,
                     null,
                     terms,
                     value,
-                    delta,
                 }
             })
     }
@@ -320,12 +392,6 @@ mod preemption_tests {
                 &c.value[..s.terms],
                 &s.value[..s.terms],
                 "torn values, generation {}",
-                g
-            );
-            prop_assert_eq!(
-                &c.delta[..s.terms],
-                &s.delta[..s.terms],
-                "torn slopes, generation {}",
                 g
             );
         }
@@ -474,7 +540,7 @@ mod preemption_tests {
             coefficient_output: false,
             gauge_reversed: false,
         };
-        let mut ev = EventState::new(gen, &fc);
+        let mut ev = EventState::new(gen, &fc, None);
         let real = Shared::new();
         let mirror = Shared::new();
         for (k, (x_in, null)) in [(3.25, false), (4.0, true), (5.5, false)]
@@ -491,12 +557,10 @@ mod preemption_tests {
                 null: meta & NULL_META != 0,
                 terms: (meta & !NULL_META) as usize,
                 value: [0; COLS],
-                delta: [0; COLS],
             };
             assert_eq!(s.null, null);
             for i in 0..COLS {
                 s.value[i] = slot.value[i].load(Ordering::Relaxed);
-                s.delta[i] = slot.delta[i].load(Ordering::Relaxed);
             }
             for step in steps(&s) {
                 store(&mirror, g, &s, step);
@@ -517,10 +581,6 @@ mod preemption_tests {
                     assert_eq!(
                         a.value[i].load(Ordering::Relaxed),
                         b.value[i].load(Ordering::Relaxed)
-                    );
-                    assert_eq!(
-                        a.delta[i].load(Ordering::Relaxed),
-                        b.delta[i].load(Ordering::Relaxed)
                     );
                 }
             }

@@ -240,6 +240,24 @@ impl<'a> Interpolator<'a> {
         (rem.wrapping_mul(self.inv) >> self.k).min(u64::from(u32::MAX)) as u32
     }
 
+    /// For a grid step of 2ᵐ X bits (a binary grid: 1/32 in is 2¹⁹):
+    /// `32 − m`, the shift that gives [`Self::frac_of_rem`] of every
+    /// remainder below the step exactly. There `inv = 2^(32+k−m) + 1`, so
+    /// `rem·inv >> k = rem·2^(32−m) + ⌊rem/2ᵏ⌋`, and the last term is zero
+    /// for rem < 2ᵐ ≤ 2ᵏ (no wrap: rem·inv < 2^(33+k) ≤ 2⁶⁴). `None` for
+    /// any other grid.
+    pub(crate) fn frac_shift(&self) -> Option<u32> {
+        if !self.dx.is_power_of_two() {
+            return None;
+        }
+        let m = self.dx.trailing_zeros();
+        let exact = (1..=31).contains(&m)
+            && self.k >= m
+            && self.k <= 31
+            && self.inv == (1u64 << (32 + self.k - m)) + 1;
+        exact.then_some(32 - m)
+    }
+
     /// Whether X in `I8F24` is already in grid units (then a remainder in X
     /// bits is a remainder in grid units).
     pub(crate) fn x_in_grid_units(&self) -> bool {
@@ -405,6 +423,23 @@ mod tests {
         let mut out = vec![0u8; h.image_len()];
         h.encode(payload, &mut out).unwrap();
         out
+    }
+
+    /// The binary grid's shift is exactly the reciprocal's fraction for
+    /// every remainder in an interval of the default table (1/32 in = 2¹⁹
+    /// X bits), and a grid that is not binary has none.
+    #[test]
+    fn frac_shift_equals_the_reciprocal_for_every_remainder() {
+        let it = Interpolator::new(CoeffTable::parse(crate::DEFAULT_TABLE).unwrap());
+        let s = it.frac_shift().unwrap();
+        assert_eq!(s, 32 - 19);
+        for rem in 0..(1u32 << 19) {
+            assert_eq!(rem << s, it.frac_of_rem(u64::from(rem)), "{rem}");
+        }
+        let h = header(5, 1, 30, 24, 3 << 20);
+        let img = image(&h, &[0, 1, 2, 3, 4]);
+        let odd = Interpolator::new(CoeffTable::parse(&img).unwrap());
+        assert_eq!(odd.frac_shift(), None);
     }
 
     /// Exact value of the piecewise-linear function at X (f64 on exact

@@ -33,6 +33,8 @@ pub mod command;
 pub mod setpoint;
 pub mod servo;
 pub mod looptick;
+// Below the loop tick: the learning's update, fed by the tick's samples.
+pub mod learning;
 // Around the data path: the converters' drivers, the watchdog feed decision.
 pub mod drivers;
 pub mod watchdog;

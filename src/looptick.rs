@@ -5,7 +5,6 @@
 //! itself is `servo`, the command `command`/`setpoint`.
 
 use crate::codes::{CODE_MAX, CODE_MIN};
-use crate::coeffcache::IntervalCache;
 use crate::command::{Coefficients, CommandGen};
 use crate::config::COLS;
 use crate::handoff::{Request, Shared, NULL_META, X_FAULTS};
@@ -15,7 +14,6 @@ use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
 use crate::setpoint::{setpoint, SetpointState};
 use crate::spindle::{EncoderAngle, TachAngle};
 use crate::units::XInches;
-use crate::xpos::CountX;
 use core::sync::atomic::{fence, Ordering};
 
 /// One spindle reading, as the hw traits deliver it.
@@ -36,7 +34,13 @@ pub struct TickInput {
     /// [`crate::hw::Clock::now_ticks`] at the sampling instant.
     pub now: u32,
     pub spindle: SpindleReading,
-    /// Modern X mode: the X encoder's count ([`crate::hw::Encoder`]).
+    /// Modern X mode: the X encoder's count at the tick
+    /// ([`crate::hw::Encoder`]). The loop tick itself does not use it: the
+    /// coefficients at the count's X are the X handler's work, at its
+    /// lower priority ([`crate::xevent::EventState::x_count_event`]), and
+    /// reach the tick through the same hand-off as a legacy X event. The
+    /// `Firmware` bundle hands this count to that handler after the tick,
+    /// as a board's lower-priority handler would take it.
     pub x_count: u32,
     /// The power amplifier's fault line (high: it tripped).
     pub amplifier_fault: bool,
@@ -59,33 +63,18 @@ pub(crate) enum Estimator {
     Tach(TachAngle),
 }
 
-#[derive(Clone, Debug)]
-// The large variant is the only one a modern-X firmware uses (no heap to
-// box it in; the enum lives once, in the loop-tick state). Keeping the
-// cache here measured cheaper on the M4 than a separate field, and so did
-// copying the slopes every time over testing whether they changed.
-#[allow(clippy::large_enum_variant)]
-pub(crate) enum LoopX {
-    /// Coefficients arrive from the X handler.
-    Published,
-    /// Modern X: re-interpolated in the tick, through the interval cache
-    /// when the table takes the fast path (`Some`).
-    Count(CountX, Option<IntervalCache>),
-    None,
-}
-
 /// State of the loop-tick handler (highest priority).
 #[derive(Clone, Debug)]
 pub struct LoopState {
     pub(crate) gen: Option<CommandGen<'static>>,
     pub(crate) spindle: Estimator,
-    pub(crate) x: LoopX,
+    /// Coefficients arrive from the X handler (an X source is configured).
+    pub(crate) x_published: bool,
     pub(crate) gauge_reversed: bool,
     pub(crate) coeffs: Coefficients,
     pub(crate) coeff_seen: u32,
     pub(crate) index_seen: u32,
     pub(crate) x_faults_seen: u32,
-    pub(crate) last_x_count: Option<u32>,
     /// The angle history of the setpoint's rates.
     pub(crate) sp: SetpointState,
     /// X of the last coefficient set (learning freezes when it jumps).
@@ -94,12 +83,15 @@ pub struct LoopState {
     pub(crate) target: i32,
     /// The offset on the last tick.
     pub(crate) last_target: i32,
+    /// The slew rate, whole codes per tick (a target step within it is a
+    /// motion, not a jump).
+    pub(crate) slew_codes: u32,
     /// Table command of the last tick, gauge codes.
     pub(crate) table_code: i32,
     /// Velocity input of the last tick (∂Z/∂φ·Δφ), codes/tick Q16.
-    pub(crate) ff_q16: i64,
+    pub(crate) ff_q16: i32,
     /// Acceleration input of the last tick, codes/tick², Q16.
-    pub(crate) accel_q16: i64,
+    pub(crate) accel_q16: i32,
     pub(crate) servo: Servo,
     /// Gauge code of the last good sample (+Z).
     pub(crate) position: i32,
@@ -125,17 +117,17 @@ impl LoopState {
         Self {
             gen: None,
             spindle: Estimator::None,
-            x: LoopX::None,
+            x_published: false,
             gauge_reversed: false,
             coeffs: Coefficients::NULL,
             coeff_seen: 0,
             index_seen: 0,
             x_faults_seen: 0,
-            last_x_count: None,
             sp: SetpointState::default(),
             last_coeff_x: None,
             target: 0,
             last_target: 0,
+            slew_codes: (cfg.slew_q16 >> 16).clamp(0, i64::from(u32::MAX)) as u32,
             table_code: 0,
             ff_q16: 0,
             accel_q16: 0,
@@ -208,7 +200,7 @@ impl LoopState {
                 self.trip(f);
             }
         }
-        if matches!(self.x, LoopX::Published) {
+        if self.x_published {
             let g = sh.coeff_gen.load(Ordering::Acquire);
             if g != self.coeff_seen {
                 let slot = &sh.coeff[(g & 1) as usize];
@@ -218,15 +210,9 @@ impl LoopState {
                     self.coeffs.set_null(x);
                 } else {
                     let n = (meta as usize).min(COLS);
-                    let src = slot.value.iter().zip(slot.delta.iter());
-                    let dst = self
-                        .coeffs
-                        .value
-                        .iter_mut()
-                        .zip(self.coeffs.delta.iter_mut());
-                    for ((v, d), (sv, sd)) in dst.zip(src).take(n) {
+                    let src = slot.value.iter();
+                    for (v, sv) in self.coeffs.value.iter_mut().zip(src).take(n) {
                         *v = sv.load(Ordering::Relaxed);
-                        *d = sd.load(Ordering::Relaxed);
                     }
                     self.coeffs.set_live(n as u8, x);
                 }
@@ -259,21 +245,21 @@ impl LoopState {
         self.take_published(sh);
         // The gauge is read even with the amplifier off: a clear request
         // needs to see whether a gauge fault's cause is gone.
-        let read = gauge.read();
-        let gauge_fault = match read {
-            Err(_) => Some(Fault::Bus(Device::GaugeAdc)),
-            Ok(s) if s.overrange => Some(Fault::GaugeRange),
+        let read = match gauge.read() {
+            Err(_) => Err(Fault::Bus(Device::GaugeAdc)),
+            Ok(s) if s.overrange => Err(Fault::GaugeRange),
             // A reading on a rail without OV: the gauge's own output is
             // pinned, so the loop cannot see where the slide is beyond it.
-            Ok(s) if s.code <= CODE_MIN || s.code >= CODE_MAX => Some(Fault::GaugeSaturated),
-            Ok(_) => None,
+            // (Inside the rails the code is a 20-bit one.)
+            Ok(s) if s.code <= CODE_MIN || s.code >= CODE_MAX => Err(Fault::GaugeSaturated),
+            Ok(s) => Ok(s.code),
         };
-        self.gauge_bad = gauge_fault.is_some();
+        self.gauge_bad = read.is_err();
         self.take_requests(sh, input.amplifier_fault);
-        let sample = match (read, gauge_fault) {
-            (Ok(s), None) => s,
-            (_, f) => {
-                self.trip(f.unwrap_or(Fault::Bus(Device::GaugeAdc)));
+        let code = match read {
+            Ok(c) => c,
+            Err(f) => {
+                self.trip(f);
                 self.hold_safe(dac);
                 return;
             }
@@ -282,12 +268,7 @@ impl LoopState {
             self.hold_safe(dac);
             return;
         }
-        let code = if self.gauge_reversed {
-            sample.code.saturating_neg()
-        } else {
-            sample.code
-        };
-        let y = code.clamp(CODE_MIN, CODE_MAX);
+        let y = if self.gauge_reversed { -code } else { code };
         self.position = y;
 
         // Spindle angle.
@@ -312,29 +293,6 @@ impl LoopState {
             None => None,
         };
 
-        // Modern X: re-interpolate when the count moved.
-        if let LoopX::Count(cx, cache) = &mut self.x {
-            if self.last_x_count != Some(input.x_count) {
-                self.last_x_count = Some(input.x_count);
-                let moved = cx.on_tick(input.x_count);
-                let r = match (moved, self.gen.as_ref(), cache) {
-                    (Ok(x), Some(g), Some(c)) => {
-                        let n = usize::from(g.interpolator().table().header().terms);
-                        c.coefficients_into(g, n.min(COLS), x, &mut self.coeffs)
-                    }
-                    (Ok(x), Some(g), None) => g.coefficients_into(x, &mut self.coeffs),
-                    (Err(f), _, _) => Err(f),
-                    (Ok(_), None, _) => Ok(()),
-                };
-                if let Err(f) = r {
-                    self.trip(f);
-                }
-                if let Ok(x) = moved {
-                    self.note_x(x);
-                }
-            }
-        }
-
         // The command and its analytic rates.
         let dphi = self.sp.dphi(phi);
         let table = setpoint(self.gen.as_ref(), &self.coeffs, phi, &mut self.sp);
@@ -350,32 +308,45 @@ impl LoopState {
             // The target offset's own rate (a user signal, clean) joins the
             // table's analytic rate in the velocity feedforward when it is a
             // motion (a step is approached by the servo's slew profile).
-            let step = i64::from(self.target) - i64::from(self.last_target);
-            let slew_codes = self.servo.config().slew_q16 >> 16;
-            let target_step = if step.abs() <= slew_codes { step } else { 0 };
+            // Both within the gauge's range: the step fits an i32.
+            let step = self.target - self.last_target;
+            let target_step = if step != 0 && step.unsigned_abs() <= self.slew_codes {
+                step
+            } else {
+                0
+            };
             Reference {
                 code: self
                     .target
                     .saturating_add(table_code)
                     .clamp(CODE_MIN, CODE_MAX),
-                velocity_q16: slope + (target_step << 16),
+                // A step of the target within the slew rate is motion (at
+                // most 2¹⁴ codes per tick counted: 6 in/s at 20 kHz).
+                velocity_q16: slope.saturating_add(target_step.clamp(-(1 << 14), 1 << 14) << 16),
                 accel_q16: accel,
             }
         };
         self.last_target = self.target;
-        let out = self.servo.update(&ServoInput {
-            gauge_code: y,
-            reference,
-            angle: phi.map(|p| (p, dphi)),
-            freeze: if faulted {
-                Some(Freeze::Fault)
-            } else if self.coeffs.null || self.gen.is_none() {
-                Some(Freeze::Null)
-            } else {
-                None
+        let out = self.servo.update(
+            &ServoInput {
+                gauge_code: y,
+                reference,
+                angle: phi.map(|p| (p, dphi)),
+                freeze: if faulted {
+                    Some(Freeze::Fault)
+                } else if self.coeffs.null || self.gen.is_none() {
+                    Some(Freeze::Null)
+                } else {
+                    None
+                },
+                amplifier_tripped: input.amplifier_fault,
             },
-            amplifier_tripped: input.amplifier_fault,
-        });
+            &sh.learned,
+        );
+        if let Some(s) = &out.learn {
+            // The learner runs below this priority (`crate::learning`).
+            sh.learn.push(s);
+        }
         if let Some(f) = out.fault {
             self.trip(f);
             if self.amplifier_must_be_off() {
@@ -526,19 +497,21 @@ impl LoopState {
         self.output
     }
     /// Velocity feedforward input of the last tick, gauge codes per tick, Q16.
-    pub fn feedforward_q16(&self) -> i64 {
+    pub fn feedforward_q16(&self) -> i32 {
         self.ff_q16
     }
     /// Acceleration feedforward input of the last tick (∂²Z/∂φ²·Δφ²),
     /// gauge codes per tick², Q16.
-    pub fn accel_q16(&self) -> i64 {
+    pub fn accel_q16(&self) -> i32 {
         self.accel_q16
     }
     /// Whether the DAC has acknowledged its clamp to ground.
     pub fn dac_clamped(&self) -> bool {
         self.dac_clamped
     }
-    /// The coefficients the loop tick evaluates.
+    /// The coefficients the loop tick evaluates: the column values at X
+    /// (`delta`, the changes across the grid interval, is not kept up to
+    /// date here: the tick evaluates Z and its φ-derivatives only).
     pub fn coefficients(&self) -> &Coefficients {
         &self.coeffs
     }

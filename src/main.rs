@@ -10,6 +10,7 @@
 //! | 0x00 | `TIM3` | loop tick, 20 kHz, TIM3 CC2 | `LoopState::loop_tick`: gauge, spindle angle, command, loop, DAC; watchdog |
 //! | 0x10 | `EXTI2` | legacy X half-mil interrupt, PG2 | `EventState::x_event` on the latched word |
 //! | 0x10 | `TIM2` | spindle index, TIM2 CH1 capture (PA0) | `Shared::index_event` with the captured time and count |
+//! | 0x20 | `TIM7` | pended by the loop tick (TIM7 itself unused) | `LearnState::run`: the learning on the tick's sample |
 //! | thread | `main` loop | - | background: host link (`zslide::link`, RTT), status and fault logging, arm button, watchdog |
 //!
 //! Each handler owns its part of the firmware outright (moved in once,
@@ -32,7 +33,7 @@ mod app {
     use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI3, SPI4};
     use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686, ad5791::Ad5791};
     use zslide::firmware::{
-        EventState, Firmware, FirmwareConfig, LoopState, Request, Shared, SpindleMode,
+        EventState, Firmware, FirmwareConfig, LearnState, LoopState, Request, Shared, SpindleMode,
         SpindleReading, TickInput, XMode,
     };
     use zslide::hw::{Encoder, XLatch};
@@ -59,6 +60,8 @@ mod app {
     const PRIO_LOOP_TICK: u8 = 0x00;
     const PRIO_X_EVENT: u8 = 0x10;
     const PRIO_INDEX: u8 = 0x10;
+    /// The learning: below the X events (it may wait a tick or two).
+    const PRIO_LEARN: u8 = 0x20;
 
     /// The spindle encoder's counts per turn after ×4 decoding (a board
     /// setting: 1024-line encoder).
@@ -114,6 +117,7 @@ mod app {
     static SHARED: Shared = Shared::new();
     static HANDOFF: Mutex<Cell<Option<Loop>>> = Mutex::new(Cell::new(None));
     static HANDOFF_X: Mutex<Cell<Option<XHandler>>> = Mutex::new(Cell::new(None));
+    static HANDOFF_LEARN: Mutex<Cell<Option<LearnState>>> = Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The amplifier is enabled (the loop armed), for the arm button.
     static ARMED: AtomicBool = AtomicBool::new(false);
@@ -196,7 +200,7 @@ mod app {
                 _ => Err(zslide::table::TableError::Missing),
             },
         };
-        let (mut lp, ev) = fw.into_parts();
+        let (mut lp, ev, learn) = fw.into_parts();
         if let Err(e) = table {
             defmt::error!(
                 "coefficient table refused, slide held at null: {}",
@@ -249,6 +253,7 @@ mod app {
                 quad,
                 generation: 0,
             }));
+            HANDOFF_LEARN.borrow(cs).set(Some(learn));
         });
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
@@ -263,9 +268,11 @@ mod app {
             cp.NVIC.set_priority(Interrupt::TIM3, PRIO_LOOP_TICK);
             cp.NVIC.set_priority(Interrupt::EXTI2, PRIO_X_EVENT);
             cp.NVIC.set_priority(Interrupt::TIM2, PRIO_INDEX);
+            cp.NVIC.set_priority(Interrupt::TIM7, PRIO_LEARN);
             NVIC::unmask(Interrupt::TIM3);
             NVIC::unmask(Interrupt::EXTI2);
             NVIC::unmask(Interrupt::TIM2);
+            NVIC::unmask(Interrupt::TIM7);
         }
 
         background(station, rtt)
@@ -385,6 +392,8 @@ mod app {
             amplifier_fault: pins::AMP_FAULT.is_high(),
         };
         l.lp.loop_tick(&SHARED, &input, &mut l.gauge, &mut l.dac);
+        // The learning on this tick's sample, once the tick is done.
+        NVIC::pend(Interrupt::TIM7);
         let enable = l.lp.amplifier_enable();
         pins::AMP_ENABLE.set(enable);
         trace::emit(Event::LoopExit, timers::now_ticks());
@@ -417,6 +426,19 @@ mod app {
                 x.generation = g;
                 trace::emit(Event::Coefficients(g), timers::now_ticks());
             }
+        }
+    }
+
+    /// The learning (pended by every loop tick; the timer TIM7 itself is
+    /// not used): the tick's samples into the learned table.
+    #[interrupt]
+    fn TIM7() {
+        static mut LEARN: Option<LearnState> = None;
+        if LEARN.is_none() {
+            *LEARN = critical_section::with(|cs| HANDOFF_LEARN.borrow(cs).take());
+        }
+        if let Some(l) = LEARN.as_mut() {
+            l.run(&SHARED);
         }
     }
 

@@ -110,10 +110,12 @@ const SIN_TABLE: [i32; TABLE_LEN] = {
     t
 };
 
-/// Product of a Q30 value and a Q32 value, rounded, in Q30.
+/// Product of a Q30 value and a Q32 value below 2³¹, rounded, in Q30: one
+/// `SMMULR` on the Cortex-M4 (both operands are `i32`, so the compiler
+/// sees a 32×32 multiply).
 #[inline(always)]
-fn mul_q32(a: i32, b_q32: u32) -> i64 {
-    (i64::from(a) * i64::from(b_q32) + (1 << 31)) >> 32
+fn mul_q32(a: i32, b_q32: u32) -> i32 {
+    ((i64::from(a) * i64::from(b_q32 as i32) + (1 << 31)) >> 32) as i32
 }
 
 /// sin φ and cos φ of a binary angle. Never panics; total on every input.
@@ -132,12 +134,15 @@ pub fn sin_cos(angle: SpindleAngle) -> SinCos {
     let d2h = ((dd * dd) >> 33) as u32;
     // < 2^25: a 32-bit division by a constant (a multiply), not a 64-bit call.
     let d3s = ((u64::from(d2h) * dd) >> 32) as u32 / 3;
-    let s = i64::from(s0) + mul_q32(c0, d) - mul_q32(s0, d2h) - mul_q32(c0, d3s);
-    let c = i64::from(c0) - mul_q32(s0, d) - mul_q32(c0, d2h) + mul_q32(s0, d3s);
+    // All in i32: |s0|, |c0| ≤ 2³⁰ and each correction is below 2²⁵, so
+    // the sums cannot overflow (and stay 32-bit values for the multiplies
+    // of the series that use them).
+    let s = s0 + mul_q32(c0, d) - mul_q32(s0, d2h) - mul_q32(c0, d3s);
+    let c = c0 - mul_q32(s0, d) - mul_q32(c0, d2h) + mul_q32(s0, d3s);
     // |s|, |c| ≤ 2^30 + 3: the clamp only guards the format's edge.
     SinCos {
-        sin: s.clamp(-i64::from(ONE), i64::from(ONE)) as i32,
-        cos: c.clamp(-i64::from(ONE), i64::from(ONE)) as i32,
+        sin: s.clamp(-ONE, ONE),
+        cos: c.clamp(-ONE, ONE),
     }
 }
 

@@ -1,8 +1,9 @@
 //! The X / index handlers (one priority level below the loop tick):
 //! legacy half-mil X events decoded, debounced and scheduled, the
 //! coefficients at the new X published for the loop tick (and, in the
-//! legacy coefficient-output mode, written to the quad DAC); index pulses
-//! published as they come.
+//! legacy coefficient-output mode, written to the quad DAC); in the modern
+//! X mode the X count, taken periodically at this priority, re-interpolated
+//! and published the same way; index pulses published as they come.
 
 use crate::coeffcache::{fast_and_terms, fast_columns, general_columns, IntervalCache};
 use crate::command::{CommandGen, LegacyOutput};
@@ -11,7 +12,7 @@ use crate::handoff::{Shared, NULL_META};
 use crate::hw::{BusError, CoefficientDac, XLatchWord};
 use crate::safety::{Device, Fault};
 use crate::units::XInches;
-use crate::xpos::{LegacyConfig, LegacyX, XEvent};
+use crate::xpos::{CountX, LegacyConfig, LegacyX, XEvent};
 use core::sync::atomic::{fence, Ordering};
 
 /// A quad DAC that is not there (the coefficient-output mode is off).
@@ -25,25 +26,35 @@ impl CoefficientDac for NoCoefficientDac {
 }
 
 /// State of the X and index handlers (one priority level below the tick).
+// In declaration order, the slope table last: every other field stays
+// within the M4's 12-bit load offset of the state's address.
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub struct EventState {
     pub(crate) gen: Option<CommandGen<'static>>,
     pub(crate) legacy: Option<LegacyX>,
+    /// Modern X: the count's scale and glitch check, and the last count
+    /// published (an unchanged count publishes nothing).
+    pub(crate) count: Option<CountX>,
+    pub(crate) last_count: Option<u32>,
     pub(crate) coefficient_output: bool,
     pub(crate) out: LegacyOutput,
-    pub(crate) cache: IntervalCache,
-    /// Q30 tables with every |coefficient| ≤ COEFF_LIMIT/2 (all real ones:
-    /// no clamp in `coefficients_into`, node changes fit an i32) take the
-    /// cached path; others the command path's general one.
+    /// Tables within the slope path's range ([`fast_and_terms`]: every
+    /// real one) take it; others the command path's general one.
     pub(crate) fast: bool,
     pub(crate) terms: u8,
-    /// The interval whose changes each slot's `delta` holds.
-    pub(crate) slot_interval: [Option<u32>; 2],
     pub(crate) coeff_gen: u32,
+    pub(crate) cache: IntervalCache,
 }
 
 impl EventState {
-    pub(crate) fn new(gen: Option<CommandGen<'static>>, cfg: &FirmwareConfig) -> Self {
+    /// The X handlers' state; `count` is the modern X mode's scale (built
+    /// and checked by the caller from [`XMode::Count`]).
+    pub(crate) fn new(
+        gen: Option<CommandGen<'static>>,
+        cfg: &FirmwareConfig,
+        count: Option<CountX>,
+    ) -> Self {
         let legacy = match (cfg.x, gen) {
             (XMode::Legacy { clock_hz }, Some(g)) => {
                 Some(LegacyX::new(LegacyConfig::new(g.x_null(), clock_hz)))
@@ -58,12 +69,13 @@ impl EventState {
         Self {
             gen,
             legacy,
+            count,
+            last_count: None,
             coefficient_output: cfg.coefficient_output,
             out: LegacyOutput::new(),
             cache: IntervalCache::new(gen.as_ref()),
             fast,
             terms,
-            slot_interval: [None; 2],
             coeff_gen: 0,
         }
     }
@@ -118,6 +130,35 @@ impl EventState {
         Ok(XEvent::Update(u))
     }
 
+    /// Modern X mode: the X count, taken by the board periodically at this
+    /// handler's priority (about once per loop tick). When it moved, the
+    /// coefficients at its X are published for the loop tick exactly as a
+    /// legacy X event publishes them (one mechanism for both modes, and the
+    /// re-interpolation stays out of the loop tick). A jump beyond the
+    /// configured step is [`Fault::XGlitchStorm`], below the table
+    /// [`Fault::XOutsideTable`], both raised for the loop tick; in the null
+    /// zone the command is null.
+    ///
+    /// Never inlined, so `cargo xtask isr-cost` can find and count it.
+    #[inline(never)]
+    pub fn x_count_event(&mut self, sh: &Shared, count: u32) -> Result<(), Fault> {
+        let Some(cx) = self.count.as_mut() else {
+            return Ok(());
+        };
+        if self.last_count == Some(count) {
+            return Ok(());
+        }
+        self.last_count = Some(count);
+        let published = match cx.on_tick(count) {
+            Ok(x) => self.publish(sh, x, false),
+            Err(f) => Err(f),
+        };
+        if let Err(f) = published {
+            sh.raise(f);
+        }
+        published
+    }
+
     /// Computes every column at `x` into the free slot and publishes it.
     #[inline(always)]
     pub(crate) fn publish(&mut self, sh: &Shared, x: XInches, null: bool) -> Result<(), Fault> {
@@ -128,13 +169,12 @@ impl EventState {
         fence(Ordering::Release);
         slot.x.store(x.to_bits(), Ordering::Relaxed);
         let terms = usize::from(self.terms);
-        let (cache, held) = (&mut self.cache, &mut self.slot_interval);
         let live = match self.gen.as_ref() {
             Some(g) if !null => {
                 if self.fast {
-                    fast_columns(g, cache, held, terms, slot, which, x)?
+                    fast_columns(g, &mut self.cache, terms, slot, x)?
                 } else {
-                    general_columns(g, held, terms, slot, which, x)?
+                    general_columns(g, terms, slot, x)?
                 }
             }
             _ => false,

@@ -94,7 +94,7 @@ fn design() -> ServoDesign {
 impl Rig {
     fn new() -> Self {
         let cfg: ServoConfig = design().config().unwrap();
-        let (lp, _) = Firmware::new(cfg).into_parts();
+        let (lp, _, _) = Firmware::new(cfg).into_parts();
         let station = Station::new(StationConfig {
             loop_hz: 20_000,
             x_source: XSource::None,

@@ -326,7 +326,7 @@ pub fn run(spec: &SoakSpec, progress: &dyn Fn(f64)) -> anyhow::Result<Vec<HourSu
             following_error_peak_uin: a.fe_peak * 1e6,
             phase_error_mean_deg: a.ph_sum / a.ph_n.max(1) as f64,
             phase_error_max_deg: a.ph_max,
-            learned_peak_uin: f64::from(w.fw.servo().learning().peak_code()) * 0.010e6
+            learned_peak_uin: f64::from(w.fw.shared().learned().peak_code()) * 0.010e6
                 / f64::from(1u32 << 19),
             x_events: st.x_events - last.0,
             x_glitched_latches: st.x_stale - last.1,

@@ -144,7 +144,7 @@ pub fn run(sc: &Scenario, spec: &TrackSpec) -> anyhow::Result<TrackReport> {
     let learn_end = t + u64::from(spec.learn_revs) * rev_ns;
     s.run_until(&mut w, learn_end);
     let learning_revs = match spec.controller {
-        Controller::Digital => w.fw.servo().learning().revolutions(),
+        Controller::Digital => w.fw.learning().revolutions(),
         Controller::LegacyAnalog => 0,
     };
     let end = learn_end + u64::from(spec.measure_revs) * rev_ns;

@@ -10,7 +10,7 @@ use zslide::drivers::ad4020::Ad4020;
 use zslide::drivers::ad5791::Ad5791;
 use zslide::hw::{AmplifierDac, GaugeAdc};
 use zslide::safety::Fault;
-use zslide::servo::{Reference, Servo, ServoDesign, ServoInput};
+use zslide::servo::{LearnedTable, Learner, Reference, Servo, ServoDesign, ServoInput};
 use zslide::units::SpindleAngle;
 
 const TURN: f64 = 4_294_967_296.0;
@@ -51,7 +51,10 @@ fn run(design: ServoDesign, rig_cfg: RigConfig, r: Run) -> Result {
     let mut dac = Ad5791::new(dev.amp_dac);
     dac.init().unwrap();
     let mut en = dev.amp_enable;
-    let mut servo = Servo::new(design.config().unwrap());
+    let cfg = design.config().unwrap();
+    let mut servo = Servo::new(cfg);
+    // The learning runs after every tick, as below the loop tick on a board.
+    let (mut learner, learned) = (Learner::new(&cfg), LearnedTable::new());
     servo.arm();
     let fs = f64::from(design.rate_hz);
     let h_ns = (1e9 / fs) as u64;
@@ -80,21 +83,27 @@ fn run(design: ServoDesign, rig_cfg: RigConfig, r: Run) -> Result {
         let a = -r.amp_in * k * k * w * w * (k * th).sin();
         let phi = SpindleAngle(((theta.fract()) * TURN) as u32);
         let dphi = (rev_per_tick * TURN) as i32;
-        let out = servo.update(&ServoInput {
-            gauge_code: y,
-            reference: Reference {
-                code: (z * CODES_PER_IN).round() as i32,
-                velocity_q16: (v * CODES_PER_IN * 65536.0) as i64,
-                accel_q16: (a * CODES_PER_IN * 65536.0) as i64,
+        let out = servo.update(
+            &ServoInput {
+                gauge_code: y,
+                reference: Reference {
+                    code: (z * CODES_PER_IN).round() as i32,
+                    velocity_q16: (v * CODES_PER_IN * 65536.0) as i32,
+                    accel_q16: (a * CODES_PER_IN * 65536.0) as i32,
+                },
+                angle: Some((phi, dphi)),
+                freeze: r.freeze,
+                amplifier_tripped: rig.amp.tripped(),
             },
-            angle: Some((phi, dphi)),
-            freeze: r.freeze,
-            amplifier_tripped: rig.amp.tripped(),
-        });
+            &learned,
+        );
+        if let Some(s) = &out.learn {
+            learner.apply(s, &learned);
+        }
         if fault.is_none() {
             fault = out.fault;
         }
-        d_peak = d_peak.max((servo.estimate().d_q16 as f64 / 65536.0).abs());
+        d_peak = d_peak.max((f64::from(servo.estimate().d_q8) / 256.0).abs());
         last_err = rig.slide.position_in() - z;
         dac.write(out.dac_code).unwrap();
         if out.enable != enabled {

@@ -276,7 +276,7 @@ impl ServoDesign {
                 coeff(lf[1])?,
                 gain(lf[2], q24).map_err(|_| E::ObserverFast)?,
             ],
-            switch_q16: (self.observer_switch_uin * 1e-6 * s.codes_per_in() * 65_536.0) as i64,
+            switch_q8: (self.observer_switch_uin * 1e-6 * s.codes_per_in() * 256.0) as i32,
             hold_ticks: libm::round(self.observer_hold_ms * 1e-3 * fs) as u32,
         };
 

@@ -60,8 +60,8 @@ pub struct SignCheck {
     half_ticks: u32,
     expected_code: i32,
     tick: u32,
-    y0_q16: i64,
-    moved_q16: i64,
+    y0_q8: i32,
+    moved_q8: i32,
 }
 
 impl SignCheck {
@@ -71,8 +71,8 @@ impl SignCheck {
             half_ticks: half_ticks.max(1),
             expected_code,
             tick: 0,
-            y0_q16: 0,
-            moved_q16: 0,
+            y0_q8: 0,
+            moved_q8: 0,
         }
     }
 
@@ -81,27 +81,27 @@ impl SignCheck {
         self.pulse_code != 0 && self.expected_code != 0
     }
 
-    pub fn start(&mut self, y_q16: i64) {
+    pub fn start(&mut self, y_q8: i32) {
         self.tick = 0;
-        self.y0_q16 = y_q16;
-        self.moved_q16 = 0;
+        self.y0_q8 = y_q8;
+        self.moved_q8 = 0;
     }
 
-    /// One tick of the doublet with the gauge reading `y_q16` (Q16 codes).
+    /// One tick of the doublet with the gauge reading `y_q8` (Q8 codes,
+    /// |y| < 2²⁸).
     #[inline]
-    pub fn step(&mut self, y_q16: i64) -> SignStep {
+    pub fn step(&mut self, y_q8: i32) -> SignStep {
         let t = self.tick;
         self.tick = t.saturating_add(1);
         if t == self.half_ticks {
-            self.moved_q16 = y_q16 - self.y0_q16;
+            self.moved_q8 = y_q8.saturating_sub(self.y0_q8);
         }
         if t < self.half_ticks {
             SignStep::Drive(self.pulse_code)
         } else if t < 2 * self.half_ticks {
             SignStep::Drive(-self.pulse_code)
         } else {
-            let moved =
-                (self.moved_q16 >> 16).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+            let moved = self.moved_q8 >> 8;
             let e = i64::from(self.expected_code);
             let m = i64::from(moved);
             // Same sign and within ×3 of the model either way.
@@ -126,9 +126,9 @@ impl SignCheck {
 mod tests {
     use super::*;
 
-    fn run(check: &mut SignCheck, response: impl Fn(i32) -> i64) -> SignStep {
+    fn run(check: &mut SignCheck, response: impl Fn(i32) -> i32) -> SignStep {
         check.start(0);
-        let mut y = 0i64;
+        let mut y = 0i32;
         let mut last = 0;
         for _ in 0..1000 {
             match check.step(y) {
@@ -146,13 +146,13 @@ mod tests {
     #[test]
     fn a_slide_that_moves_as_modelled_passes() {
         let mut c = SignCheck::new(1000, 10, 500);
-        assert_eq!(run(&mut c, |u| i64::from(u) << 12), SignStep::Passed);
+        assert_eq!(run(&mut c, |u| u << 4), SignStep::Passed);
     }
 
     #[test]
     fn a_reversed_gauge_fails_with_the_measured_move() {
         let mut c = SignCheck::new(1000, 10, 500);
-        let r = run(&mut c, |u| -(i64::from(u) << 12));
+        let r = run(&mut c, |u| -(u << 4));
         assert!(
             matches!(r, SignStep::Failed { moved, expected: 500 } if moved < 0),
             "{r:?}"

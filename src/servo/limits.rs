@@ -14,76 +14,117 @@ use crate::safety::Fault;
 
 /// Steps `from` toward `to` by at most `max_step` (> 0).
 #[inline(always)]
-pub const fn step_toward(from: i64, to: i64, max_step: i64) -> i64 {
-    if to > from + max_step {
+pub const fn step_toward(from: i32, to: i32, max_step: i32) -> i32 {
+    if to > from.saturating_add(max_step) {
         from + max_step
-    } else if to < from - max_step {
+    } else if to < from.saturating_sub(max_step) {
         from - max_step
     } else {
         to
     }
 }
 
+/// Largest slew rate, Q16 codes per tick (16 384 codes per tick, 6 in/s at
+/// 20 kHz: far beyond the design's 10 in/s limit only at rates under
+/// 12 kHz, where it then limits).
+const V_MAX_LIMIT: i32 = 1 << 30;
+/// Largest acceleration, Q16 codes per tick².
+const A_MAX_LIMIT: i32 = (1 << 26) - 1;
+
 /// The command's approach to a goal it is not on (engagement, disarming, a
 /// target step, a fault's ramp to null): velocity limited to the slew rate
-/// and acceleration limited, braking in time to arrive at rest, so that
-/// the feedforward of the ramp (its acceleration through the plant
-/// inverse) stays bounded and the slide does not overshoot at the end of
-/// a ramp. No division: the braking test is `v² ≥ 2·a·|d|`.
+/// and acceleration limited, braking in time to arrive at rest on the
+/// goal, so that the feedforward of the ramp (its acceleration through the
+/// plant inverse) stays bounded and the slide does not overshoot at the
+/// end of a ramp: the speed toward the goal never exceeds √(2·a·|d|).
+///
+/// Formats: the offset from the goal is Q8 codes (|offset| < 2²⁹),
+/// velocities Q16 codes per tick and accelerations Q16 codes per tick²
+/// (`i32`); the offset moves by the velocity rounded to Q8.
 #[derive(Clone, Debug)]
 pub struct SlewProfile {
-    v_max_q16: i64,
-    a_max_q16: i64,
-    /// Velocity of the command, codes per tick Q16.
-    v_q16: i64,
+    v_max_q16: i32,
+    a_max_q16: i32,
+    /// |offset| (Q8) within which the braking speed and the rate limit are
+    /// both at least the distance: ⌊min(2a, v_max) / 2⁸⌋.
+    near_q8: u32,
+    /// v_max², Q32.
+    v_max_sq: u64,
+    /// Velocity of the command relative to the goal, Q16 codes per tick.
+    v_q16: i32,
 }
 
 impl SlewProfile {
     pub fn new(v_max_q16: i64, a_max_q16: i64) -> Self {
+        let v_max_q16 = v_max_q16.clamp(1, i64::from(V_MAX_LIMIT)) as i32;
+        let a_max_q16 = a_max_q16.clamp(1, i64::from(A_MAX_LIMIT)) as i32;
         Self {
-            v_max_q16: v_max_q16.clamp(1, 1 << 31),
-            a_max_q16: a_max_q16.clamp(1, (1 << 26) - 1),
+            v_max_q16,
+            a_max_q16,
+            near_q8: ((2 * a_max_q16).min(v_max_q16) >> 8) as u32,
+            v_max_sq: u64::from(v_max_q16.unsigned_abs()) * u64::from(v_max_q16.unsigned_abs()),
             v_q16: 0,
         }
     }
 
-    /// One tick from `cmd` toward `goal` (Q16 codes): the new command and
-    /// its velocity and acceleration (Q16 per tick, per tick²). The speed
-    /// toward the goal never exceeds √(2·a·distance) (it can always stop
-    /// in time), so it arrives on the goal without overshooting, landing
-    /// from at most 2a.
+    /// One tick of the command at `offset_q8` from its goal: the new offset
+    /// and the command's velocity and acceleration relative to the goal (Q16
+    /// per tick, per tick²). It arrives on the goal (offset 0) without
+    /// overshooting, landing from at most 2a.
     #[inline]
-    pub fn step(&mut self, cmd: i64, goal: i64) -> (i64, i64, i64) {
-        let d = goal - cmd;
+    pub fn step(&mut self, offset_q8: i32) -> (i32, i32, i32) {
+        let offset_q8 = offset_q8.clamp(-(1 << 29) + 1, (1 << 29) - 1);
         let v0 = self.v_q16;
-        if d == 0 {
+        if offset_q8 == 0 {
             // On the goal (the steady state of every tick while tracking):
             // the arrival below, without the root it would not use.
             self.v_q16 = 0;
-            return (goal, 0, -v0);
+            return (0, 0, -v0);
         }
+        // Everything in the direction toward the goal: the distance to go
+        // (Q8, < 2²⁹) and the speed toward it (|v₀| ≤ v_max ≤ 2³⁰).
+        let up_goal = offset_q8 < 0;
+        let dist = offset_q8.unsigned_abs();
         let a = self.a_max_q16;
-        // 2·a·|d| < 2⁶⁴: a < 2²⁶ (the design's bound) and |d| < 2³⁷ (twice
-        // the gauge's span, Q16); beyond that the speed is the rate limit.
-        let dist = d.unsigned_abs().min((1 << 37) - 1);
-        let vmax = self.v_max_q16.unsigned_abs();
-        let two_a_d = 2 * a.unsigned_abs() * dist;
-        // Far from the goal the rate limit holds and no root is needed.
-        let speed = if vmax.saturating_mul(vmax) <= two_a_d {
-            vmax
+        let u0 = if up_goal { v0 } else { -v0 };
+        let (down, up) = (u0 - a, u0 + a);
+        // The speed steps from u₀ toward the braking speed S = min(v_max,
+        // √(2·a·|d|)) by at most a: u = clamp(S, u₀ − a, u₀ + a).
+        let u = if dist <= self.near_q8 {
+            // Near the goal (while tracking, the goal's moves differ from
+            // its velocity by a fraction of a code each tick): S ≥ |d|, so
+            // either u₀ + a reaches the goal (arrival below) or u₀ + a < |d|
+            // ≤ S and the step is u₀ + a: no root.
+            up
         } else {
-            isqrt_u64(two_a_d).min(vmax)
-        } as i64;
-        let target_v = if d > 0 { speed } else { -speed };
-        let v = step_toward(v0, target_v, a);
-        let toward = (v > 0) == (d > 0);
-        if toward && v.abs() >= d.abs() {
+            // 2·a·|d| in Q32 (a Q16, |d| Q8·2⁸): below 2⁶⁴. The root is
+            // needed only when S lies strictly inside the window; the
+            // squares decide the other cases (accelerating or at the rate
+            // limit: S ≥ u₀ + a; braking at the limit: S ≤ u₀ − a).
+            let x = 2 * u64::from(a.unsigned_abs()) * (u64::from(dist) << 8);
+            let sq = |v: i32| u64::from(v.unsigned_abs()) * u64::from(v.unsigned_abs());
+            let s = if self.v_max_sq <= x {
+                self.v_max_q16
+            } else if up <= 0 || sq(up) <= x {
+                up
+            } else if down >= 0 && sq(down + 1) > x {
+                down
+            } else {
+                // u₀ is within a of the root: a close seed.
+                sqrt_u64(x, u0.unsigned_abs()) as i32
+            };
+            s.max(down).min(up)
+        };
+        // u ≥ |d|·2⁸ exactly when ⌊u/2⁸⌋ ≥ |d|.
+        if u > 0 && (u >> 8).unsigned_abs() >= dist {
             // Arrives this tick (from at most about 2a): stop on the goal.
             self.v_q16 = 0;
-            return (goal, d, d - v0);
+            let v = -(offset_q8 << 8);
+            return (0, v, v - v0);
         }
+        let v = if up_goal { u } else { -u };
         self.v_q16 = v;
-        (cmd + v, v, v - v0)
+        (offset_q8 + ((v + (1 << 7)) >> 8), v, v - v0)
     }
 
     /// Starts from rest (engagement).
@@ -94,41 +135,45 @@ impl SlewProfile {
     /// Sets the velocity relative to the goal (the command's velocity minus
     /// the goal's), bounded by the rate limit.
     #[inline(always)]
-    pub fn set_velocity(&mut self, v_q16: i64) {
+    pub fn set_velocity(&mut self, v_q16: i32) {
         self.v_q16 = v_q16.max(-self.v_max_q16).min(self.v_max_q16);
     }
 }
 
-/// ⌊√x⌋, digit by digit: no division, at most 32 rounds (the handler has
-/// no panic path and a bounded cost), starting at x's top digit pair so a
-/// small distance (the command a few codes off its goal, the usual case
-/// while tracking) costs a few rounds.
+/// √x for the braking speed: ⌊√x⌋ exactly for x < 2³¹, else the floor root
+/// of x with its low bits dropped to 31 significant bits (an even shift
+/// 2k), times 2ᵏ: below the true root by less than 2ᵏ⁺¹, a relative 2⁻¹⁴
+/// at most (the braking curve is followed that much below its limit).
+/// Newton's iteration on hardware division from `seed` (any value; near
+/// the root it takes two or three rounds): its first step lands at or
+/// above the floor root (the arithmetic-geometric mean), and from there it
+/// descends to it and stops. Integer only, no panic path.
 #[inline]
-pub fn isqrt_u64(x: u64) -> u64 {
-    if x == 0 {
-        return 0;
-    }
-    let mut rem = x;
-    let mut root: u64 = 0;
-    // The highest power of four not above x.
-    let mut bit: u64 = 1 << ((63 - x.leading_zeros()) & !1);
-    while bit != 0 {
-        if rem >= root + bit {
-            rem -= root + bit;
-            root = (root >> 1) + bit;
-        } else {
-            root >>= 1;
+pub fn sqrt_u64(x: u64, seed: u32) -> u64 {
+    let bits = 64 - x.leading_zeros();
+    let k = bits.saturating_sub(30) / 2;
+    // xs < 2³¹ and g < 2³¹ below: g + xs/g never overflows.
+    let xs = (x >> (2 * k)) as u32;
+    let g0 = (seed >> k).clamp(1, 1 << 30);
+    let step = |g: u32| match core::num::NonZeroU32::new(g) {
+        Some(nz) => (g + xs / nz) >> 1,
+        None => 0,
+    };
+    let mut g = step(g0);
+    loop {
+        let y = step(g);
+        if y >= g {
+            return u64::from(g) << k;
         }
-        bit >>= 2;
+        g = y;
     }
-    root
 }
 
 /// The current limit with its persistence counter.
 #[derive(Clone, Debug)]
 pub struct CurrentLimit {
-    limit_code: i64,
-    k_emf_q24: i64,
+    limit_code: i32,
+    k_emf_q24: i32,
     ticks_allowed: u32,
     ticks_in_limit: u32,
 }
@@ -136,20 +181,21 @@ pub struct CurrentLimit {
 impl CurrentLimit {
     pub fn new(limit_code: i32, k_emf_q24: i32, ticks_allowed: u32) -> Self {
         Self {
-            limit_code: i64::from(limit_code.max(0)),
-            k_emf_q24: i64::from(k_emf_q24),
+            // Below 2²⁴: the window stays inside i32 around any back-EMF.
+            limit_code: limit_code.clamp(0, 1 << 24),
+            k_emf_q24,
             ticks_allowed,
             ticks_in_limit: 0,
         }
     }
 
     /// The DAC code `u` limited so that the estimated current at velocity
-    /// `v_q16` (gauge codes per tick) stays within the limit; whether it
-    /// was limited; a fault when the limit has been held too long.
+    /// `v_q16` (gauge codes per tick Q16) stays within the limit; whether
+    /// it was limited; a fault when the limit has been held too long.
     #[inline]
-    pub fn apply(&mut self, u: i64, v_q16: i64) -> (i64, bool, Option<Fault>) {
-        let v = v_q16.clamp(-(1 << 34), 1 << 34) >> 8;
-        let emf = (self.k_emf_q24 * v) >> 32;
+    pub fn apply(&mut self, u: i32, v_q16: i32) -> (i32, bool, Option<Fault>) {
+        // Q24 × Q16 = Q40 → codes; |k·v| < 2⁶¹, so |emf| < 2²¹.
+        let emf = ((i64::from(self.k_emf_q24) * i64::from(v_q16)) >> 40) as i32;
         let hi = emf + self.limit_code;
         let lo = emf - self.limit_code;
         let limited = u > hi || u < lo;
@@ -172,7 +218,7 @@ impl CurrentLimit {
 /// longer than allowed.
 #[derive(Clone, Debug)]
 pub struct FollowingError {
-    limit_q16: i64,
+    limit_q8: u32,
     ticks_allowed: u32,
     ticks_over: u32,
 }
@@ -180,15 +226,17 @@ pub struct FollowingError {
 impl FollowingError {
     pub fn new(limit_code: i32, ticks_allowed: u32) -> Self {
         Self {
-            limit_q16: i64::from(limit_code.max(1)) << 16,
+            // The gauge's whole span at most (2²⁰ codes, Q8 < 2³²).
+            limit_q8: (limit_code.clamp(1, 1 << 20) as u32) << 8,
             ticks_allowed,
             ticks_over: 0,
         }
     }
 
+    /// One tick with the error `error_q8` (gauge codes Q8).
     #[inline]
-    pub fn check(&mut self, error_q16: i64) -> Option<Fault> {
-        if error_q16.abs() > self.limit_q16 {
+    pub fn check(&mut self, error_q8: i32) -> Option<Fault> {
+        if error_q8.unsigned_abs() > self.limit_q8 {
             self.ticks_over = self.ticks_over.saturating_add(1);
         } else {
             self.ticks_over = 0;
@@ -206,37 +254,127 @@ impl FollowingError {
 mod tests {
     use super::*;
 
+    /// ⌊√x⌋ at every perfect square below 2³¹ and its neighbours, from
+    /// the worst seed (1: the first step lands far above the root).
     #[test]
-    fn isqrt_is_the_floor_square_root() {
-        for x in [
-            0u64,
-            1,
-            2,
-            3,
-            4,
-            15,
-            16,
-            17,
-            1 << 40,
-            (1 << 62) + 12345,
-            u64::MAX,
-        ] {
-            let r = u128::from(isqrt_u64(x));
-            let x = u128::from(x);
-            assert!(r * r <= x && (r + 1) * (r + 1) > x, "{x}: {r}");
+    fn sqrt_is_the_floor_root_at_every_square() {
+        for r in 0..46_341u64 {
+            for x in [r * r, (r * r).saturating_sub(1), r * r + 1] {
+                let got = sqrt_u64(x, 1);
+                assert!(got * got <= x && (got + 1) * (got + 1) > x, "{x}: {got}");
+            }
         }
     }
 
     proptest::proptest! {
-        /// ⌊√x⌋ over the whole u64 range (the top digit pair is found from
-        /// the leading zeros; an off-by-one there shows at some magnitude).
+        /// ⌊√x⌋ below 2³¹, and within the stated bound below the true root
+        /// at any magnitude, from any seed.
         #[test]
-        fn isqrt_is_the_floor_square_root_at_any_magnitude(x in proptest::num::u64::ANY, shift in 0u32..64) {
+        fn sqrt_is_the_floor_root_or_within_its_bound(x in proptest::num::u64::ANY, shift in 0u32..64, seed in proptest::num::u32::ANY) {
             let x = x >> shift;
-            let r = u128::from(isqrt_u64(x));
-            let x = u128::from(x);
-            proptest::prop_assert!(r * r <= x && (r + 1) * (r + 1) > x);
+            let r = u128::from(sqrt_u64(x, seed));
+            let xx = u128::from(x);
+            proptest::prop_assert!(r * r <= xx);
+            let k = (64 - x.leading_zeros()).saturating_sub(30) / 2;
+            let slack = 2u128 << k;
+            proptest::prop_assert!((r + slack) * (r + slack) > xx, "{x}: {r}");
+            if x >> 31 == 0 {
+                proptest::prop_assert!((r + 1) * (r + 1) > xx);
+            }
         }
+    }
+
+    /// From a seed within 10 % of the root (the braking case: u₀ is within
+    /// a of it), at most four rounds.
+    #[test]
+    fn sqrt_from_a_near_seed_is_quick() {
+        for x in [1u64 << 20, 3 << 33, 12_345_678_901, 1 << 50, (1 << 61) + 7] {
+            let root = (x as f64).sqrt();
+            for f in [0.9, 0.97, 1.0, 1.03, 1.1] {
+                let seed = (root * f) as u32;
+                let r = sqrt_u64(x, seed);
+                assert_eq!(r, sqrt_u64(x, 1), "{x} from {seed}");
+                let k = (64 - x.leading_zeros()).saturating_sub(30) / 2;
+                let xs = x >> (2 * k);
+                let mut g = u64::from(seed >> k).clamp(1, 1 << 30);
+                g = (g + xs / g) >> 1;
+                let mut rounds = 1;
+                loop {
+                    rounds += 1;
+                    let y = (g + xs / g) >> 1;
+                    if y >= g {
+                        break;
+                    }
+                    g = y;
+                }
+                assert!(rounds <= 4, "{x} from {seed}: {rounds}");
+            }
+        }
+    }
+
+    /// The near-goal shortcut of [`SlewProfile::step`] gives what the
+    /// general step (the braking speed from the exact root) gives, for
+    /// offsets and velocities around the goal at the default design's
+    /// limits.
+    #[test]
+    fn slew_near_goal_matches_the_general_step() {
+        let (vm, am) = (42_949_672i32, 171_798i32);
+        let near = (2 * am).min(vm) >> 8;
+        for d in (-near..=near).step_by(7).chain([-1, 1, near, -near]) {
+            for v0 in (-3 * am..=3 * am).step_by(1999) {
+                let mut p = SlewProfile::new(vm.into(), am.into());
+                p.set_velocity(v0);
+                let got = p.step(-d);
+                // The general step, written out.
+                let dist = u64::from(d.unsigned_abs()) << 8;
+                let s = isqrt_slow(2 * u64::from(am.unsigned_abs()) * dist).min(vm as u64) as i32;
+                let v = step_toward(v0, if d > 0 { s } else { -s }, am);
+                let want = if d == 0 {
+                    (0, 0, -v0)
+                } else if (v > 0) == (d > 0) && i64::from(v).abs() >= i64::from(d).abs() << 8 {
+                    (0, d << 8, (d << 8) - v0)
+                } else {
+                    (-d + ((v + 128) >> 8), v, v - v0)
+                };
+                assert_eq!(got, want, "d {d} v0 {v0}");
+            }
+        }
+    }
+
+    /// Beyond the near region, the step against the braking formula with
+    /// the exact root: the same, or (where the root drops bits, x ≥ 2³¹)
+    /// at most the root's stated shortfall below it; never beyond the
+    /// acceleration limit.
+    #[test]
+    fn slew_step_follows_the_braking_speed() {
+        let (vm, am) = (42_949_672i32, 171_798i32);
+        for d in (1..2_000_000i32).step_by(9_973).flat_map(|d| [d, -d]) {
+            for v0 in (-vm..=vm).step_by(2_147_483).chain([0, am, -am]) {
+                let mut p = SlewProfile::new(vm.into(), am.into());
+                p.set_velocity(v0);
+                let (_, v, acc) = p.step(-d);
+                let x = 2 * u64::from(am.unsigned_abs()) * (u64::from(d.unsigned_abs()) << 8);
+                let s = isqrt_slow(x).min(vm as u64) as i32;
+                let want = step_toward(v0, if d > 0 { s } else { -s }, am);
+                let k = (64 - x.leading_zeros()).saturating_sub(30) / 2;
+                let arrived = v == d << 8;
+                if !arrived {
+                    assert!((v - want).abs() < 2 << k, "d {d} v0 {v0}: {v} vs {want}");
+                    assert!(acc.abs() <= am, "d {d} v0 {v0}");
+                }
+            }
+        }
+    }
+
+    fn isqrt_slow(x: u64) -> u64 {
+        let mut r = (x as f64).sqrt() as u64;
+        while r * r > x {
+            r -= 1;
+        }
+        while (r + 1) * (r + 1) <= x {
+            r += 1;
+        }
+        r
     }
 
     /// A 100 000-code move at ≤ 655 codes/tick and ≤ 3 codes/tick²
@@ -246,20 +384,21 @@ mod tests {
     /// the goal, never exceeding either limit or overshooting.
     #[test]
     fn slew_profile_is_a_bounded_trapezoid_that_arrives_at_rest() {
-        let (vm, am) = (655i64 << 16, 3i64 << 16);
+        let (vm, am) = (655i32 << 16, 3i32 << 16);
         // Triangle: t = 2√(d/a) = 365; trapezoid: t = d/vm + vm/a = 829.
-        for (d, expected) in [(100_000i64, 365.0), (400_000, 829.0)] {
-            let mut p = SlewProfile::new(vm, am);
-            let (mut cmd, goal) = (0i64, d << 16);
+        for (d, expected) in [(100_000i32, 365.0), (400_000, 829.0)] {
+            let mut p = SlewProfile::new(vm.into(), am.into());
+            // The command starts d codes below its goal.
+            let mut offset = -(d << 8);
             let mut ticks = 0;
             let mut v_prev = 0;
-            while cmd != goal {
-                let (c, v, a) = p.step(cmd, goal);
+            while offset != 0 {
+                let (o, v, a) = p.step(offset);
                 assert!(v.abs() <= vm && a.abs() <= vm.max(am));
-                assert!((v - v_prev).abs() <= am || c == goal);
-                assert!(c <= goal, "no overshoot");
+                assert!((v - v_prev).abs() <= am || o == 0);
+                assert!(o <= 0, "no overshoot");
                 v_prev = v;
-                cmd = c;
+                offset = o;
                 ticks += 1;
                 assert!(ticks < 10_000);
             }
@@ -280,7 +419,7 @@ mod tests {
         assert_eq!(c.apply(50_000, 0).0, 44_040);
         assert_eq!(c.apply(-50_000, 0).0, -44_040);
         // v = 1000 codes/tick, k = 1: window [−43 040, 45 040]
-        let v = 1000i64 << 16;
+        let v = 1000i32 << 16;
         assert_eq!(c.apply(50_000, v).0, 45_040);
         assert_eq!(c.apply(-50_000, v).0, -43_040);
     }
@@ -301,11 +440,11 @@ mod tests {
     #[test]
     fn following_error_needs_persistence() {
         let mut f = FollowingError::new(100, 2);
-        let big = 200i64 << 16;
+        let big = 200i32 << 8;
         assert_eq!(f.check(big), None);
         assert_eq!(f.check(-big), None);
         assert_eq!(f.check(big), Some(Fault::FollowingError));
         f.reset();
-        assert_eq!(f.check(50 << 16), None);
+        assert_eq!(f.check(50 << 8), None);
     }
 }

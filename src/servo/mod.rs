@@ -22,50 +22,51 @@
 //!
 //! # Number formats
 //! Gauge and DAC codes are 20-bit (2¹⁹ codes = 10 V; 1 gauge code =
-//! 0.010 in / 2¹⁹ = 0.0191 µin). Positions and DAC values inside the loop
-//! are `i64` Q16 codes; velocities Q16 codes per tick; accelerations Q16
-//! codes per tick². Gains are `i32` Q24 (Q16 for the acceleration
+//! 0.010 in / 2¹⁹ = 0.0191 µin). Inside the loop every signal is `i32`:
+//! positions and DAC values Q8 codes (LSB 7.5e-5 µin; the gauge's span is
+//! 2²⁸, so sums of a few stay far from 2³¹), velocities Q16 codes per tick
+//! (|v| ≤ 2³⁰: 6 in/s at 20 kHz, 24 times the slew limit), accelerations
+//! Q16 codes per tick². Gains are `i32` Q24 (Q16 for the acceleration
 //! feedforward), coefficients of the observer and notches Q30. Every
-//! product is formed from bounded operands in `i64` (bounds at each
-//! product); the sum is rounded once to a DAC code and saturated.
+//! product is one 32×32 → 64-bit multiply (`SMULL`) of bounded operands,
+//! shifted back to 32 bits once; sums that an out-of-range input could
+//! push past 2³¹ saturate (`QADD`, `SSAT`: one instruction each on the
+//! M4). Q8 positions against the former Q16: the loop's resolution is
+//! 7.5e-5 µin instead of 3e-7 µin, four orders of magnitude below the
+//! quietest gauge's noise (0.2 µin RMS, `modern-hw`).
 
 pub mod design;
 pub mod engage;
 pub mod filters;
+pub(crate) mod fixed;
 pub mod limits;
 pub mod observer;
 pub mod repetitive;
 
 pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};
 pub use engage::Phase;
-pub use repetitive::Freeze;
+pub use repetitive::{Freeze, LearnRequests, LearnSample, LearnedTable, Learner};
 
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
 use engage::{SignCheck, SignStep};
 use filters::Notch;
+use fixed::{mul_hi, qadd_mul, round_q8, ssat};
 use limits::{CurrentLimit, FollowingError, SlewProfile};
 use observer::{Estimate, Observer};
-use repetitive::Repetitive;
-
-/// A Q16 signal as Q8 `i32` for a filter (±2³¹ Q8 = ±2²³ codes).
-#[inline(always)]
-fn q8(x_q16: i64) -> i32 {
-    (x_q16 >> 8).clamp(-(1 << 31) + 1, (1 << 31) - 1) as i32
-}
 
 /// Largest 20-bit code.
-const CODE_MAX: i64 = (1 << 19) - 1;
+const CODE_MAX: i32 = (1 << 19) - 1;
 
 /// The reference the command path gives the loop.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Reference {
     /// Position, gauge codes.
     pub code: i32,
-    /// ∂Z/∂φ·Δφ, gauge codes per tick, Q16.
-    pub velocity_q16: i64,
-    /// ∂²Z/∂φ²·Δφ², gauge codes per tick², Q16.
-    pub accel_q16: i64,
+    /// ∂Z/∂φ·Δφ, gauge codes per tick, Q16 (|v| ≤ 2³⁰).
+    pub velocity_q16: i32,
+    /// ∂²Z/∂φ²·Δφ², gauge codes per tick², Q16 (|a| ≤ 2²⁴).
+    pub accel_q16: i32,
 }
 
 /// What the loop tick hands the servo.
@@ -93,6 +94,9 @@ pub struct ServoOutput {
     pub enable: bool,
     /// A fault the servo detected this tick.
     pub fault: Option<Fault>,
+    /// This tick's sample for the learner ([`Learner::apply`], below the
+    /// loop tick's priority), while the loop is closed.
+    pub learn: Option<LearnSample>,
 }
 
 /// The sign check's last verdict, for the fault log.
@@ -109,30 +113,40 @@ pub struct Servo {
     phase: Phase,
     arm_requested: bool,
     hum: Option<Notch>,
-    learn_hum: Option<Notch>,
     mode: Option<Notch>,
     observer: Observer,
-    learning: Repetitive,
+    /// Requests for the learner, sent with the next sample: forget the
+    /// table (arming), hold the learning frozen (reason, ticks).
+    learn_req: LearnRequests,
+    /// Ticks of the engagement's settling left, during which the learning
+    /// is held and the (freshly cleared) table gives no correction: it is
+    /// not read then, which also keeps a learner that has not yet run its
+    /// clear from handing an old table to the first engaged ticks.
+    settle_left: u32,
     sign: SignCheck,
     current: CurrentLimit,
     following: FollowingError,
     slew: SlewProfile,
-    /// The slew-limited command, gauge codes Q16, and its velocity.
-    command_q16: i64,
-    command_v_q16: i64,
+    /// The slew-limited command, gauge codes Q8, and its velocity (Q16
+    /// codes per tick).
+    command_q8: i32,
+    command_v_q16: i32,
     /// The goal's velocity on the last tick, Q16.
-    goal_v_q16: i64,
-    /// The goal of the last tick, Q16.
-    goal_q16: i64,
+    goal_v_q16: i32,
+    /// The goal of the last tick, Q8.
+    goal_q8: i32,
     /// The reference the loop followed on the last tick (command plus
-    /// learned correction), Q16.
-    reference_q16: i64,
-    /// Gauge of the last tick, Q16.
-    measured_q16: i64,
-    /// DAC code written on the last tick, Q16 (the observer's input).
-    output_q16: i64,
+    /// learned correction), Q8.
+    reference_q8: i32,
+    /// Gauge of the last tick, Q8.
+    measured_q8: i32,
+    /// DAC code written on the last tick, Q8 (the observer's input).
+    output_q8: i32,
     current_limited: bool,
     last_sign_check: Option<SignCheckResult>,
+    /// A quarter of the slew rate, Q16 codes per tick: a goal velocity
+    /// jump beyond it is a jump, not motion.
+    slew_quarter: u32,
 }
 
 impl Servo {
@@ -142,14 +156,13 @@ impl Servo {
             phase: Phase::Disarmed,
             arm_requested: false,
             hum: notch(cfg.hum_notch),
-            learn_hum: notch(cfg.hum_notch),
             mode: notch(cfg.mode_notch),
             observer: Observer::new(cfg.observer),
-            learning: Repetitive::new(
-                cfg.learning_gain_q16,
-                cfg.learning_lead_bins,
-                cfg.learning_q_shift,
-            ),
+            learn_req: LearnRequests {
+                clear: false,
+                hold: None,
+            },
+            settle_left: 0,
             sign: SignCheck::new(
                 cfg.sign_check_code,
                 cfg.sign_check_ticks,
@@ -162,15 +175,16 @@ impl Servo {
             ),
             following: FollowingError::new(cfg.following_error_code, cfg.following_error_ticks),
             slew: SlewProfile::new(cfg.slew_q16, cfg.slew_accel_q16),
-            command_q16: 0,
+            command_q8: 0,
             command_v_q16: 0,
             goal_v_q16: 0,
-            goal_q16: 0,
-            reference_q16: 0,
-            measured_q16: 0,
-            output_q16: 0,
+            goal_q8: 0,
+            reference_q8: 0,
+            measured_q8: 0,
+            output_q8: 0,
             current_limited: false,
             last_sign_check: None,
+            slew_quarter: (cfg.slew_q16.clamp(0, 1 << 32) / 4) as u32,
             cfg,
         }
     }
@@ -194,41 +208,43 @@ impl Servo {
     }
 
     /// Freezes the learning for `ticks` (X jumped: the table belongs to
-    /// another radius).
+    /// another radius); sent to the learner with the next sample.
     pub fn freeze_learning(&mut self, reason: Freeze, ticks: u32) {
-        self.learning.hold_for(reason, ticks);
+        self.learn_req.hold(reason, ticks);
     }
 
     /// Opens the loop at once (a fault that disables the amplifier).
     pub fn stop(&mut self) {
         self.arm_requested = false;
         self.phase = Phase::Disarmed;
-        self.output_q16 = 0;
+        self.output_q8 = 0;
         self.current.reset();
         self.following.reset();
     }
 
-    /// One loop tick.
+    /// One loop tick; `learned` is the learner's table (the correction is
+    /// read from it).
     #[inline]
-    pub fn update(&mut self, input: &ServoInput) -> ServoOutput {
-        let measured_q16 = i64::from(input.gauge_code) << 16;
-        self.measured_q16 = measured_q16;
+    pub fn update(&mut self, input: &ServoInput, learned: &LearnedTable) -> ServoOutput {
+        // A 20-bit code (the loop tick's gauge reading), Q8.
+        let measured = input.gauge_code.clamp(-CODE_MAX - 1, CODE_MAX) << 8;
+        self.measured_q8 = measured;
 
         if self.phase == Phase::Disarmed {
-            self.observer.reset(measured_q16);
-            self.output_q16 = 0;
+            self.observer.reset(measured);
+            self.output_q8 = 0;
             if !self.arm_requested {
                 return self.idle();
             }
             self.arm_requested = false;
-            self.learning.clear();
+            self.learn_req.clear = true;
             self.current.reset();
             self.following.reset();
             if self.sign.enabled() {
-                self.sign.start(measured_q16);
+                self.sign.start(measured);
                 self.phase = Phase::SignCheck;
             } else {
-                self.engage(measured_q16, true, input.reference.velocity_q16);
+                self.engage(measured, true, input.reference.velocity_q16);
             }
         }
         if input.amplifier_tripped {
@@ -239,18 +255,19 @@ impl Servo {
             };
         }
         if self.phase == Phase::SignCheck {
-            match self.sign.step(measured_q16) {
+            match self.sign.step(measured) {
                 SignStep::Drive(code) => {
-                    let code = i64::from(code).clamp(-CODE_MAX, CODE_MAX);
-                    self.observer.update(self.output_q16, measured_q16);
-                    self.output_q16 = code << 16;
+                    let code = code.clamp(-CODE_MAX, CODE_MAX);
+                    self.observer.update(self.output_q8, measured);
+                    self.output_q8 = code << 8;
                     return ServoOutput {
-                        dac_code: code as i32,
+                        dac_code: code,
                         enable: true,
                         fault: None,
+                        learn: None,
                     };
                 }
-                SignStep::Passed => self.engage(measured_q16, false, input.reference.velocity_q16),
+                SignStep::Passed => self.engage(measured, false, input.reference.velocity_q16),
                 SignStep::Failed { moved, expected } => {
                     self.last_sign_check = Some(SignCheckResult {
                         moved_code: moved,
@@ -265,18 +282,16 @@ impl Servo {
             }
         }
 
-        let est = self.observer.update(self.output_q16, measured_q16);
+        let est = self.observer.update(self.output_q8, measured);
 
         // The command: ramp at the slew limit toward the goal; on the goal,
         // follow the command path's analytic rates.
-        let limit = i64::from(self.cfg.command_limit_code) << 16;
-        let goal_q16 = match self.phase {
+        let limit = self.cfg.command_limit_code.clamp(0, CODE_MAX);
+        let goal_q8 = match self.phase {
             Phase::Disarming => 0,
             // max/min, not `clamp`: its min ≤ max assertion would be a panic
             // path in the handler (the limit comes from the configuration).
-            _ => (i64::from(input.reference.code) << 16)
-                .max(-limit)
-                .min(limit),
+            _ => input.reference.code.max(-limit).min(limit) << 8,
         };
         // The command is the goal plus an offset that the slew profile
         // takes to zero (bounded relative velocity and acceleration,
@@ -287,7 +302,10 @@ impl Servo {
         let (v_goal, a_goal) = if self.phase == Phase::Disarming {
             (0, 0)
         } else {
-            (input.reference.velocity_q16, input.reference.accel_q16)
+            (
+                ssat::<31>(input.reference.velocity_q16),
+                ssat::<26>(input.reference.accel_q16),
+            )
         };
         // Relative to the goal's previous velocity while the goal moves
         // smoothly (its own acceleration is in a_goal, and the angle
@@ -295,138 +313,137 @@ impl Servo {
         // a tachometer); re-expressed against its new velocity when that
         // jumps by more than a quarter of the slew rate (the rates of a
         // fault's null, a target step).
-        let v_goal_then = if (v_goal - self.goal_v_q16).abs() > self.cfg.slew_q16 / 4 {
+        let v_goal_then = if v_goal.abs_diff(self.goal_v_q16) > self.slew_quarter {
             v_goal
         } else {
             self.goal_v_q16
         };
         self.goal_v_q16 = v_goal;
-        self.slew.set_velocity(self.command_v_q16 - v_goal_then);
+        self.slew
+            .set_velocity(self.command_v_q16.saturating_sub(v_goal_then));
         // Where the command stands against the new goal had it moved with
         // the goal's velocity this tick: 0 while tracking, the jump when
-        // the goal jumped.
-        let offset = self.command_q16 + v_goal_then - goal_q16;
-        let (offset, v_o, a_o) = self.slew.step(offset, 0);
-        self.command_q16 = goal_q16 + offset;
-        let (mut v_ref, mut a_ref) = (v_goal + v_o, a_goal + a_o);
+        // the goal jumped. (|command|, |goal| < 2²⁸, |v| < 2³⁰ Q16.)
+        let offset = self.command_q8 + ((v_goal_then + (1 << 7)) >> 8) - goal_q8;
+        let (offset, v_o, a_o) = self.slew.step(offset);
+        self.command_q8 = goal_q8 + offset;
+        let (mut v_ref, mut a_ref) = (v_goal.saturating_add(v_o), a_goal + a_o);
         self.command_v_q16 = v_ref;
         let on_goal = offset == 0;
-        self.goal_q16 = goal_q16;
+        self.goal_q8 = goal_q8;
         match self.phase {
             Phase::Engaging if on_goal => {
                 self.phase = Phase::Engaged;
                 // The engagement transient is not a periodic error: let the
                 // loop settle (ten of its time constants) before learning.
-                self.learning
-                    .hold_for(Freeze::NotEngaged, self.cfg.settle_ticks);
+                self.freeze_learning(Freeze::NotEngaged, self.cfg.settle_ticks);
+                self.settle_left = self.cfg.settle_ticks;
             }
-            Phase::Disarming if self.command_q16 == 0 => {
+            Phase::Disarming if self.command_q8 == 0 => {
                 self.stop();
                 return self.idle();
             }
             _ => {}
         }
 
-        // Learned correction, by spindle angle.
-        let mut reference = self.command_q16;
+        // Learned correction, by spindle angle (|c| ≤ 2²⁵ Q8).
+        let mut reference = self.command_q8;
+        let settled = self.settle_left == 0;
+        self.settle_left = self.settle_left.saturating_sub(1);
         if let Some((phi, dphi)) = input.angle {
-            if self.phase == Phase::Engaged {
-                let c = self.learning.correction(phi, dphi);
-                reference += c.position_q16;
-                v_ref += c.velocity_q16;
+            if self.phase == Phase::Engaged && settled {
+                let c = learned.correction(phi, dphi);
+                reference += c.position_q8;
+                v_ref = v_ref.saturating_add(c.velocity_q16);
                 a_ref += c.accel_q16;
             }
         }
-        self.reference_q16 = reference;
-        let error_q16 = reference - measured_q16;
+        self.reference_q8 = reference;
+        let error_q8 = reference - measured;
         // The learning drives the command's error to zero (not the error
         // to the corrected reference, which the loop itself removes), as
         // the gauge measures it (the observer's estimate would carry the
         // model's error into the table when the plant differs from it).
-        // The hum (at 300 rpm exactly the 24th spindle harmonic) goes
-        // through its own notch.
-        let learn_raw = self.command_q16 - measured_q16;
-        let learn_error_q16 = match &mut self.learn_hum {
-            Some(n) => i64::from(n.process(q8(learn_raw))) << 8,
-            None => learn_raw,
-        };
-        if let Some((phi, dphi)) = input.angle {
-            let freeze = if self.phase != Phase::Engaged {
-                Some(Freeze::NotEngaged)
-            } else {
-                input.freeze
-            };
-            self.learning.learn(phi, dphi, learn_error_q16, freeze);
+        // The learner runs below this priority: it gets the error, the
+        // angle and why it must not learn now.
+        let freeze = if self.phase != Phase::Engaged {
+            Some(Freeze::NotEngaged)
         } else {
-            self.learning.hold_for(Freeze::NoAngle, 0);
-        }
-
-        let (fb_q16, ff_q16) = self.control(&est, reference, v_ref, a_ref);
+            input.freeze
+        };
+        let learn = LearnSample::new(
+            self.command_q8 - measured,
+            input.angle,
+            freeze,
+            core::mem::take(&mut self.learn_req),
+        );
+        let (fb_q8, ff_q8) = self.control(&est, reference, v_ref, a_ref);
         // The hum notch acts on the feedback only: what the loop corrects
         // from the gauge loses its 120 Hz, while the feedforward (the
         // commanded motion) passes undistorted. A notch on the measurement
         // itself would distort the measured command (4° at 10 Hz for Q = 2:
         // hundreds of µin of tracking error on a 0.004 in command).
-        let fb_q16 = match &mut self.hum {
-            Some(n) => i64::from(n.process(q8(fb_q16))) << 8,
-            None => fb_q16,
+        let fb_q8 = match &mut self.hum {
+            Some(n) => n.process(fb_q8),
+            None => fb_q8,
         };
-        let u_q16 = fb_q16 + ff_q16;
+        let u_q8 = fb_q8.saturating_add(ff_q8);
         // Output: current limit on the estimate, mode notch, DAC range.
-        let u_code = (u_q16 + (1 << 15)) >> 16;
+        let u_code = round_q8(u_q8);
         let (u_code, limited, i_fault) = self.current.apply(u_code, est.v_q16);
         self.current_limited = limited;
         let u_code = match &mut self.mode {
             Some(n) => {
-                let q8 = u_code.clamp(-(1 << 23), 1 << 23) as i32 * 256;
-                (i64::from(n.process(q8)) + 128) >> 8
+                let y = n.process(ssat::<24>(u_code) << 8);
+                round_q8(y)
             }
             None => u_code,
         };
         let u_code = u_code.clamp(-CODE_MAX, CODE_MAX);
-        self.output_q16 = u_code << 16;
-        let fault = i_fault.or_else(|| self.following.check(error_q16));
+        self.output_q8 = u_code << 8;
+        let fault = i_fault.or_else(|| self.following.check(error_q8));
         ServoOutput {
-            dac_code: u_code as i32,
+            dac_code: u_code,
             enable: true,
             fault,
+            learn: Some(learn),
         }
     }
 
-    /// State feedback on the estimate, and the plant-inverse feedforward.
+    /// State feedback on the estimate, and the plant-inverse feedforward:
+    /// `(feedback − d̂, feedforward)`, DAC codes Q8.
     #[inline(always)]
-    fn control(&self, est: &Estimate, r_q16: i64, v_q16: i64, a_q16: i64) -> (i64, i64) {
+    fn control(&self, est: &Estimate, r_q8: i32, v_q16: i32, a_q16: i32) -> (i32, i32) {
         let c = &self.cfg;
-        let bound = 1i64 << 31;
-        let e_q8 = ((r_q16 - est.z_q16) >> 8).clamp(-bound, bound);
-        let ev_q8 = ((v_q16 - est.v_q16) >> 8).clamp(-bound, bound);
-        let v_q8 = (v_q16 >> 8).clamp(-bound, bound);
-        let a = a_q16.clamp(-(1 << 30), 1 << 30);
-        // Q24 gain × Q8 signal = Q32 → Q16.
+        // |r|, |ẑ| < 2²⁹: the difference fits; saturated to 2²⁸ codes Q8.
+        let e_q8 = ssat::<29>(r_q8 - est.z_q8);
+        let ev_q16 = v_q16.saturating_sub(est.v_q16);
         let (kp, kd) = if self.observer.fast() {
             (c.kp_fast_q24, c.kd_fast_q24)
         } else {
             (c.kp_q24, c.kd_q24)
         };
-        let fb = (i64::from(kp) * e_q8 + i64::from(kd) * ev_q8) >> 16;
-        let ff = ((i64::from(c.kff_q24) * v_q8) >> 16) + ((i64::from(c.ka_q16) * a) >> 16);
-        (fb - est.d_q16, ff)
+        // Q24 gain × Q8 error → Q8 (>> 24); × Q16 velocity → Q8 (>> 32,
+        // the rounded high word: below 2³⁰).
+        let fb = qadd_mul::<24>(mul_hi(kd, ev_q16), kp, e_q8);
+        let ff = qadd_mul::<24>(mul_hi(c.kff_q24, v_q16), c.ka_q16, a_q16);
+        (fb.saturating_sub(est.d_q8), ff)
     }
 
     /// Closes the loop with the command where the slide is. After the
     /// sign check the observer has followed the doublet (it saw the DAC
     /// codes), so it keeps its estimate, velocity included; from rest it
     /// starts at rest.
-    fn engage(&mut self, y_q16: i64, from_rest: bool, v_goal_q16: i64) {
+    fn engage(&mut self, y_q8: i32, from_rest: bool, v_goal_q16: i32) {
         if from_rest {
-            self.observer.reset(y_q16);
+            self.observer.reset(y_q8);
         }
-        let z = self.observer.estimate().z_q16;
-        self.command_q16 = z;
+        let z = self.observer.estimate().z_q8;
+        self.command_q8 = z;
         self.command_v_q16 = 0;
         // The goal already moves: the command starts at rest and joins it.
         self.goal_v_q16 = v_goal_q16;
-        self.goal_q16 = z;
+        self.goal_q8 = z;
         self.slew.reset();
         self.phase = Phase::Engaging;
         self.current.reset();
@@ -438,6 +455,7 @@ impl Servo {
             dac_code: 0,
             enable: false,
             fault: None,
+            learn: None,
         }
     }
 
@@ -446,22 +464,19 @@ impl Servo {
     }
     /// The slew-limited command, gauge codes.
     pub fn command_code(&self) -> i32 {
-        ((self.command_q16 + (1 << 15)) >> 16) as i32
+        round_q8(self.command_q8)
     }
     /// The reference followed on the last tick (command + learned
-    /// correction), gauge codes Q16.
-    pub fn reference_q16(&self) -> i64 {
-        self.reference_q16
+    /// correction), gauge codes Q8.
+    pub fn reference_q8(&self) -> i32 {
+        self.reference_q8
     }
-    /// Gauge, Q16.
-    pub fn measured_q16(&self) -> i64 {
-        self.measured_q16
+    /// Gauge, Q8.
+    pub fn measured_q8(&self) -> i32 {
+        self.measured_q8
     }
     pub fn estimate(&self) -> Estimate {
         self.observer.estimate()
-    }
-    pub fn learning(&self) -> &Repetitive {
-        &self.learning
     }
     pub fn current_limited(&self) -> bool {
         self.current_limited

@@ -32,11 +32,17 @@
 //! tens. With gauge noise alone the switch level is a > 5σ event.
 //!
 //! # Number formats
-//! States are `i64` Q16 (position in gauge codes·2¹⁶, velocity in codes per
-//! tick·2¹⁶, disturbance in DAC codes·2¹⁶); coefficients are `i32` Q30
-//! (each |c| < 2), except the disturbance gains `l3`, Q24 (|l3| < 128). Inputs are bounded before the products (innovation to
-//! ±2¹⁴ codes, velocity to ±2¹⁴ codes per tick, `u + d` to ±2²⁰ codes), so
-//! every product is below 2⁶² and the sums cannot overflow.
+//! States are `i32`: position Q8 (gauge codes·2⁸, |ẑ| < 2²⁹), velocity Q16
+//! (codes per tick·2¹⁶, |v̂| < 2³⁰: 16 384 codes per tick, 6 in/s),
+//! disturbance Q8 (DAC codes·2⁸, |d̂| < 2²⁸: two full DAC scales).
+//! Coefficients are `i32` Q30, except the disturbance gains `l3`, Q24
+//! (|l3| < 128). Each product is one 32×32 → 64-bit multiply of bounded
+//! operands (innovation < 2²⁸, `u + d` < 2²⁹), rounded once to the state's
+//! format; the model's own coefficients `1 − c1`, `1 − c2` lie in (0, 1)
+//! (a > 0, h > 0), so the predictions cannot overflow, and every state is
+//! saturated to its bound (one `SSAT` each).
+
+use super::fixed::{mul_shr, qadd_mul, ssat};
 
 /// Observer coefficients, `Q2.30` bits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,8 +57,8 @@ pub struct ObserverCoeffs {
     pub l3: i32,
     /// Gains of the fast observer, used while the innovation is large.
     pub fast: [i32; 3],
-    /// |innovation| beyond which the fast gains take over, codes Q16.
-    pub switch_q16: i64,
+    /// |innovation| beyond which the fast gains take over, codes Q8.
+    pub switch_q8: i32,
     /// Ticks the fast gains stay after the innovation was last large.
     pub hold_ticks: u32,
 }
@@ -60,73 +66,64 @@ pub struct ObserverCoeffs {
 /// The estimate.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Estimate {
-    /// Position, gauge codes Q16.
-    pub z_q16: i64,
+    /// Position, gauge codes Q8.
+    pub z_q8: i32,
     /// Velocity, gauge codes per tick Q16.
-    pub v_q16: i64,
-    /// Input disturbance, DAC codes Q16 (the DAC code that would cancel
+    pub v_q16: i32,
+    /// Input disturbance, DAC codes Q8 (the DAC code that would cancel
     /// it is `−d`).
-    pub d_q16: i64,
+    pub d_q8: i32,
 }
 
 /// The estimator with its state.
 #[derive(Clone, Debug)]
 pub struct Observer {
     k: ObserverCoeffs,
+    /// `1 − c1`, `1 − c2` (Q30): the model's own velocity terms.
+    a12: i32,
+    a22: i32,
+    /// |innovation| (Q8) beyond which the fast gains take over.
+    switch: u32,
     x: Estimate,
     /// Ticks left on the fast gains.
     fast_left: u32,
 }
 
-const INNOVATION_LIMIT: i64 = 1 << 30;
-const VELOCITY_LIMIT: i64 = 1 << 30;
-const INPUT_LIMIT: i64 = 1 << 36;
-/// |d| stays within two full DAC scales.
-const DISTURBANCE_LIMIT: i64 = 1 << 36;
-
-#[inline(always)]
-fn mul_q30(c: i32, x: i64) -> i64 {
-    (i64::from(c) * x + (1 << 29)) >> 30
-}
-
-/// The disturbance gain is larger (DAC codes per gauge code: up to ~100
-/// for fast poles), so it is Q24; the innovation is bounded to 2³⁰ so the
-/// product stays below 2⁶¹.
-#[inline(always)]
-fn mul_q24(c: i32, x: i64) -> i64 {
-    (i64::from(c) * x + (1 << 23)) >> 24
-}
-
 impl Observer {
     pub fn new(k: ObserverCoeffs) -> Self {
         Self {
+            a12: (1i32 << 30).saturating_sub(k.c1),
+            a22: (1i32 << 30).saturating_sub(k.c2),
+            switch: k.switch_q8.unsigned_abs(),
             k,
             x: Estimate::default(),
             fast_left: 0,
         }
     }
 
-    /// Starts from rest at `y_q16` with no disturbance (engagement).
-    pub fn reset(&mut self, y_q16: i64) {
+    /// Starts from rest at `y_q8` with no disturbance (engagement).
+    pub fn reset(&mut self, y_q8: i32) {
         self.x = Estimate {
-            z_q16: y_q16,
+            z_q8: ssat::<30>(y_q8),
             v_q16: 0,
-            d_q16: 0,
+            d_q8: 0,
         };
     }
 
-    /// One tick: `u_prev` is the DAC code written on the previous tick
-    /// (Q16), `y_q16` the gauge (after the hum notch) now.
-    #[inline]
-    pub fn update(&mut self, u_prev_q16: i64, y_q16: i64) -> Estimate {
+    /// One tick: `u_prev_q8` is the DAC code written on the previous tick
+    /// (Q8), `y_q8` the gauge now (Q8, |y| < 2²⁸).
+    #[inline(always)]
+    pub fn update(&mut self, u_prev_q8: i32, y_q8: i32) -> Estimate {
         let k = &self.k;
         let x = &mut self.x;
-        let v = x.v_q16.clamp(-VELOCITY_LIMIT, VELOCITY_LIMIT);
-        let w = (u_prev_q16 + x.d_q16).clamp(-INPUT_LIMIT, INPUT_LIMIT);
-        let z_pred = x.z_q16 + v - mul_q30(k.c1, v) + mul_q30(k.b1, w);
-        let v_pred = v - mul_q30(k.c2, v) + mul_q30(k.b2, w);
-        let innovation = (y_q16 - z_pred).clamp(-INNOVATION_LIMIT, INNOVATION_LIMIT);
-        if innovation.abs() > k.switch_q16 {
+        let v = x.v_q16;
+        let w = ssat::<29>(u_prev_q8.saturating_add(x.d_q8));
+        // |a12·v|/2³⁸ < 2²², |b1·w|/2³⁰ < 2²⁹, |ẑ| < 2²⁹: no overflow.
+        let z_pred = x.z_q8 + mul_shr::<38>(self.a12, v) as i32 + mul_shr::<30>(k.b1, w) as i32;
+        // |a22·v|/2³⁰ < 2³⁰; the input's term saturates at 2³⁰.
+        let v_pred = qadd_mul::<22>(mul_shr::<30>(self.a22, v) as i32, k.b2, w);
+        let innovation = ssat::<29>(y_q8.saturating_sub(z_pred));
+        if innovation.unsigned_abs() > self.switch {
             self.fast_left = k.hold_ticks;
         }
         let (l1, l2, l3) = if self.fast_left > 0 {
@@ -135,9 +132,10 @@ impl Observer {
         } else {
             (k.l1, k.l2, k.l3)
         };
-        x.z_q16 = z_pred + mul_q30(l1, innovation);
-        x.v_q16 = v_pred + mul_q30(l2, innovation);
-        x.d_q16 = (x.d_q16 + mul_q24(l3, innovation)).clamp(-DISTURBANCE_LIMIT, DISTURBANCE_LIMIT);
+        // |l1·innovation|/2³⁰ < 2²⁹, |z_pred| < 2³⁰·¹: no overflow.
+        x.z_q8 = ssat::<30>(z_pred + mul_shr::<30>(l1, innovation) as i32);
+        x.v_q16 = ssat::<31>(qadd_mul::<22>(v_pred, l2, innovation));
+        x.d_q8 = ssat::<29>(qadd_mul::<24>(x.d_q8, l3, innovation));
         *x
     }
 

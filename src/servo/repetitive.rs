@@ -34,12 +34,32 @@
 //! value). Learning freezes, with a reason, whenever the angle cannot be
 //! trusted or the machine jumped.
 //!
+//! # Two priorities
+//! The loop tick reads the correction ([`LearnedTable::correction`]); the
+//! learning itself (the hum notch on the error, the update, the Q-filter)
+//! runs below it, in its own handler ([`Learner`], driven by
+//! `crate::learning`), on the samples each tick hands over
+//! ([`LearnSample`]). The table is shared as atomic words. The update
+//! writes bins i − lead and i − lead + 1 and the Q-filter bins up to
+//! i − lead + 1, all below the bins i − 1 .. i + 2 the tick reads at
+//! bin i (lead ≥ [`MIN_LEAD`]), so as long as the learner runs within a
+//! bin of the tick (it runs after every tick on the boards, and in the
+//! `Firmware` bundle) the tick reads exactly what the update would have
+//! left had it run inside the tick.
+//!
 //! # Number formats
-//! Table entries: gauge codes Q8 (`i32`). Angle: the binary spindle angle
-//! (2³² per revolution); a bin is 2²⁴. Outputs: position Q16 codes,
-//! velocity Q16 codes per tick, acceleration Q16 codes per tick².
+//! Table entries: gauge codes Q8 (`i32`, |entry| ≤ 2²⁵). Angle: the binary
+//! spindle angle (2³² per revolution); a bin is 2²⁴. Outputs: position Q8
+//! codes, velocity Q16 codes per tick, acceleration Q16 codes per tick², all
+//! `i32`. Products of an entry difference (< 2²⁷) and a fraction or an
+//! angle step (< 2²²) are single 32×32 → 64-bit multiplies, shifted back to
+//! 32 bits once.
 
+use super::filters::Notch;
+use super::fixed::sat_i32;
+use super::ServoConfig;
 use crate::units::SpindleAngle;
+use core::sync::atomic::{AtomicI32, Ordering};
 
 /// Bins per revolution.
 pub const BINS: usize = 256;
@@ -79,21 +99,232 @@ pub enum Freeze {
     Null,
 }
 
+impl Freeze {
+    const ALL: [Freeze; 7] = [
+        Freeze::Disabled,
+        Freeze::NotEngaged,
+        Freeze::NoAngle,
+        Freeze::SpindleJump,
+        Freeze::XJump,
+        Freeze::Fault,
+        Freeze::Null,
+    ];
+
+    /// A code 1..=7 (0: none), for a sample packed into words.
+    pub(crate) fn code(f: Option<Freeze>) -> u32 {
+        f.map_or(0, |f| f as u32 + 1)
+    }
+
+    pub(crate) fn from_code(c: u32) -> Option<Freeze> {
+        Self::ALL.get((c as usize).wrapping_sub(1)).copied()
+    }
+}
+
+/// What one loop tick hands the learner: the command's error as the gauge
+/// measures it (codes Q8, before the hum notch: that is the learner's),
+/// where and how fast the spindle was, why the learning must not run now,
+/// and the tick's requests (forget the table, hold the learning frozen).
+///
+/// Packed in four words, the form the hand-off ring carries (so the loop
+/// tick builds it with a few bit operations): `[error, angle, angle step,
+/// flags]`, flags = freeze code (bits 0..2, [`Freeze::code`]), angle known
+/// (3), clear (4), hold reason code (5..7), hold ticks (8..31, at most
+/// 2²⁴ − 1: 14 minutes at 20 kHz).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LearnSample(pub(crate) [u32; 4]);
+
+const S_ANGLE: u32 = 1 << 3;
+const S_CLEAR: u32 = 1 << 4;
+const S_HOLD_SHIFT: u32 = 5;
+const S_TICKS_SHIFT: u32 = 8;
+
+impl LearnSample {
+    pub fn new(
+        error_q8: i32,
+        angle: Option<(SpindleAngle, i32)>,
+        freeze: Option<Freeze>,
+        requests: LearnRequests,
+    ) -> Self {
+        let (phi, dphi, a) = match angle {
+            Some((p, d)) => (p.0, d, S_ANGLE),
+            None => (0, 0, 0),
+        };
+        Self([
+            error_q8 as u32,
+            phi,
+            dphi as u32,
+            Freeze::code(freeze) | a | requests.flags(),
+        ])
+    }
+    /// Command − gauge, codes Q8.
+    pub fn error_q8(&self) -> i32 {
+        self.0[0] as i32
+    }
+    /// The spindle angle and its step over the tick, when known.
+    pub fn angle(&self) -> Option<(SpindleAngle, i32)> {
+        (self.0[3] & S_ANGLE != 0).then_some((SpindleAngle(self.0[1]), self.0[2] as i32))
+    }
+    pub fn freeze(&self) -> Option<Freeze> {
+        Freeze::from_code(self.0[3] & 7)
+    }
+    pub fn requests(&self) -> LearnRequests {
+        let f = self.0[3];
+        LearnRequests {
+            clear: f & S_CLEAR != 0,
+            hold: Freeze::from_code((f >> S_HOLD_SHIFT) & 7).map(|r| (r, f >> S_TICKS_SHIFT)),
+        }
+    }
+}
+
+/// What the loop asks of the learning besides learning.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LearnRequests {
+    /// Forget everything learned first (arming).
+    pub clear: bool,
+    /// Hold it frozen for this many more ticks (engagement, an X jump).
+    pub hold: Option<(Freeze, u32)>,
+}
+
+impl LearnRequests {
+    /// Two holds before one sample: the longer time, the later reason
+    /// (what two holds in a row leave in the learner).
+    pub fn hold(&mut self, reason: Freeze, ticks: u32) {
+        let t = self.hold.map_or(ticks, |(_, t)| t.max(ticks));
+        self.hold = Some((reason, t));
+    }
+
+    fn flags(&self) -> u32 {
+        let hold = self.hold.map_or(0, |(r, t)| {
+            Freeze::code(Some(r)) << S_HOLD_SHIFT | t.min((1 << 24) - 1) << S_TICKS_SHIFT
+        });
+        if self.clear {
+            hold | S_CLEAR
+        } else {
+            hold
+        }
+    }
+}
+
 /// The learned reference correction at one angle.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Correction {
-    pub position_q16: i64,
-    pub velocity_q16: i64,
-    pub accel_q16: i64,
+    /// Gauge codes Q8.
+    pub position_q8: i32,
+    /// Gauge codes per tick Q16.
+    pub velocity_q16: i32,
+    /// Gauge codes per tick² Q16.
+    pub accel_q16: i32,
 }
 
-/// The learning table and its state.
+/// The learned table (gauge codes Q8 per bin): the loop tick reads it, the
+/// learner writes it. Atomic words (single loads and stores on the M4), so
+/// it can live in the `Shared` hand-off between the two priorities.
+pub struct LearnedTable {
+    t: [AtomicI32; BINS],
+}
+
+impl Default for LearnedTable {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl LearnedTable {
+    pub const fn new() -> Self {
+        Self {
+            t: [const { AtomicI32::new(0) }; BINS],
+        }
+    }
+
+    #[inline(always)]
+    fn get(&self, k: usize) -> i32 {
+        self.t[k & MASK].load(Ordering::Relaxed)
+    }
+
+    #[inline(always)]
+    fn set(&self, k: usize, v: i32) {
+        self.t[k & MASK].store(v, Ordering::Relaxed);
+    }
+
+    /// The correction to add to the reference at `phi`, with its rates for
+    /// an angle step of `dphi` per tick (the feedforward's input).
+    #[inline]
+    pub fn correction(&self, phi: SpindleAngle, dphi: i32) -> Correction {
+        let i = (phi.0 >> BIN_BITS) as usize;
+        // The position inside the bin, Q16.
+        let f = ((phi.0 >> (BIN_BITS - 16)) & 0xFFFF) as i32;
+        let (t0, t1, t2, t3) = (
+            self.get(i + MASK),
+            self.get(i),
+            self.get(i + 1),
+            self.get(i + 2),
+        );
+        // |entries| ≤ 2²⁵: differences < 2²⁶, slopes' differences < 2²⁷.
+        let c_q8 = t1 + ((i64::from(t2 - t1) * i64::from(f)) >> 16) as i32;
+        // Slopes at the nodes (codes Q8 per bin, times 2), interpolated.
+        let (s1, s2) = (t2 - t0, t3 - t1);
+        let slope2 = s1 + ((i64::from(s2 - s1) * i64::from(f)) >> 16) as i32;
+        let d = dphi.clamp(-MAX_DPHI, MAX_DPHI);
+        // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17
+        // (< 2³²: saturated).
+        let v = sat_i32((i64::from(slope2) * i64::from(d)) >> (BIN_BITS - 7));
+        // (s2 − s1)/2 per bin² · dphi² / 2⁴⁸, Q8 → Q16: >> 41 in two
+        // steps (< 2²⁹, then < 2³⁰).
+        let a1 = ((i64::from(s2 - s1) * i64::from(d)) >> 20) as i32;
+        let a = ((i64::from(a1) * i64::from(d)) >> (2 * BIN_BITS - 27)) as i32;
+        Correction {
+            position_q8: c_q8,
+            velocity_q16: v,
+            accel_q16: a,
+        }
+    }
+
+    #[inline(always)]
+    fn add(&self, k: usize, inc: i32) {
+        let v = self.get(k).saturating_add(inc);
+        self.set(k, v.clamp(-ENTRY_LIMIT, ENTRY_LIMIT));
+    }
+
+    #[inline(always)]
+    fn q_filter(&self, k: usize, q_shift: u32) {
+        // |entries| ≤ 2²⁵: the second difference is below 2²⁷.
+        let d = (self.get(k + MASK) - 2 * self.get(k) + self.get(k + 1)) >> q_shift;
+        self.add(k, d);
+    }
+
+    fn clear(&self) {
+        for t in &self.t {
+            t.store(0, Ordering::Relaxed);
+        }
+    }
+
+    /// Largest |entry|, gauge codes (reports: the table must not grow
+    /// without bound).
+    pub fn peak_code(&self) -> i32 {
+        self.t
+            .iter()
+            .map(|v| v.load(Ordering::Relaxed).unsigned_abs())
+            .max()
+            .unwrap_or(0) as i32
+            >> 8
+    }
+
+    /// The table, gauge codes Q8 (reports, plots).
+    pub fn snapshot(&self) -> [i32; BINS] {
+        core::array::from_fn(|k| self.get(k))
+    }
+}
+
+/// The learning: its state and its update, applied to the learned table
+/// one tick's sample at a time, below the loop tick's priority.
 #[derive(Clone, Debug)]
-pub struct Repetitive {
-    table: [i32; BINS],
-    gain_q16: i64,
+pub struct Learner {
+    gain_q16: i32,
     lead: usize,
     q_shift: u32,
+    /// The hum notch on the error (at 300 rpm the 120 Hz hum is exactly
+    /// the 24th spindle harmonic: learned, it would move the slide).
+    hum: Option<Notch>,
     last_bin: Option<usize>,
     frozen: Option<Freeze>,
     /// Ticks to stay frozen after a jump.
@@ -102,13 +333,15 @@ pub struct Repetitive {
     passes: u32,
 }
 
-impl Repetitive {
-    pub fn new(gain_q16: i32, lead_bins: u32, q_shift: u32) -> Self {
+impl Learner {
+    /// The learning of the design `cfg`.
+    pub fn new(cfg: &ServoConfig) -> Self {
+        let gain_q16 = cfg.learning_gain_q16;
         Self {
-            table: [0; BINS],
-            gain_q16: i64::from(gain_q16.max(0)),
-            lead: (lead_bins as usize).clamp(MIN_LEAD, MASK),
-            q_shift: q_shift.clamp(1, 16),
+            gain_q16: gain_q16.clamp(0, 65_535),
+            lead: (cfg.learning_lead_bins as usize).clamp(MIN_LEAD, MASK),
+            q_shift: cfg.learning_q_shift.clamp(1, 16),
+            hum: cfg.hum_notch.map(Notch::from_bits),
             last_bin: None,
             frozen: if gain_q16 > 0 {
                 None
@@ -121,35 +354,41 @@ impl Repetitive {
         }
     }
 
-    /// The correction to add to the reference at `phi`, with its rates for
-    /// an angle step of `dphi` per tick (the feedforward's input).
+    /// One tick's sample: its requests, the hum notch on its error, then
+    /// the update (or the freeze it asks for).
     #[inline]
-    pub fn correction(&self, phi: SpindleAngle, dphi: i32) -> Correction {
-        let i = (phi.0 >> BIN_BITS) as usize;
-        let f = i64::from((phi.0 >> (BIN_BITS - 16)) & 0xFFFF);
-        let t = |k: usize| i64::from(self.table[k & MASK]);
-        let (t0, t1, t2, t3) = (t(i + MASK), t(i), t(i + 1), t(i + 2));
-        let c_q8 = t1 + (((t2 - t1) * f) >> 16);
-        // Slopes at the nodes (codes Q8 per bin, times 2), interpolated.
-        let (s1, s2) = (t2 - t0, t3 - t1);
-        let slope2 = s1 + (((s2 - s1) * f) >> 16);
-        let d = i64::from(dphi.clamp(-MAX_DPHI, MAX_DPHI));
-        // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17.
-        let v = (slope2 * d) >> (BIN_BITS - 7);
-        // (s2 − s1)/2 per bin² · dphi² / 2⁴⁸, Q8 → Q16: >> 41 in two steps.
-        let a = ((((s2 - s1) * d) >> 20) * d) >> (2 * BIN_BITS - 27);
-        Correction {
-            position_q16: c_q8 << 8,
-            velocity_q16: v,
-            accel_q16: a,
+    pub fn apply(&mut self, s: &LearnSample, table: &LearnedTable) {
+        let r = s.requests();
+        if r.clear {
+            table.clear();
+            self.last_bin = None;
+            self.passes = 0;
+        }
+        if let Some((reason, ticks)) = r.hold {
+            self.hold_for(reason, ticks);
+        }
+        let error_q8 = match &mut self.hum {
+            Some(n) => n.process(s.error_q8()),
+            None => s.error_q8(),
+        };
+        match s.angle() {
+            Some((phi, dphi)) => self.learn(table, phi, dphi, error_q8, s.freeze()),
+            None => self.hold_for(Freeze::NoAngle, 0),
         }
     }
 
-    /// Learns the tracking error `error_q16` (reference − measured, gauge
-    /// codes Q16) seen at `phi` after a step `dphi`, unless `freeze` says
+    /// Learns the tracking error `error_q8` (command − measured, gauge
+    /// codes Q8) seen at `phi` after a step `dphi`, unless `freeze` says
     /// why not.
     #[inline]
-    pub fn learn(&mut self, phi: SpindleAngle, dphi: i32, error_q16: i64, freeze: Option<Freeze>) {
+    fn learn(
+        &mut self,
+        table: &LearnedTable,
+        phi: SpindleAngle,
+        dphi: i32,
+        error_q8: i32,
+        freeze: Option<Freeze>,
+    ) {
         if self.gain_q16 == 0 {
             self.frozen = Some(Freeze::Disabled);
             return;
@@ -181,8 +420,8 @@ impl Repetitive {
                 // smooth it, and its predecessor a second time (two passes of
                 // the 3-tap kernel = a 5-tap binomial for shift 2).
                 let k = (b + BINS - self.lead) & MASK;
-                self.q_filter(k);
-                self.q_filter(k + MASK);
+                table.q_filter(k, self.q_shift);
+                table.q_filter(k + MASK, self.q_shift);
                 if i == 0 {
                     self.passes = self.passes.saturating_add(1);
                 }
@@ -190,45 +429,33 @@ impl Repetitive {
         }
         self.last_bin = Some(i);
         let j = (i + BINS - self.lead) & MASK;
-        let f = i64::from((phi.0 >> (BIN_BITS - 16)) & 0xFFFF);
-        let e_q8 = (error_q16 >> 8).clamp(-(1 << 28), 1 << 28);
-        // κ · e · Δφ / bin, rounded: Σ over a bin is κ·ē.
-        let inc = (((e_q8 * i64::from(dphi)) >> 16) * self.gain_q16) >> BIN_BITS;
-        let lo = (inc * (65_536 - f)) >> 16;
+        let f = ((phi.0 >> (BIN_BITS - 16)) & 0xFFFF) as i32;
+        // κ · e · Δφ / bin: Σ over a bin is κ·ē. κ·Δφ/2⁷ < 2³¹ (κ < 1 in
+        // Q16, 0 < Δφ ≤ 2²²), and its product with e (|e| ≤ 2²⁸, Q8) over
+        // 2³³ is below 2²⁶.
+        let e_q8 = error_q8.clamp(-(1 << 28), 1 << 28);
+        let k_dphi = (dphi >> 7) * self.gain_q16;
+        let inc = ((i64::from(e_q8) * i64::from(k_dphi)) >> (BIN_BITS + 9)) as i32;
+        // Shared between the two bins around the angle (|inc| < 2²⁶).
+        let lo = ((i64::from(inc) * i64::from(65_536 - f)) >> 16) as i32;
         let hi = inc - lo;
-        self.add(j, lo);
-        self.add((j + 1) & MASK, hi);
+        table.add(j, lo);
+        table.add(j + 1, hi);
     }
 
     /// Keeps the learning frozen for `ticks` more ticks (after a jump of
     /// the spindle phase or of X: the next revolution is not comparable).
-    pub fn hold_for(&mut self, reason: Freeze, ticks: u32) {
+    fn hold_for(&mut self, reason: Freeze, ticks: u32) {
         self.hold = self.hold.max(ticks);
         self.hold_reason = reason;
         self.frozen = Some(reason);
         self.last_bin = None;
     }
 
-    #[inline(always)]
-    fn add(&mut self, k: usize, inc: i64) {
-        if let Some(t) = self.table.get_mut(k) {
-            let v = (i64::from(*t) + inc).clamp(-i64::from(ENTRY_LIMIT), i64::from(ENTRY_LIMIT));
-            *t = v as i32;
-        }
-    }
-
-    #[inline(always)]
-    fn q_filter(&mut self, k: usize) {
-        let t = |k: usize| i64::from(self.table[k & MASK]);
-        let d = (t(k + MASK) - 2 * t(k) + t(k + 1)) >> self.q_shift;
-        self.add(k & MASK, d);
-    }
-
-    /// Forgets everything learned.
-    pub fn clear(&mut self) {
-        self.table = [0; BINS];
-        self.last_bin = None;
-        self.passes = 0;
+    /// A gap in the samples (the learner fell behind and the tick dropped
+    /// some): the bin accounting starts again, as after a spindle jump.
+    pub(crate) fn lost_samples(&mut self) {
+        self.hold_for(Freeze::SpindleJump, 0);
     }
 
     /// Why the learning is not running now (`None`: it is).
@@ -240,22 +467,6 @@ impl Repetitive {
     pub fn revolutions(&self) -> u32 {
         self.passes
     }
-
-    /// Largest |entry|, gauge codes (reports: the table must not grow
-    /// without bound).
-    pub fn peak_code(&self) -> i32 {
-        self.table
-            .iter()
-            .map(|v| v.unsigned_abs())
-            .max()
-            .unwrap_or(0) as i32
-            >> 8
-    }
-
-    /// The table, gauge codes Q8 (reports, plots).
-    pub fn table(&self) -> &[i32; BINS] {
-        &self.table
-    }
 }
 
 #[cfg(test)]
@@ -265,22 +476,43 @@ mod tests {
 
     const TURN: f64 = 4_294_967_296.0;
 
+    /// A learner of the default design at 20 kHz with these learning
+    /// parameters and no hum notch.
+    fn learner(gain_q16: i32, lead: u32, q_shift: u32) -> Learner {
+        let mut cfg = ServoConfig::at_rate(20_000).unwrap();
+        cfg.learning_gain_q16 = gain_q16;
+        cfg.learning_lead_bins = lead;
+        cfg.learning_q_shift = q_shift;
+        cfg.hum_notch = None;
+        Learner::new(&cfg)
+    }
+
+    fn sample(phi: u32, dphi: i32, error_q8: i32, freeze: Option<Freeze>) -> LearnSample {
+        LearnSample::new(
+            error_q8,
+            Some((SpindleAngle(phi), dphi)),
+            freeze,
+            LearnRequests::default(),
+        )
+    }
+
     /// A constant error at every angle is learned to κ·e per revolution
     /// per bin, and the table ends at the error (the loop is not closed
     /// here: the "plant" is the table itself, y = c).
     #[test]
     fn learning_converges_on_a_periodic_error_at_any_speed() {
         for ticks_per_rev in [3000u32, 4000, 5000] {
-            let mut r = Repetitive::new((0.3 * 65536.0) as i32, 3, 2);
+            let mut r = learner((0.3 * 65536.0) as i32, 3, 2);
+            let t = LearnedTable::new();
             let dphi = (TURN / f64::from(ticks_per_rev)) as u32;
             let mut phi = 0u32;
             for _ in 0..(ticks_per_rev * 40) {
                 let ph = SpindleAngle(phi);
                 let target =
                     1000.0 * libm::sin(2.0 * core::f64::consts::TAU * f64::from(phi) / TURN);
-                let c = r.correction(ph, dphi as i32).position_q16 as f64 / 65536.0;
-                let e = ((target - c) * 65536.0) as i64;
-                r.learn(ph, dphi as i32, e, None);
+                let c = f64::from(t.correction(ph, dphi as i32).position_q8) / 256.0;
+                let e = ((target - c) * 256.0) as i32;
+                r.apply(&sample(phi, dphi as i32, e, None), &t);
                 phi = phi.wrapping_add(dphi);
             }
             // residual after 40 revolutions at κ = 0.3: (0.7)^40 ~ 6e-7 plus
@@ -290,10 +522,11 @@ mod tests {
             for k in 0..360 {
                 let p = (k as f64 / 360.0 * TURN) as u32;
                 let target = 1000.0 * libm::sin(2.0 * core::f64::consts::TAU * f64::from(p) / TURN);
-                let c = r.correction(SpindleAngle(p), 0).position_q16 as f64 / 65536.0;
+                let c = f64::from(t.correction(SpindleAngle(p), 0).position_q8) / 256.0;
                 worst = worst.max((target - c).abs());
             }
             assert!(worst < 10.0, "{ticks_per_rev}: {worst} codes of 1000");
+            assert_eq!(r.revolutions(), 40 - 1);
         }
     }
 
@@ -303,20 +536,20 @@ mod tests {
     /// resolution.
     #[test]
     fn correction_rates_are_derivatives_of_the_table() {
-        let mut r = Repetitive::new(1, 0, 8);
+        let t = LearnedTable::new();
         let a = 10_000.0;
-        for (i, t) in r.table.iter_mut().enumerate() {
-            *t = (a * 256.0 * libm::sin(2.0 * core::f64::consts::TAU * i as f64 / BINS as f64))
-                as i32;
+        for i in 0..BINS {
+            let v = a * 256.0 * libm::sin(2.0 * core::f64::consts::TAU * i as f64 / BINS as f64);
+            t.set(i, v as i32);
         }
         let dphi = (TURN / 4000.0) as i32;
         let w = core::f64::consts::TAU / 4000.0; // rad per tick
         for k in 0..64 {
             let p = (k as f64 / 64.0 * TURN) as u32;
             let th = core::f64::consts::TAU * f64::from(p) / TURN;
-            let c = r.correction(SpindleAngle(p), dphi);
-            let v = c.velocity_q16 as f64 / 65536.0;
-            let acc = c.accel_q16 as f64 / 65536.0;
+            let c = t.correction(SpindleAngle(p), dphi);
+            let v = f64::from(c.velocity_q16) / 65536.0;
+            let acc = f64::from(c.accel_q16) / 65536.0;
             let v_exact = a * 2.0 * w * libm::cos(2.0 * th);
             let a_exact = -a * 4.0 * w * w * libm::sin(2.0 * th);
             assert!(
@@ -332,32 +565,80 @@ mod tests {
 
     #[test]
     fn backward_or_huge_angle_steps_freeze_the_learning() {
-        let mut r = Repetitive::new(20_000, 0, 8);
-        r.learn(SpindleAngle(1000), -5, 1 << 20, None);
+        let mut r = learner(20_000, 0, 8);
+        let t = LearnedTable::new();
+        r.apply(&sample(1000, -5, 1 << 12, None), &t);
         assert_eq!(r.frozen(), Some(Freeze::SpindleJump));
-        r.learn(SpindleAngle(1000), 1 << 23, 1 << 20, None);
+        r.apply(&sample(1000, 1 << 23, 1 << 12, None), &t);
         assert_eq!(r.frozen(), Some(Freeze::SpindleJump));
-        assert_eq!(r.peak_code(), 0);
-        r.learn(SpindleAngle(1000), 1000, 1 << 20, Some(Freeze::NoAngle));
+        assert_eq!(t.peak_code(), 0);
+        r.apply(&sample(1000, 1000, 1 << 12, Some(Freeze::NoAngle)), &t);
         assert_eq!(r.frozen(), Some(Freeze::NoAngle));
-        r.hold_for(Freeze::XJump, 3);
-        for _ in 0..3 {
-            r.learn(SpindleAngle(1000), 1000, 1 << 20, None);
+        let mut req = LearnRequests::default();
+        req.hold(Freeze::XJump, 3);
+        let hold = LearnSample::new(1 << 12, Some((SpindleAngle(1000), 1000)), None, req);
+        // The hold applies from its own sample on: three ticks frozen.
+        r.apply(&hold, &t);
+        assert_eq!(r.frozen(), Some(Freeze::XJump));
+        for _ in 0..2 {
+            r.apply(&sample(1000, 1000, 1 << 12, None), &t);
             assert_eq!(r.frozen(), Some(Freeze::XJump));
         }
-        r.learn(SpindleAngle(1000), 1000, 1 << 20, None);
+        r.apply(&sample(1000, 1 << 20, 1 << 24, None), &t);
         assert_eq!(r.frozen(), None);
+        // No angle: frozen with that reason; a clear forgets the table.
+        let none = LearnSample::new(0, None, None, LearnRequests::default());
+        r.apply(&none, &t);
+        assert_eq!(r.frozen(), Some(Freeze::NoAngle));
+        assert!(t.peak_code() > 0);
+        let clear = LearnRequests {
+            clear: true,
+            hold: None,
+        };
+        r.apply(&LearnSample::new(0, None, None, clear), &t);
+        assert_eq!(t.peak_code(), 0);
     }
 
     /// A constant error forever cannot grow the table beyond its clamp.
     #[test]
     fn table_is_bounded() {
-        let mut r = Repetitive::new(60_000, 0, 16);
+        let mut r = learner(60_000, 0, 16);
+        let t = LearnedTable::new();
         let mut phi = 0u32;
         for _ in 0..400_000 {
-            r.learn(SpindleAngle(phi), 1 << 20, i64::MAX / 4, None);
+            r.apply(&sample(phi, 1 << 20, i32::MAX / 4, None), &t);
             phi = phi.wrapping_add(1 << 20);
         }
-        assert!(r.peak_code() <= ENTRY_LIMIT >> 8);
+        assert!(t.peak_code() <= ENTRY_LIMIT >> 8);
+    }
+
+    #[test]
+    fn samples_round_trip_through_their_words() {
+        assert_eq!(Freeze::from_code(Freeze::code(None)), None);
+        for f in Freeze::ALL {
+            assert_eq!(Freeze::from_code(Freeze::code(Some(f))), Some(f));
+        }
+        for (angle, freeze, clear, hold) in [
+            (None, None, false, None),
+            (
+                Some((SpindleAngle(u32::MAX), -7)),
+                Some(Freeze::Null),
+                true,
+                Some((Freeze::XJump, 20_000)),
+            ),
+            (
+                Some((SpindleAngle(12_345), 1 << 22)),
+                Some(Freeze::Disabled),
+                false,
+                Some((Freeze::NotEngaged, 786)),
+            ),
+        ] {
+            let req = LearnRequests { clear, hold };
+            let s = LearnSample::new(-123_456, angle, freeze, req);
+            assert_eq!(
+                (s.error_q8(), s.angle(), s.freeze(), s.requests()),
+                (-123_456, angle, freeze, req)
+            );
+        }
     }
 }

@@ -29,6 +29,7 @@ mod link;
 mod nopanic;
 mod regions;
 mod replay;
+mod stack;
 mod trace;
 mod watchdog;
 
@@ -987,7 +988,14 @@ mod tests {
             parse(&["isr-cost", "--call", "3"]).err(),
             Some(ErrorKind::MissingRequiredArgument)
         );
-        assert!(parse(&["isr-cost", "--profile", "x_event_modern", "--call", "3"]).is_ok());
+        assert!(parse(&[
+            "isr-cost",
+            "--profile",
+            "x_count_event_modern",
+            "--call",
+            "3"
+        ])
+        .is_ok());
         assert_eq!(
             parse(&["test", "--fuzz-seconds", "-1"]).err(),
             Some(ErrorKind::UnknownArgument)

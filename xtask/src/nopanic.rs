@@ -199,6 +199,41 @@ fn word_at(bytes: &[u8], at: usize) -> Option<u32> {
     Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?))
 }
 
+/// An image's code as the decoders need it: the bytes at an address, and
+/// whether a halfword lies in a literal pool (from the `$d`/`$t` mapping
+/// symbols: `$d` starts a pool, `$t` code again).
+pub struct Code<'a> {
+    img: &'a Image,
+    maps: Vec<(u32, bool)>,
+}
+
+impl<'a> Code<'a> {
+    pub fn new(img: &'a Image) -> Self {
+        let mut maps: Vec<(u32, bool)> = img
+            .symbols
+            .iter()
+            .filter(|s| s.3 == 0 && (s.0.starts_with("$d") || s.0.starts_with("$t")))
+            .map(|s| (s.1 & !1, s.0.starts_with("$d")))
+            .collect();
+        maps.sort();
+        Self { img, maps }
+    }
+
+    pub fn is_data(&self, a: u32) -> bool {
+        match self.maps.partition_point(|m| m.0 <= a) {
+            0 => false,
+            k => self.maps[k - 1].1,
+        }
+    }
+
+    pub fn bytes(&self, start: u32, len: u32) -> Option<&'a [u8]> {
+        self.img.sections.iter().find_map(|(_, base, b)| {
+            let off = start.checked_sub(*base)? as usize;
+            b.get(off..off + len as usize)
+        })
+    }
+}
+
 pub fn graph(img: &Image) -> Graph {
     let mut funcs: Vec<Func> = img
         .symbols
@@ -212,26 +247,9 @@ pub fn graph(img: &Image) -> Graph {
         .collect();
     funcs.sort_by_key(|f| (f.start, std::cmp::Reverse(f.end)));
     funcs.dedup_by_key(|f| f.start);
-    // Mapping symbols: `$d` starts a literal pool, `$t` code again.
-    let mut maps: Vec<(u32, bool)> = img
-        .symbols
-        .iter()
-        .filter(|s| s.3 == 0 && (s.0.starts_with("$d") || s.0.starts_with("$t")))
-        .map(|s| (s.1 & !1, s.0.starts_with("$d")))
-        .collect();
-    maps.sort();
-    let is_data = |a: u32| -> bool {
-        match maps.partition_point(|m| m.0 <= a) {
-            0 => false,
-            k => maps[k - 1].1,
-        }
-    };
-    let bytes_at = |start: u32, len: u32| -> Option<&[u8]> {
-        img.sections.iter().find_map(|(_, base, b)| {
-            let off = start.checked_sub(*base)? as usize;
-            b.get(off..off + len as usize)
-        })
-    };
+    let code = Code::new(img);
+    let is_data = |a: u32| code.is_data(a);
+    let bytes_at = |start: u32, len: u32| code.bytes(start, len);
     let mut g = Graph {
         calls: vec![Vec::new(); funcs.len()],
         indirect: vec![false; funcs.len()],

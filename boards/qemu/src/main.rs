@@ -13,13 +13,15 @@
 //!   the present world time: legacy half-mil X events from a synthetic feed
 //!   (with duplicate words the debounce must ignore and a reversal), and the
 //!   spindle's index pulses, into `EventState::x_event` / `index_event`.
+//!   Each time it runs it then applies the loop tick's learning samples
+//!   (`LearnState::run`, the learning below the tick).
 //! * The two handlers share only `SHARED` (atomics, `zslide::firmware`).
-//! * With the `modern-x` feature X is instead a count (0.5 µin per count)
-//!   read by the loop tick, moving at the same 20 in/min from 2.0 in (a new
-//!   count nearly every tick, so the tick re-interpolates the coefficients
-//!   nearly every time: the worst case of that mode); timer 1 plays only
-//!   the index pulses, and check 2 asks for no X events and the loop's
-//!   coefficients at the last count's X.
+//! * With the `modern-x` feature X is instead a count (0.5 µin per count),
+//!   moving at the same 20 in/min from 2.0 in, that timer 1 hands to
+//!   `EventState::x_count_event` each time it runs (a new count every time,
+//!   so it re-interpolates every time: the worst case of that mode) before
+//!   it plays the index pulses; check 2 asks for no X events and the
+//!   loop's coefficients at the last count's X.
 //!
 //! World time is the loop tick count × 50 µs (the firmware's clock counts
 //! 25 MHz from it), so the run and its log are deterministic. defmt goes out
@@ -54,8 +56,8 @@ use defmt_semihosting as _;
 use plant::{Dac, DacSpi, GaugeSpi, Plant};
 use zslide::drivers::{ad4020::Ad4020, ad5791::Ad5791};
 use zslide::firmware::{
-    EventState, Firmware, FirmwareConfig, LoopState, NoCoefficientDac, Request, Shared,
-    SpindleMode, SpindleReading, TickInput, XMode,
+    EventState, Firmware, FirmwareConfig, LearnState, LoopState, NoCoefficientDac, Request,
+    Shared, SpindleMode, SpindleReading, TickInput, XMode,
 };
 use zslide::hw::EncoderSample;
 use zslide::link::proto::{
@@ -246,6 +248,7 @@ struct Run {
 /// Everything the event handler owns.
 struct Events {
     ev: EventState,
+    learn: LearnState,
     next_x: u32,
     next_index: u32,
     /// Coefficient generation last traced.
@@ -366,6 +369,10 @@ fn TIMER1() {
         WORLD_TICK.load(Ordering::Acquire).min(EVENTS_UNTIL)
     };
     let now = u64::from(k) * u64::from(CLOCK_PER_TICK);
+    if cfg!(feature = "modern-x") {
+        // A fault it finds reaches the loop tick through SHARED.
+        let _ = e.ev.x_count_event(&SHARED, x_count_at(k));
+    }
     loop {
         let x_at = (e.next_x < x_events())
             .then(|| u64::from(x_tick(e.next_x)) * u64::from(CLOCK_PER_TICK))
@@ -403,6 +410,7 @@ fn TIMER1() {
             _ => break,
         }
     }
+    e.learn.run(&SHARED);
 }
 
 #[entry]
@@ -473,7 +481,7 @@ fn main() -> ! {
             _ => Err(zslide::table::TableError::Missing),
         },
     };
-    let (mut lp, ev) = fw.into_parts();
+    let (mut lp, ev, learn) = fw.into_parts();
     if let Err(e) = table {
         defmt::error!(
             "coefficient table refused, slide held at null: {}",
@@ -531,6 +539,7 @@ fn main() -> ! {
     };
     let events = Events {
         ev,
+        learn,
         next_x: 0,
         next_index: 0,
         generation: 0,
@@ -665,9 +674,15 @@ fn main() -> ! {
         last_x,
         s.coeff_null
     );
+    // Modern X publishes a set per count instead of per X event.
+    let sets_ok = if cfg!(feature = "modern-x") {
+        SHARED.coefficient_generation() > 0
+    } else {
+        SHARED.coefficient_generation() == scheduled
+    };
     if accepted != scheduled
         || ignored != dups
-        || SHARED.coefficient_generation() != scheduled
+        || !sets_ok
         || (!refused && (s.coeff_x_bits != last_x.to_bits() || s.coeff_null))
     {
         defmt::error!("FAIL: X events not handled as scripted");

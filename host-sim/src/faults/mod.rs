@@ -377,7 +377,7 @@ fn simulate(
                 err_in: cutter.borrow().last_error_in,
                 z_in: w.rig.slide.position_in(),
                 command_in: f64::from(w.fw.command_code()) / CODES_PER_IN,
-                reference_in: sv.reference_q16() as f64 / 65536.0 / CODES_PER_IN,
+                reference_in: f64::from(sv.reference_q8()) / 256.0 / CODES_PER_IN,
                 dac_v: w.rig.v_in,
                 fault: w.fw.fault().is_some(),
                 amp_enabled: w.rig.amp.enabled(),
@@ -396,7 +396,7 @@ fn simulate(
             );
         }
         let phase = w.fw.servo().phase();
-        let revs = w.fw.servo().learning().revolutions();
+        let revs = w.fw.learning().revolutions();
         if phase != Phase::Engaged || revs == 0 {
             bail!(
                 "{}: the loop is not engaged and learning at the injection (phase {phase:?}, {revs} learned revolutions)",

@@ -224,7 +224,7 @@ fn main() -> ! {
     let Ok(fw) = Firmware::with_table(zslide::DEFAULT_TABLE, cfg) else {
         fail("configuration refused");
     };
-    let (lp, ev) = fw.into_parts();
+    let (lp, ev, _learn) = fw.into_parts();
     critical_section::with(|cs| {
         LOOP_PART.borrow(cs).set(Some(lp));
         EVENT_PART.borrow(cs).set(Some(ev));

@@ -1,0 +1,56 @@
+//! The learning handler, one priority below the loop tick: it takes the
+//! samples the loop tick handed over ([`crate::handoff`]'s learning ring)
+//! and runs the spindle-synchronous learning on them (the hum notch on the
+//! error, the update, the Q-filter: `servo::repetitive::Learner`) into the
+//! shared learned table the loop tick reads its correction from. The
+//! learning is the part of the loop that need not finish before the DAC
+//! write: the table it writes is read a revolution later. Moving it out of
+//! the loop tick keeps the tick's cost the same whether the learning runs
+//! or not (`docs/BOARD.md`, interrupt cost).
+//!
+//! The boards run [`LearnState::run`] after every loop tick (a software-
+//! pended interrupt below the tick on the NUCLEO, the machine-event timer
+//! on QEMU); `Firmware` runs it right after the tick.
+
+use crate::handoff::Shared;
+use crate::servo::{Learner, ServoConfig};
+
+/// State of the learning handler.
+#[derive(Clone, Debug)]
+pub struct LearnState {
+    learner: Learner,
+    /// The ring's lost-sample count when last seen.
+    lost_seen: u32,
+}
+
+impl LearnState {
+    pub(crate) fn new(cfg: &ServoConfig) -> Self {
+        Self {
+            learner: Learner::new(cfg),
+            lost_seen: 0,
+        }
+    }
+
+    /// Applies every sample the loop tick has handed over since the last
+    /// run, oldest first.
+    ///
+    /// Never inlined, so `cargo xtask isr-cost` can find and count it.
+    #[inline(never)]
+    pub fn run(&mut self, sh: &Shared) {
+        let lost = sh.learn.lost();
+        if lost != self.lost_seen {
+            // The tick dropped samples while this handler could not run: the
+            // ring holds what came after the gap.
+            self.lost_seen = lost;
+            self.learner.lost_samples();
+        }
+        while let Some(s) = sh.learn.pop() {
+            self.learner.apply(&s, &sh.learned);
+        }
+    }
+
+    /// The learning's state (why it is frozen, revolutions learned).
+    pub fn learner(&self) -> &Learner {
+        &self.learner
+    }
+}
