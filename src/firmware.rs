@@ -283,6 +283,7 @@ mod tests {
     struct Dac {
         writes: Vec<i32>,
         clamps: u32,
+        releases: u32,
         fail_writes: bool,
         fail_clamps: u32,
     }
@@ -300,6 +301,10 @@ mod tests {
                 self.fail_clamps -= 1;
                 return Err(BusError);
             }
+            Ok(())
+        }
+        fn release_clamp(&mut self) -> Result<(), BusError> {
+            self.releases += 1;
             Ok(())
         }
     }

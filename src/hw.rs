@@ -91,6 +91,10 @@ pub trait AmplifierDac {
     fn write(&mut self, code: i32) -> Result<(), BusError>;
     /// Clamps the output to ground (the converter's own safe state).
     fn clamp_to_ground(&mut self) -> Result<(), BusError>;
+    /// Releases that clamp at zero volts (the code is zeroed first, so the
+    /// release cannot step the output), verified where the converter can
+    /// be read back. After it, [`Self::write`] drives the output again.
+    fn release_clamp(&mut self) -> Result<(), BusError>;
 }
 
 /// The quad coefficient DAC of the legacy coefficient-output mode (C00..C03

@@ -268,6 +268,18 @@ impl LoopState {
             self.hold_safe(dac);
             return;
         }
+        if self.dac_clamped && self.fault.is_none() {
+            // The fault that clamped the converter was cleared: release the
+            // clamp at zero volts before anything drives the output (the
+            // servo has not written this tick yet).
+            if dac.release_clamp().is_err() {
+                self.trip(Fault::Bus(Device::AmplifierDac));
+                self.hold_safe(dac);
+                return;
+            }
+            self.dac_clamped = false;
+            self.dac_zeroed = true;
+        }
         let y = if self.gauge_reversed { -code } else { code };
         self.position = y;
 
@@ -436,7 +448,6 @@ impl LoopState {
         } else {
             self.fault = None;
             self.clear_refused = None;
-            self.dac_clamped = false;
         }
     }
 

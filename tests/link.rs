@@ -42,6 +42,9 @@ impl AmplifierDac for Dac {
     fn clamp_to_ground(&mut self) -> Result<(), BusError> {
         Ok(())
     }
+    fn release_clamp(&mut self) -> Result<(), BusError> {
+        Ok(())
+    }
 }
 
 /// The transport: bytes the host sent, bytes the firmware wrote.

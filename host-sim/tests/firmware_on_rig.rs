@@ -62,6 +62,44 @@ fn gauge_bus_error_opens_the_loop_safely() {
     }
 }
 
+/// After a disabling fault the converter is clamped to ground; once the
+/// cause is gone, a clear and an arm must engage the loop again through
+/// the simulated AD5791 (its control register released at zero volts),
+/// not leave the output clamped so that the sign check fails.
+#[test]
+fn the_loop_engages_again_after_a_disabling_fault_is_cleared() {
+    let (mut w, mut s) = firmware_demo(quiet(), 20_000);
+    w.request(Request::Arm);
+    s.run_until(&mut w, 10_000_000);
+    w.rig
+        .adc
+        .state
+        .borrow_mut()
+        .faults
+        .inject(BusFault::Error, 1);
+    s.run_until(&mut w, 20_000_000);
+    assert_eq!(w.fw.fault(), Some(Fault::Bus(Device::GaugeAdc)));
+    assert!(w.fw.dac_clamped());
+    w.request(Request::Disarm);
+    s.run_until(&mut w, 30_000_000);
+    w.request(Request::ClearFault);
+    s.run_until(&mut w, 40_000_000);
+    assert_eq!(w.fw.fault(), None);
+    assert!(!w.fw.dac_clamped(), "the clamp is released after the clear");
+    // Released at zero volts: the amplifier input does not step.
+    assert_eq!(w.rig.dac.state.borrow().output_volts(), 0.0);
+    w.rig.slide.x[st::Z] = 0.001; // the slide drifted while off
+    w.request(Request::Arm);
+    s.run_until(&mut w, 300_000_000);
+    assert_eq!(w.fw.fault(), None, "re-arm passes the sign check");
+    assert!(w.rig.amp.enabled());
+    assert!(
+        w.rig.slide.position_in().abs() < 1e-6,
+        "z = {}",
+        w.rig.slide.position_in()
+    );
+}
+
 #[test]
 fn amplifier_dac_bus_error_opens_the_loop_safely() {
     let (mut w, mut s) = firmware_demo(quiet(), 20_000);

@@ -76,15 +76,10 @@ impl<SPI: SpiDevice> Ad5791<SPI> {
         Ok(bytes_frame(reply) & 0xF_FFFF)
     }
 
-    /// Zero code first (so releasing the clamp cannot step the output), then
-    /// the control register, verified by read-back.
+    /// At power-up the chip is clamped and tristated: released as after a
+    /// fault ([`AmplifierDac::release_clamp`]).
     pub fn init(&mut self) -> Result<(), BusError> {
-        self.write(write_frame(REG_DAC, 0))?;
-        self.write(write_frame(REG_CONTROL, CTRL_RUN))?;
-        if self.read_register(REG_CONTROL)? & 0x3E != CTRL_RUN {
-            return Err(BusError);
-        }
-        Ok(())
+        AmplifierDac::release_clamp(self)
     }
 }
 
@@ -96,6 +91,16 @@ impl<SPI: SpiDevice> AmplifierDac for Ad5791<SPI> {
 
     fn clamp_to_ground(&mut self) -> Result<(), BusError> {
         Ad5791::write(self, write_frame(REG_CONTROL, CTRL_SAFE))
+    }
+
+    /// Zero code first, then the control register, verified by read-back.
+    fn release_clamp(&mut self) -> Result<(), BusError> {
+        Ad5791::write(self, write_frame(REG_DAC, 0))?;
+        Ad5791::write(self, write_frame(REG_CONTROL, CTRL_RUN))?;
+        if self.read_register(REG_CONTROL)? & 0x3E != CTRL_RUN {
+            return Err(BusError);
+        }
+        Ok(())
     }
 }
 

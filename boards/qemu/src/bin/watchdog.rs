@@ -107,6 +107,9 @@ impl AmplifierDac for Resting {
     fn clamp_to_ground(&mut self) -> Result<(), BusError> {
         Ok(())
     }
+    fn release_clamp(&mut self) -> Result<(), BusError> {
+        Ok(())
+    }
 }
 
 /// Spins while `which` is the injected hang: until the NMI releases it or
