@@ -58,10 +58,6 @@ fn every_injected_fault_is_detected_with_its_reason_and_ends_safe_within_the_dep
             }
         }
         assert!(t >= 0.0);
-        if *case == Case::FollowingError {
-            // Open finding: `a_following_error_fault_keeps_the_tool_within_the_depth_of_cut`.
-            continue;
-        }
         assert!(
             e < DEPTH_OF_CUT_IN * 1e6,
             "{}: {e} µin into the part, beyond the depth of cut",
@@ -70,14 +66,12 @@ fn every_injected_fault_is_detected_with_its_reason_and_ends_safe_within_the_dep
     }
 }
 
-/// Open finding (docs/SAFETY.md, "Fault campaign"): the following-error
-/// fault ramps the command to null but the loop keeps adding the learned
-/// correction, and the learning took in the push (0.3 of a 5000 µin error)
-/// before the fault latched: one revolution later the loop drives the tool
-/// 415 µin into the part. Fails until the servo drops the correction on a
-/// fault (src/servo, src/looptick.rs).
+/// The following-error fault ramps the command to null; the learning had
+/// taken in the push (0.3 of a 5000 µin error) before the fault latched,
+/// so a loop that kept adding the learned correction would drive the tool
+/// into the part one revolution later (415 µin, before the servo dropped
+/// the correction on a latched fault; docs/SAFETY.md).
 #[test]
-#[ignore = "open finding: the learned correction is replayed at null after a following-error fault (docs/SAFETY.md)"]
 fn a_following_error_fault_keeps_the_tool_within_the_depth_of_cut() {
     let o = run_case(&legacy(), Case::FollowingError, 0).unwrap();
     let e = o.row.max_excursion_uin.unwrap();

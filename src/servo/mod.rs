@@ -131,6 +131,11 @@ pub struct Servo {
     /// codes per tick).
     command_q8: i32,
     command_v_q16: i32,
+    /// The learned correction added on the last tick (position Q8,
+    /// velocity Q16; zero when none was): folded into the command when the
+    /// correction stops, so the reference does not step.
+    correction_q8: i32,
+    correction_v_q16: i32,
     /// The goal's velocity on the last tick, Q16.
     goal_v_q16: i32,
     /// The goal of the last tick, Q8.
@@ -163,6 +168,8 @@ impl Servo {
                 hold: None,
             },
             settle_left: 0,
+            correction_q8: 0,
+            correction_v_q16: 0,
             sign: SignCheck::new(
                 cfg.sign_check_code,
                 cfg.sign_check_ticks,
@@ -346,17 +353,37 @@ impl Servo {
             _ => {}
         }
 
-        // Learned correction, by spindle angle (|c| ≤ 2²⁵ Q8).
+        // Learned correction, by spindle angle (|c| ≤ 2²⁵ Q8), while the
+        // loop follows the part: not during the settling, not on a latched
+        // fault (the learning may have taken in what caused it: a hard spot
+        // pushing the slide would be replayed into the part a revolution
+        // later), not without an angle, not while disarming. When it stops,
+        // the last correction joins the command, whose slew profile takes
+        // it to the goal: the reference never steps.
         let mut reference = self.command_q8;
         let settled = self.settle_left == 0;
         self.settle_left = self.settle_left.saturating_sub(1);
-        if let Some((phi, dphi)) = input.angle {
-            if self.phase == Phase::Engaged && settled {
+        let corrected =
+            self.phase == Phase::Engaged && settled && !matches!(input.freeze, Some(Freeze::Fault));
+        match input.angle {
+            Some((phi, dphi)) if corrected => {
                 let c = learned.correction(phi, dphi);
                 reference += c.position_q8;
                 v_ref = v_ref.saturating_add(c.velocity_q16);
                 a_ref += c.accel_q16;
+                self.correction_q8 = c.position_q8;
+                self.correction_v_q16 = c.velocity_q16;
             }
+            _ if self.correction_q8 != 0 || self.correction_v_q16 != 0 => {
+                // |command| < 2²⁸, |c| ≤ 2²⁵ Q8: the sum fits.
+                self.command_q8 += self.correction_q8;
+                self.command_v_q16 = self.command_v_q16.saturating_add(self.correction_v_q16);
+                reference = self.command_q8;
+                v_ref = v_ref.saturating_add(self.correction_v_q16);
+                self.correction_q8 = 0;
+                self.correction_v_q16 = 0;
+            }
+            _ => {}
         }
         self.reference_q8 = reference;
         let error_q8 = reference - measured;
@@ -441,6 +468,8 @@ impl Servo {
         let z = self.observer.estimate().z_q8;
         self.command_q8 = z;
         self.command_v_q16 = 0;
+        self.correction_q8 = 0;
+        self.correction_v_q16 = 0;
         // The goal already moves: the command starts at rest and joins it.
         self.goal_v_q16 = v_goal_q16;
         self.goal_q8 = z;
