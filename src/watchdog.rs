@@ -4,9 +4,9 @@
 //! priority), and only when the loop tick has run since the last feed.
 //! That catches both ways the machine can stop being controlled:
 //!
-//! * a handler that hangs (the loop tick, an X or index event stuck in a
-//!   loop or a bus wait) starves everything below it, the background
-//!   included: no feed;
+//! * a handler that hangs (the loop tick, an X or index event, the learning
+//!   below them, stuck in a loop or a bus wait) starves everything below
+//!   it, the background included: no feed;
 //! * a loop tick that stops firing (its timer stopped, its interrupt
 //!   masked) leaves the background running but the tick count still: no
 //!   feed.
