@@ -78,7 +78,7 @@ impl Firmware {
         Self {
             lp: LoopState::new(cfg),
             ev: EventState::new(None, &fc, None),
-            learn: LearnState::new(&cfg),
+            learn: LearnState::new(&cfg, None, false),
             shared: Shared::new(),
         }
     }
@@ -126,7 +126,7 @@ impl Firmware {
         }
         Ok(Self {
             ev: EventState::new(gen, &cfg, count),
-            learn: LearnState::new(&cfg.loop_cfg),
+            learn: LearnState::new(&cfg.loop_cfg, gen, cfg.x != XMode::None),
             lp,
             shared: Shared::new(),
         })
@@ -151,11 +151,13 @@ impl Firmware {
         dac: &mut impl AmplifierDac,
     ) {
         self.lp.loop_tick(&self.shared, input, gauge, dac);
-        // Then what the boards run below the tick: the learning on this
-        // tick's sample, the X count (a fault it finds is raised in
-        // `Shared` for the next tick).
-        self.learn.run(&self.shared);
+        // Then what the boards run below the tick, in their priority
+        // order: the X count (a fault it finds is raised in `Shared` for
+        // the next tick), then the learning handler: the command ahead of
+        // the next tick at the count's X, the learning on this tick's
+        // sample.
         let _ = self.ev.x_count_event(&self.shared, input.x_count);
+        self.learn.run(&self.shared);
     }
 
     /// See [`EventState::x_event`].
@@ -697,6 +699,13 @@ mod tests {
             }
             fw.loop_tick(&enc(n), &mut g, &mut d);
             let phi = phi_of(n);
+            if n == 1 {
+                // The first tick with an angle: the handler below the tick
+                // evaluates the command after it (`crate::ahead`), the
+                // command starts on the next.
+                assert_eq!(fw.table_code(), 0);
+                continue;
+            }
             let want = gauge_code_from_z(gen.z(x, phi).unwrap());
             assert!((fw.table_code() - want).abs() <= 1, "n {n}");
             deepest = deepest.min(fw.table_code());

@@ -52,9 +52,12 @@
 //!   ([`LearnedTable`]) is atomic words: the tick reads bins the learner
 //!   is not writing (see `servo::repetitive`).
 
+use crate::ahead::AheadHandoff;
+use crate::command::Coefficients;
 use crate::config::COLS;
 use crate::safety::{Device, Fault};
 use crate::servo::{LearnSample, LearnedTable};
+use crate::units::XInches;
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
 /// One published coefficient set: the column values at X, all the loop
@@ -124,6 +127,8 @@ pub struct Shared {
     /// The learned correction table (written by the learner).
     pub(crate) learned: LearnedTable,
     pub(crate) learn: LearnQueue,
+    /// The command evaluated ahead of the tick (`crate::ahead`).
+    pub(crate) ahead: AheadHandoff,
 }
 
 /// Slots of the learning ring: the learner may fall this many ticks behind
@@ -226,6 +231,7 @@ impl Shared {
             requests: AtomicU32::new(0),
             learned: LearnedTable::new(),
             learn: LearnQueue::new(),
+            ahead: AheadHandoff::new(),
         }
     }
     /// The learned correction table (reports: its peak, a snapshot).
@@ -267,6 +273,45 @@ impl Shared {
         slot[1].store(edge_ticks, Ordering::Relaxed);
         self.index_seq.store(s, Ordering::Release);
     }
+    /// Copies the latest coefficient set into `c` when its generation is
+    /// not `seen` (the seqlock reader of the module docs). Returns the
+    /// set's X when one was taken; a set overwritten while copied leaves
+    /// `c` null and `seen` unchanged (the next call takes the next one),
+    /// and returns `Err` with its X.
+    #[inline(always)]
+    pub(crate) fn take_coefficients(
+        &self,
+        seen: &mut u32,
+        c: &mut Coefficients,
+    ) -> Result<Option<XInches>, XInches> {
+        let g = self.coeff_gen.load(Ordering::Acquire);
+        if g == *seen {
+            return Ok(None);
+        }
+        let slot = &self.coeff[(g & 1) as usize];
+        let meta = slot.meta.load(Ordering::Relaxed);
+        let x = XInches::from_bits(slot.x.load(Ordering::Relaxed));
+        if meta & NULL_META != 0 {
+            c.set_null(x);
+        } else {
+            let n = (meta as usize).min(COLS);
+            for (v, sv) in c.value.iter_mut().zip(slot.value.iter()).take(n) {
+                *v = sv.load(Ordering::Relaxed);
+            }
+            c.set_live(n as u8, x);
+        }
+        fence(Ordering::Acquire);
+        // Overwritten while copying (a writer that preempts the reader):
+        // drop it, take the next one.
+        if slot.seq.load(Ordering::Relaxed) == g {
+            *seen = g;
+            Ok(Some(x))
+        } else {
+            c.set_null(x);
+            Err(x)
+        }
+    }
+
     pub(crate) fn raise(&self, f: Fault) {
         self.x_faults.fetch_or(x_fault_bit(f), Ordering::Relaxed);
     }

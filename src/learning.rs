@@ -1,4 +1,5 @@
-//! The learning handler, one priority below the loop tick: it takes the
+//! The learning handler, one priority below the loop tick: it evaluates
+//! the command ahead of the next tick (`crate::ahead`), then takes the
 //! samples the loop tick handed over ([`crate::handoff`]'s learning ring)
 //! and runs the spindle-synchronous learning on them (the hum notch on the
 //! error, the update, the Q-filter: `servo::repetitive::Learner`) into the
@@ -12,20 +13,31 @@
 //! pended interrupt below the tick on the NUCLEO, the machine-event timer
 //! on QEMU); `Firmware` runs it right after the tick.
 
+use crate::ahead::AheadState;
+use crate::command::CommandGen;
 use crate::handoff::Shared;
 use crate::servo::{Learner, ServoConfig};
 
 /// State of the learning handler.
 #[derive(Clone, Debug)]
 pub struct LearnState {
+    /// The command evaluated ahead of the next tick (`crate::ahead`), run
+    /// first: the next tick needs it, the learned table only a revolution
+    /// later.
+    ahead: AheadState,
     learner: Learner,
     /// The ring's lost-sample count when last seen.
     lost_seen: u32,
 }
 
 impl LearnState {
-    pub(crate) fn new(cfg: &ServoConfig) -> Self {
+    pub(crate) fn new(
+        cfg: &ServoConfig,
+        gen: Option<CommandGen<'static>>,
+        x_published: bool,
+    ) -> Self {
         Self {
+            ahead: AheadState::new(gen, x_published),
             learner: Learner::new(cfg),
             lost_seen: 0,
         }
@@ -37,6 +49,7 @@ impl LearnState {
     /// Never inlined, so `cargo xtask isr-cost` can find and count it.
     #[inline(never)]
     pub fn run(&mut self, sh: &Shared) {
+        self.ahead.run(sh);
         let lost = sh.learn.lost();
         if lost != self.lost_seen {
             // The tick dropped samples while this handler could not run: the
@@ -47,6 +60,11 @@ impl LearnState {
         while let Some(s) = sh.learn.pop() {
             self.learner.apply(&s, &sh.learned);
         }
+    }
+
+    /// The evaluation ahead of the tick (the coefficients it holds).
+    pub fn ahead(&self) -> &AheadState {
+        &self.ahead
     }
 
     /// The learning's state (why it is frozen, revolutions learned).

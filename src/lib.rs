@@ -31,6 +31,7 @@ pub mod coeffcache;
 pub mod trig;
 pub mod command;
 pub mod setpoint;
+pub mod ahead;
 pub mod servo;
 pub mod looptick;
 // Below the loop tick: the learning's update, fed by the tick's samples.

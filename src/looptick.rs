@@ -4,16 +4,16 @@
 //! the servo and writes its DAC code. It only orchestrates: the loop
 //! itself is `servo`, the command `command`/`setpoint`.
 
+use crate::ahead::{Expansion, MAX_AGE};
 use crate::codes::{CODE_MAX, CODE_MIN};
 use crate::command::{Coefficients, CommandGen};
-use crate::config::COLS;
-use crate::handoff::{Request, Shared, NULL_META, X_FAULTS};
+use crate::handoff::{Request, Shared, X_FAULTS};
 use crate::hw::{AmplifierDac, EncoderSample, GaugeAdc};
 use crate::safety::{Device, Fault, Reaction};
 use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
 use crate::setpoint::{setpoint, SetpointState};
 use crate::spindle::{EncoderAngle, TachAngle};
-use crate::units::XInches;
+use crate::units::{SpindleAngle, XInches};
 use core::sync::atomic::{fence, Ordering};
 
 /// One spindle reading, as the hw traits deliver it.
@@ -77,6 +77,8 @@ pub struct LoopState {
     pub(crate) x_faults_seen: u32,
     /// The angle history of the setpoint's rates.
     pub(crate) sp: SetpointState,
+    /// The table command was live (not null) on the last tick.
+    pub(crate) command_live: bool,
     /// X of the last coefficient set (learning freezes when it jumps).
     pub(crate) last_coeff_x: Option<XInches>,
     /// Offset added to the table command, gauge codes.
@@ -124,6 +126,7 @@ impl LoopState {
             index_seen: 0,
             x_faults_seen: 0,
             sp: SetpointState::default(),
+            command_live: false,
             last_coeff_x: None,
             target: 0,
             last_target: 0,
@@ -201,30 +204,9 @@ impl LoopState {
             }
         }
         if self.x_published {
-            let g = sh.coeff_gen.load(Ordering::Acquire);
-            if g != self.coeff_seen {
-                let slot = &sh.coeff[(g & 1) as usize];
-                let meta = slot.meta.load(Ordering::Relaxed);
-                let x = XInches::from_bits(slot.x.load(Ordering::Relaxed));
-                if meta & NULL_META != 0 {
-                    self.coeffs.set_null(x);
-                } else {
-                    let n = (meta as usize).min(COLS);
-                    let src = slot.value.iter();
-                    for (v, sv) in self.coeffs.value.iter_mut().zip(src).take(n) {
-                        *v = sv.load(Ordering::Relaxed);
-                    }
-                    self.coeffs.set_live(n as u8, x);
-                }
-                self.note_x(x);
-                fence(Ordering::Acquire);
-                // Overwritten while copying (only possible if the writer can
-                // preempt the tick): drop it, take the next one.
-                if slot.seq.load(Ordering::Relaxed) == g {
-                    self.coeff_seen = g;
-                } else {
-                    self.coeffs.set_null(x);
-                }
+            match sh.take_coefficients(&mut self.coeff_seen, &mut self.coeffs) {
+                Ok(Some(x)) | Err(x) => self.note_x(x),
+                Ok(None) => {}
             }
         }
     }
@@ -305,9 +287,15 @@ impl LoopState {
             None => None,
         };
 
-        // The command and its analytic rates.
+        // The command and its analytic rates: the expansion made below the
+        // tick, stepped to this angle (`crate::ahead`).
         let dphi = self.sp.dphi(phi);
-        let table = setpoint(self.gen.as_ref(), &self.coeffs, phi, &mut self.sp);
+        let command = phi.and_then(|p| self.command_at(sh, p));
+        self.command_live = command.is_some();
+        let table = setpoint(command.as_ref(), phi, &mut self.sp);
+        if let Some(p) = phi {
+            sh.ahead.post(self.ticks, p, dphi);
+        }
         let (table_code, slope, accel) = (table.code, table.velocity_q16, table.accel_q16);
         self.table_code = table_code;
         self.ff_q16 = slope;
@@ -346,7 +334,10 @@ impl LoopState {
                 angle: phi.map(|p| (p, dphi)),
                 freeze: if faulted {
                     Some(Freeze::Fault)
-                } else if self.coeffs.null || self.gen.is_none() {
+                } else if self.coeffs.null
+                    || self.gen.is_none()
+                    || (phi.is_some() && command.is_none())
+                {
                     Some(Freeze::Null)
                 } else {
                     None
@@ -387,6 +378,36 @@ impl LoopState {
                 self.trip(Fault::Bus(Device::AmplifierDac));
                 self.hold_safe(dac);
             }
+        }
+    }
+
+    /// The command at `phi`: the freshest expansion from below the tick
+    /// stepped to it; evaluated here when that is stale while the command
+    /// was live (a starved handler costs instructions, not accuracy); null
+    /// while it was null and none has arrived (the first tick or two after
+    /// the angle or the coefficients appear).
+    #[inline(always)]
+    fn command_at(&self, sh: &Shared, phi: SpindleAngle) -> Option<Expansion> {
+        let fresh = sh
+            .ahead
+            .latest()
+            .filter(|a| self.ticks.wrapping_sub(a.tick) <= MAX_AGE);
+        if let Some(a) = fresh {
+            match a.expansion {
+                None => return None,
+                Some(e) => {
+                    if let Some(s) = e.step(phi) {
+                        return Some(s);
+                    }
+                }
+            }
+        }
+        if !self.command_live {
+            return None;
+        }
+        match &self.gen {
+            Some(g) if !self.coeffs.null => Some(Expansion::direct(g, &self.coeffs, phi)),
+            _ => None,
         }
     }
 

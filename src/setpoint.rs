@@ -25,23 +25,15 @@
 //! derivative: 1.3e-4 codes per tick of velocity at 300 rpm (2.4e-6 µin
 //! per tick), plus the final shift's truncation of 1.5e-5.
 
-use crate::codes::gauge_code_from_z;
-use crate::command::{Coefficients, CommandGen};
-use crate::servo::fixed::{mul_hi, sat_i32, ssat};
+use crate::ahead::Expansion;
+#[cfg(test)]
+use crate::ahead::{FF_K, FF_K2};
+#[cfg(test)]
+use crate::servo::fixed::mul_hi;
+use crate::servo::fixed::{sat_i32, ssat};
 use crate::servo::Reference;
 use crate::units::SpindleAngle;
 
-/// Gauge codes per tick (Q16) from ∂Z/∂φ (Q30 in/rad) × Δφ (binary angle):
-/// `v = p · Δφ · (2π/2³²) · 52 428 800 codes/in · 2¹⁶ / 2³⁰ = p · Δφ · K / 2⁴⁸`
-/// with K = 50π · 2²³ = 1 317 679 463 (filling an i32), applied as
-/// `((p · K) >> 32) · Δφ >> 16`; the same constant gives the angular
-/// acceleration's term from Δ²φ in Q4: `((p · K) >> 32) · α >> 20`.
-const FF_K: i32 = 1_317_679_463;
-/// Codes per tick² (Q16) from ∂²Z/∂φ² (Q30 in/rad²) × Δφ² (binary angle):
-/// `a = d2 · Δφ² · (2π/2³²)² · 52 428 800 · 2¹⁶ / 2³⁰ = d2 · Δφ² · K2 / 2⁷⁸`
-/// with K2 = 100π² · 2²¹ = 2 069 806 061, applied as
-/// `(((d2 · K2) >> 32) · Δφ >> 23) · Δφ >> 23`.
-const FF_K2: i32 = 2_069_806_061;
 /// Smoothing of Δφ for the angular acceleration: 2⁻⁶ per tick.
 const ALPHA_SHIFT: u32 = 6;
 /// |Δφ| accepted for the rates: 2²⁶, 1/64 turn per tick (18 750 rpm at
@@ -84,18 +76,17 @@ impl SetpointState {
     }
 }
 
-/// The table's setpoint at `phi` (a null one without a table or angle);
-/// updates the angle history.
+/// The table's setpoint from the command's expansion at the tick's angle
+/// `phi` (`None`: a null one); updates the angle history.
 #[inline(always)]
 pub fn setpoint(
-    gen: Option<&CommandGen<'static>>,
-    coeffs: &Coefficients,
+    command: Option<&Expansion>,
     phi: Option<SpindleAngle>,
     st: &mut SetpointState,
 ) -> Reference {
     let dphi = st.dphi(phi).clamp(-DPHI_LIMIT, DPHI_LIMIT);
     // Bounds that keep every product a 32-bit multiply: |Δφ| ≤ 2²⁶,
-    // |∂Z/∂φ| ≤ 2²⁷ (1/8 in/rad), |∂²Z/∂φ²| ≤ 2²⁸: far beyond any real cut.
+    // |p1| < 2²⁶ + 2²¹, |p2| < 2²⁷ (the expansion's clamps).
     let alpha_q4 = match (st.last_phi, phi, st.dphi_q4) {
         (Some(_), Some(_), Some(f)) => {
             // An average of steps within ±2³⁰ stays within them.
@@ -110,21 +101,18 @@ pub fn setpoint(
         _ => 0,
     };
     st.last_phi = phi;
-    match (gen, phi) {
-        (Some(g), Some(phi)) => {
-            let c = g.evaluate_phi(coeffs, phi);
-            let d1 = c.dz_dphi.to_bits().clamp(-(1 << 27), 1 << 27);
-            let d2 = c.d2z_dphi2.to_bits().clamp(-(1 << 28), 1 << 28);
-            // |d1·K| >> 32 < 2²⁶, times |Δφ| ≤ 2²⁶, >> 16: < 2³⁶ before
-            // the saturation to 2³⁰ (6 in/s).
-            let v = (i64::from(mul_hi(d1, FF_K)) * i64::from(dphi)) >> 16;
+    match (command, phi) {
+        (Some(e), Some(_)) => {
+            // |p1| < 2²⁷, times |Δφ| ≤ 2²⁶, >> 16: < 2³⁷ before the
+            // saturation to 2³⁰ (6 in/s).
+            let v = (i64::from(e.p1) * i64::from(dphi)) >> 16;
             // ∂²Z/∂φ²·Δφ²: < 2²⁷, then < 2³⁰, then < 2³³ before saturation.
-            let q2 = i64::from(mul_hi(d2, FF_K2)) * i64::from(dphi);
+            let q2 = i64::from(e.p2) * i64::from(dphi);
             let a2 = (((q2 >> 23) as i32 as i64) * i64::from(dphi)) >> 23;
-            // ∂Z/∂φ·Δ²φ: < 2²⁶ · 2²⁴ >> 20 = 2³⁰.
-            let a1 = (i64::from(mul_hi(d1, FF_K)) * i64::from(alpha_q4)) >> 20;
+            // ∂Z/∂φ·Δ²φ: < 2²⁷ · 2²⁴ >> 20 = 2³¹ before saturation.
+            let a1 = (i64::from(e.p1) * i64::from(alpha_q4)) >> 20;
             Reference {
-                code: gauge_code_from_z(c.z),
+                code: e.code(),
                 velocity_q16: ssat::<31>(sat_i32(v)),
                 accel_q16: ssat::<25>(sat_i32(a2 + a1)),
             }
