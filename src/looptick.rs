@@ -423,6 +423,15 @@ impl LoopState {
         if !self.command_live || self.coeff_null {
             return None;
         }
+        self.evaluate_here(sh, phi)
+    }
+
+    /// The fallback of [`Self::command_at`]: rare (a handler below the
+    /// tick starved), so out of line, where its copy and evaluation do
+    /// not crowd the registers of every tick.
+    #[cold]
+    #[inline(never)]
+    fn evaluate_here(&mut self, sh: &Shared, phi: SpindleAngle) -> Option<Expansion> {
         let g = self.gen.as_ref()?;
         // The values of the set the tick took (no handler below the tick
         // runs between its take and this copy), copied once per set: the
