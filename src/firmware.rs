@@ -654,7 +654,11 @@ mod tests {
             accepted += 1;
             assert_eq!(u.x, half_mils_to_x(hm));
             fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
-            let got = fw.loop_state().coefficients();
+            // The tick takes X and the null flag, the handler below it the
+            // values.
+            assert_eq!(fw.loop_state().last_x(), Some(u.x));
+            assert_eq!(fw.loop_state().command_null(), u.null, "hm {hm}");
+            let got = fw.learn.ahead().coefficients();
             // The legacy null zone is the 8080's (X ≥ 7.2 in, xpos).
             assert_eq!(u.null, hm >= 14_400);
             assert_eq!(got.null, u.null, "hm {hm}");
@@ -746,6 +750,53 @@ mod tests {
         assert!(deepest < -5000, "deepest {deepest}");
     }
 
+    /// The handler below the tick starved for longer than an expansion
+    /// lives (`ahead::MAX_AGE` ticks) after an X event: the tick then
+    /// evaluates the command itself with the values of the newest set
+    /// (which it copies only now: the X event's tick took its X alone),
+    /// exactly `gauge_code_from_z` of the command path's Z at that X and
+    /// the angle it reads, not the previous set's.
+    #[test]
+    fn starved_handler_below_the_tick_leaves_the_tick_evaluating_the_newest_set() {
+        use crate::ahead::MAX_AGE;
+        let mut fw = legacy(DEFAULT_TABLE, false);
+        let gen = *fw.command_gen().unwrap();
+        let (mut g, mut d) = (Gauge::at(0), Dac::default());
+        let mut quad = NoCoefficientDac;
+        fw.x_event(latch_word(6_283), 1000, &mut quad).unwrap();
+        fw.index_event(0, 0);
+        for n in 1..=10 {
+            fw.loop_tick(&enc(n), &mut g, &mut d);
+            g.set(fw.command_code());
+        }
+        // 0.008 in further out (below the X-jump freeze), then the tick alone.
+        let (old, new) = (half_mils_to_x(6_283), half_mils_to_x(6_299));
+        for (k, hm) in (6_284..=6_299).enumerate() {
+            let r = fw.x_event(latch_word(hm), 2000 + 1000 * k as u32, &mut quad);
+            assert!(matches!(r, Ok(XEvent::Update(_))), "{r:?}");
+        }
+        let mut differ = 0;
+        for n in 11..60 {
+            fw.lp.loop_tick(&fw.shared, &enc(n), &mut g, &mut d);
+            g.set(fw.command_code());
+            if n <= 11 + MAX_AGE {
+                // The last expansion (made for tick 11, at the old X) is
+                // still fresh.
+                continue;
+            }
+            let want = gauge_code_from_z(gen.z(new, phi_of(n)).unwrap());
+            assert_eq!(fw.table_code(), want, "n {n}");
+            if want != gauge_code_from_z(gen.z(old, phi_of(n)).unwrap()) {
+                differ += 1;
+            }
+        }
+        assert!(
+            differ > 10,
+            "the two sets' commands differ on {differ} ticks"
+        );
+        assert_eq!(fw.fault(), None);
+    }
+
     #[test]
     fn modern_x_reinterpolates_when_the_count_moves() {
         let cc = CountConfig {
@@ -763,22 +814,24 @@ mod tests {
             input.x_count = count;
             fw.loop_tick(&input, &mut g, &mut d);
             g.set(fw.command_code());
-            if n == 0 {
-                // The first count is published after the first tick.
-                assert!(fw.loop_state().coefficients().null);
-                continue;
-            }
-            // The tick evaluates the coefficients at the previous tick's
-            // count (published by the X count handler after that tick).
-            let c = fw.loop_state().coefficients();
-            let exact = f64::from(count - 37) / 100_000.0 * f64::from(1u32 << 24);
+            // The handler below the tick holds the set at this tick's count
+            // (the X count handler published it after the tick).
+            let c = fw.learn.ahead().coefficients();
+            let exact = f64::from(count) / 100_000.0 * f64::from(1u32 << 24);
             assert!((f64::from(c.x().to_bits()) - exact).abs() <= 1.0);
             let want = gen.coefficients(c.x()).unwrap();
             assert_eq!(c.value[..5], want.value[..5]);
-            if n > 0 {
-                let want = gauge_code_from_z(gen.z(c.x(), phi_of(n)).unwrap());
-                assert!((fw.table_code() - want).abs() <= 1, "n {n}");
-            }
+            let Some(x) = fw.loop_state().last_x() else {
+                // The first count is published after the first tick.
+                assert_eq!(n, 0);
+                assert!(fw.loop_state().command_null());
+                continue;
+            };
+            // The tick follows the previous tick's count.
+            let exact = f64::from(count - 37) / 100_000.0 * f64::from(1u32 << 24);
+            assert!((f64::from(x.to_bits()) - exact).abs() <= 1.0);
+            let want = gauge_code_from_z(gen.z(x, phi_of(n)).unwrap());
+            assert!((fw.table_code() - want).abs() <= 1, "n {n}");
         }
         assert_eq!(fw.fault(), None);
         // A jump beyond max_step_counts: glitch (latched at the next
@@ -880,7 +933,9 @@ mod tests {
             // second (the same count again publishes nothing).
             fw.loop_tick(&input, &mut g, &mut d);
             fw.loop_tick(&input, &mut g, &mut d);
-            let got = fw.loop_state().coefficients();
+            assert_eq!(fw.loop_state().last_x().map(|x| x.to_bits()), Some(bits));
+            let got = fw.learn.ahead().coefficients();
+            assert_eq!(fw.loop_state().command_null(), got.null);
             assert_eq!(got.x().to_bits(), bits);
             let want = gen.coefficients(got.x()).unwrap();
             assert_eq!(got.null, want.null, "x bits {bits}");
@@ -1103,7 +1158,9 @@ mod tests {
             let mut seen = 0u32;
             while checked < 20_000 {
                 lp.loop_tick(&shared, &TickInput::NONE, &mut g, &mut d);
-                let c = lp.coefficients();
+                // The values as the tick's fallback copies them.
+                let _ = shared.take_coefficients(&mut lp.fallback_seen, &mut lp.fallback);
+                let c = &lp.fallback;
                 if !c.null && shared.coefficient_generation() != seen {
                     seen = shared.coefficient_generation();
                     let want = gen.coefficients(c.x()).unwrap();

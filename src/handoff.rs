@@ -12,11 +12,14 @@
 //!   a generation counter. The X handler writes the whole coefficient set
 //!   into the slot of generation + 1 (modulo 2) — first that slot's own
 //!   sequence word, a release fence, then the data — and publishes it with
-//!   one `Release` store of the generation. The loop tick compares the
+//!   one `Release` store of the generation. A reader compares the
 //!   generation (one load per tick) and copies the slot only when it
 //!   changed; after an acquire fence it keeps the copy only if the slot's
 //!   sequence word still equals the generation (the seqlock rule), else it
-//!   takes the next one. On a single core where the tick preempts the X
+//!   takes the next one. The loop tick reads only X and the null flag this
+//!   way on every set, and copies the values only when it evaluates the
+//!   command itself (a stale expansion, `crate::ahead`); the handler below
+//!   it copies every set. On a single core where the tick preempts the X
 //!   handler, the slot being written is never the published one and the
 //!   tick runs to completion before the handler resumes, so the check never
 //!   fails there; it makes the scheme correct under real concurrency too (a
@@ -312,6 +315,32 @@ impl Shared {
         }
     }
 
+    /// Takes the X and the null flag of the newest coefficient set, not
+    /// its values, if its generation is not `seen` (the same seqlock read
+    /// as [`Self::take_coefficients`]): what the loop tick needs on every
+    /// set, where the values serve only its fallback evaluation. A set
+    /// overwritten while read returns `Err` with its X and leaves `seen`.
+    #[inline(always)]
+    pub(crate) fn take_coefficient_x(
+        &self,
+        seen: &mut u32,
+    ) -> Result<Option<(XInches, bool)>, XInches> {
+        let g = self.coeff_gen.load(Ordering::Acquire);
+        if g == *seen {
+            return Ok(None);
+        }
+        let slot = &self.coeff[(g & 1) as usize];
+        let meta = slot.meta.load(Ordering::Relaxed);
+        let x = XInches::from_bits(slot.x.load(Ordering::Relaxed));
+        fence(Ordering::Acquire);
+        if slot.seq.load(Ordering::Relaxed) == g {
+            *seen = g;
+            Ok(Some((x, meta & NULL_META != 0)))
+        } else {
+            Err(x)
+        }
+    }
+
     pub(crate) fn raise(&self, f: Fault) {
         self.x_faults.fetch_or(x_fault_bit(f), Ordering::Relaxed);
     }
@@ -422,13 +451,29 @@ mod preemption_tests {
             })
     }
 
+    /// The tick's two reads of a set: its X and null flag on every tick
+    /// (`take_published`), its values when it evaluates the command itself
+    /// (the fallback's copy in `command_at`), both in one tick.
+    fn tick_reads(lp: &mut LoopState, sh: &Shared) {
+        lp.take_published(sh);
+        let _ = sh.take_coefficients(&mut lp.fallback_seen, &mut lp.fallback);
+    }
+
     /// What the reader holds must be exactly set `g` (0: none yet).
     fn holds(lp: &LoopState, sets: &[Set], g: u32) -> Result<(), TestCaseError> {
-        let c = &lp.coeffs;
+        let c = &lp.fallback;
         let Some(s) = g.checked_sub(1).map(|k| &sets[k as usize]) else {
+            prop_assert!(lp.coeff_null);
             prop_assert!(c.null);
             return Ok(());
         };
+        prop_assert_eq!(
+            lp.last_x().map(|x| x.to_bits()),
+            Some(s.x),
+            "X of generation {}",
+            g
+        );
+        prop_assert_eq!(lp.coeff_null, s.null, "generation {}", g);
         prop_assert_eq!(c.x().to_bits(), s.x, "X of generation {}", g);
         prop_assert_eq!(c.null, s.null, "generation {}", g);
         if !s.null {
@@ -470,7 +515,7 @@ mod preemption_tests {
                 for (j, &step) in st.iter().enumerate() {
                     while next.peek().is_some_and(|&&a| a == j) {
                         next.next();
-                        lp.take_published(&sh);
+                        tick_reads(&mut lp, &sh);
                         prop_assert_eq!(lp.coeff_seen, published, "before store {} of generation {}", j, g);
                         holds(&lp, &sets, published)?;
                     }
@@ -480,12 +525,12 @@ mod preemption_tests {
                     }
                 }
                 for _ in next {
-                    lp.take_published(&sh);
+                    tick_reads(&mut lp, &sh);
                     prop_assert_eq!(lp.coeff_seen, published);
                     holds(&lp, &sets, published)?;
                 }
             }
-            lp.take_published(&sh);
+            tick_reads(&mut lp, &sh);
             prop_assert_eq!(lp.coeff_seen, sets.len() as u32);
             holds(&lp, &sets, published)?;
         }

@@ -71,8 +71,14 @@ pub struct LoopState {
     /// Coefficients arrive from the X handler (an X source is configured).
     pub(crate) x_published: bool,
     pub(crate) gauge_reversed: bool,
-    pub(crate) coeffs: Coefficients,
+    /// The last coefficient set is the null command (or none arrived).
+    pub(crate) coeff_null: bool,
+    /// Generation of the last coefficient set taken (its X and null flag).
     pub(crate) coeff_seen: u32,
+    /// The values of a set, copied only when the tick evaluates the command
+    /// itself (a stale expansion: `command_at`), and their generation.
+    pub(crate) fallback: Coefficients,
+    pub(crate) fallback_seen: u32,
     pub(crate) index_seen: u32,
     pub(crate) x_faults_seen: u32,
     /// The angle history of the setpoint's rates.
@@ -121,8 +127,10 @@ impl LoopState {
             spindle: Estimator::None,
             x_published: false,
             gauge_reversed: false,
-            coeffs: Coefficients::NULL,
+            coeff_null: true,
             coeff_seen: 0,
+            fallback: Coefficients::NULL,
+            fallback_seen: 0,
             index_seen: 0,
             x_faults_seen: 0,
             sp: SetpointState::default(),
@@ -204,8 +212,18 @@ impl LoopState {
             }
         }
         if self.x_published {
-            match sh.take_coefficients(&mut self.coeff_seen, &mut self.coeffs) {
-                Ok(Some(x)) | Err(x) => self.note_x(x),
+            // The X and the null flag only: the values are copied if the
+            // tick has to evaluate the command itself (`command_at`).
+            match sh.take_coefficient_x(&mut self.coeff_seen) {
+                Ok(Some((x, null))) => {
+                    self.coeff_null = null;
+                    self.note_x(x);
+                }
+                Err(x) => {
+                    // Overwritten while read: null until the next one.
+                    self.coeff_null = true;
+                    self.note_x(x);
+                }
                 Ok(None) => {}
             }
         }
@@ -334,7 +352,7 @@ impl LoopState {
                 angle: phi.map(|p| (p, dphi)),
                 freeze: if faulted {
                     Some(Freeze::Fault)
-                } else if self.coeffs.null
+                } else if self.coeff_null
                     || self.gen.is_none()
                     || (phi.is_some() && command.is_none())
                 {
@@ -387,7 +405,7 @@ impl LoopState {
     /// while it was null and none has arrived (the first tick or two after
     /// the angle or the coefficients appear).
     #[inline(always)]
-    fn command_at(&self, sh: &Shared, phi: SpindleAngle) -> Option<Expansion> {
+    fn command_at(&mut self, sh: &Shared, phi: SpindleAngle) -> Option<Expansion> {
         let fresh = sh
             .ahead
             .latest()
@@ -402,13 +420,30 @@ impl LoopState {
                 }
             }
         }
-        if !self.command_live {
+        if !self.command_live || self.coeff_null {
             return None;
         }
-        match &self.gen {
-            Some(g) if !self.coeffs.null => Some(Expansion::direct(g, &self.coeffs, phi)),
-            _ => None,
+        self.evaluate_here(sh, phi)
+    }
+
+    /// The fallback of [`Self::command_at`]: rare (a handler below the
+    /// tick starved), so out of line, where its copy and evaluation do
+    /// not crowd the registers of every tick.
+    #[cold]
+    #[inline(never)]
+    fn evaluate_here(&mut self, sh: &Shared, phi: SpindleAngle) -> Option<Expansion> {
+        let g = self.gen.as_ref()?;
+        // The values of the set the tick took (no handler below the tick
+        // runs between its take and this copy), copied once per set: the
+        // only use of them in the tick.
+        if sh
+            .take_coefficients(&mut self.fallback_seen, &mut self.fallback)
+            .is_err()
+            || self.fallback.null
+        {
+            return None;
         }
+        Some(Expansion::direct(g, &self.fallback, phi))
     }
 
     /// Remembers the X of a new coefficient set; a jump freezes learning
@@ -541,11 +576,11 @@ impl LoopState {
     pub fn dac_clamped(&self) -> bool {
         self.dac_clamped
     }
-    /// The coefficients the loop tick evaluates: the column values at X
-    /// (`delta`, the changes across the grid interval, is not kept up to
-    /// date here: the tick evaluates Z and its φ-derivatives only).
-    pub fn coefficients(&self) -> &Coefficients {
-        &self.coeffs
+    /// Whether the last coefficient set is the null command (X in the
+    /// null zone), or none has arrived. The values are the handler's below
+    /// the tick ([`crate::ahead::AheadState::coefficients`]).
+    pub fn command_null(&self) -> bool {
+        self.coeff_null
     }
     pub fn config(&self) -> &ServoConfig {
         self.servo.config()

@@ -119,6 +119,49 @@ fn slowest_revolution_fits(ticks_per_s: u32, min_rpm: u32) -> bool {
     u64::from(ticks_per_s) * 60 / u64::from(min_rpm.max(1)) <= u64::from(u32::MAX)
 }
 
+/// Fraction of a count since the edge, Q32: `since_edge · recip`, its
+/// magnitude capped at 2³² − 1 (just below one count). Exactly the 64-bit
+/// product saturated and then clamped (tested against the exact product),
+/// with one 32×32 multiply: a rate of 2³² or more (a count per clock tick:
+/// a glitch) caps any nonzero time, a smaller one fits the multiply. The
+/// cap matters: a stall (since_edge up to 2³²) times a glitch's rate
+/// would wrap the product into an arbitrary angle.
+#[inline(always)]
+fn frac_since_edge(since_edge: u32, recip: i64) -> i64 {
+    const CAP: u64 = (1 << 32) - 1;
+    let rate = recip.unsigned_abs();
+    let mag = if rate > CAP {
+        if since_edge == 0 {
+            0
+        } else {
+            CAP
+        }
+    } else {
+        (u64::from(since_edge) * u64::from(rate as u32)).min(CAP)
+    };
+    // mag < 2³²: the sign fits.
+    if recip < 0 {
+        -(mag as i64)
+    } else {
+        mag as i64
+    }
+}
+
+/// The angle, Q32 binary-angle units (wrapping), of `delta` counts plus
+/// `frac`/2³² of a count (|frac| < 2³²), at `per_count` (Q32 units per
+/// count): `⌊(delta·2³² + frac)·per_count / 2³²⌋ mod 2⁶⁴`, bit-exact
+/// (tested against the 128-bit product). The fraction's high word (−1 or
+/// 0) joins the count, which leaves its low word f ≥ 0, and `f·per_count`
+/// shifted down is `f·hi + ⌊f·lo/2³²⌋` over per_count's 32-bit words: two
+/// 32×32 multiplies where the 128-bit product took a library call.
+#[inline(always)]
+fn angle_q32(delta: i64, frac: i64, per_count: u64) -> u64 {
+    let whole = delta.wrapping_add(frac >> 32);
+    let f = u64::from(frac as u32);
+    let extra = (f * (per_count >> 32)).wrapping_add((f * (per_count & 0xffff_ffff)) >> 32);
+    (whole as u64).wrapping_mul(per_count).wrapping_add(extra)
+}
+
 impl EncoderAngle {
     /// `None` for a configuration that cannot work (CPR < 4, rates of 0,
     /// an empty speed band, a revolution at `min_rpm` longer than the
@@ -160,13 +203,6 @@ impl EncoderAngle {
     /// meaningless and the command must stay nulled).
     pub fn referenced(&self) -> bool {
         self.reference.is_some()
-    }
-
-    /// Angle of a count relative to the index reference, wrapping.
-    #[inline]
-    fn angle_of(&self, delta_counts: i64) -> i64 {
-        // Q32 angle; the wrapping multiply is the modulo one turn.
-        (delta_counts as u64).wrapping_mul(self.per_count_q32) as i64
     }
 
     /// The loop tick: the encoder's count and last-edge timestamp, and the
@@ -237,18 +273,11 @@ impl EncoderAngle {
         if since_edge > self.stall_ticks {
             fault = Some(Fault::SpindleSpeed);
         }
-        // Fraction of a count since the edge, Q32, capped just below one count.
-        // Saturating: a stall (since_edge up to 2³²) times a glitch's rate
-        // (up to 2⁴⁰) overflows i64, and a wrapped product would turn the
-        // capped extrapolation into an arbitrary angle.
         let frac = match self.cfg.edge_stamps {
-            EdgeStamps::Captured => i64::from(since_edge)
-                .saturating_mul(self.recip.clamp(-(1 << 40), 1 << 40))
-                .clamp(-(1 << 32) + 1, (1 << 32) - 1),
+            EdgeStamps::Captured => frac_since_edge(since_edge, self.recip),
             EdgeStamps::AtRead => at_read_frac,
         };
-        let extra = ((frac as i128 * i128::from(self.per_count_q32)) >> 32) as i64;
-        let q32 = self.angle_of(delta).wrapping_add(extra);
+        let q32 = angle_q32(delta, frac, self.per_count_q32);
         Estimate {
             angle: SpindleAngle((q32 >> 32) as u32).wrapping_add(self.cfg.index_angle),
             fault,
@@ -835,6 +864,58 @@ mod tests {
     mod prop {
         use super::*;
         use proptest::prelude::*;
+
+        /// A rate of the estimator's range: either sign, up to the 2⁴⁰ the
+        /// baseline clamps to and beyond, with the cap's edges (2³² − 1,
+        /// 2³², one count per tick) drawn often.
+        fn rate() -> impl Strategy<Value = i64> {
+            prop_oneof![
+                -(1i64 << 41)..(1i64 << 41),
+                -(1i64 << 33)..(1i64 << 33),
+                (-2i64..=2).prop_map(|d| (1i64 << 32) + d),
+                (-2i64..=2).prop_map(|d| -(1i64 << 32) + d),
+                Just(i64::MIN),
+                Just(i64::MAX),
+            ]
+        }
+
+        proptest! {
+            /// The fraction since the edge is the exact product (128-bit)
+            /// clamped to ±(2³² − 1), for any time and rate.
+            #[test]
+            fn fraction_since_edge_is_the_clamped_exact_product(
+                since in prop_oneof![any::<u32>(), 0u32..4, 1u32..100_000],
+                recip in rate(),
+            ) {
+                let exact = (i128::from(since) * i128::from(recip))
+                    .clamp(-(1 << 32) + 1, (1 << 32) - 1) as i64;
+                prop_assert_eq!(frac_since_edge(since, recip), exact);
+            }
+
+            /// The angle of counts plus a fraction is the floor of the exact
+            /// (128-bit) product shifted, modulo one turn, for every
+            /// counts-per-revolution and fraction of either sign.
+            #[test]
+            fn angle_of_counts_and_fraction_is_the_exact_product(
+                cpr in prop_oneof![4u32..70_000, any::<u32>().prop_map(|c| c.max(4))],
+                delta in -(1i64 << 31)..(1i64 << 31),
+                frac in -(1i64 << 32) + 1..(1i64 << 32),
+            ) {
+                let per_count = EncoderAngle::new(EncoderConfig {
+                    counts_per_rev: cpr,
+                    ticks_per_s: 1_000_000,
+                    min_rpm: 30,
+                    max_rpm: 2_000,
+                    index_tolerance_counts: 2,
+                    index_angle: SpindleAngle(0),
+                    edge_stamps: EdgeStamps::Captured,
+                })
+                .unwrap()
+                .per_count_q32;
+                let exact = (((i128::from(delta) << 32) + i128::from(frac)) * i128::from(per_count)) >> 32;
+                prop_assert_eq!(angle_q32(delta, frac, per_count), exact as u64);
+            }
+        }
 
         /// Circular difference b − a of two binary angles, in degrees.
         fn ahead_deg(a: SpindleAngle, b: SpindleAngle) -> f64 {

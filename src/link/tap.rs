@@ -332,7 +332,7 @@ impl TickTap {
                 fault,
                 clear_refused: lp.clear_refused(),
                 x_bits: lp.last_x().map(|x| x.to_bits()),
-                null_command: lp.coefficients().null,
+                null_command: lp.command_null(),
                 phi: sp.angle().map(|a| a.0),
                 phi_step_q8: sp.step_q8(),
                 command: lp.command_code(),
@@ -382,7 +382,7 @@ impl TickTap {
             o.store(lp.output_code(), Ordering::Relaxed);
             let phi = lp.setpoint_state().angle().map_or(0, |v| v.0);
             a.store(phi as i32, Ordering::Relaxed);
-            x.store(lp.coefficients().x().to_bits(), Ordering::Relaxed);
+            x.store(lp.last_x().map_or(0, |v| v.to_bits()), Ordering::Relaxed);
         }
         self.written = self.written.wrapping_add(1);
         let gen = st & !PH_MASK;

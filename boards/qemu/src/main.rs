@@ -312,7 +312,7 @@ fn TIMER0() {
             if let Some(slot) = s.trace.get_mut(run.traced) {
                 *slot = Sample {
                     tick: n,
-                    x_bits: run.lp.coefficients().x().to_bits(),
+                    x_bits: run.lp.last_x().map_or(0, |x| x.to_bits()),
                     phi: run.lp.setpoint_state().angle().map_or(0, |a| a.0),
                     table: run.lp.table_code(),
                     command: run.lp.command_code(),
@@ -326,9 +326,8 @@ fn TIMER0() {
     if n == INJECT_AT {
         s.fault_before = run.lp.fault();
         s.writes_at_inject = Dac::writes();
-        let c = run.lp.coefficients();
-        s.coeff_x_bits = c.x().to_bits();
-        s.coeff_null = c.null;
+        s.coeff_x_bits = run.lp.last_x().map_or(0, |x| x.to_bits());
+        s.coeff_null = run.lp.command_null();
         run.plant.gauge_bus_broken = true;
         run.plant.publish_gauge();
     }
