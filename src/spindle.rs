@@ -8,7 +8,7 @@
 //! count*, so the estimate never runs past the next edge it has not seen;
 //! under acceleration it lags by less than one count and catches up at the
 //! next edge. The reciprocal of the period is taken once per new edge (one
-//! 32-bit division); a tick costs one multiply.
+//! 32-bit division); a tick costs a few 32x32 multiplies.
 //!
 //! Index: the count latched at the index must be one revolution (CPR ±
 //! `index_tolerance_counts`) after the last accepted one. Earlier is an
