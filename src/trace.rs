@@ -14,6 +14,10 @@
 //! The wire form is three integers, so the decoder needs no knowledge of
 //! defmt's encoding: `ev <code> <value> <clock>`.
 
+/// 2¹⁹: the gauge ADC's and the amplifier DAC's codes are 20-bit two's
+/// complement, −2¹⁹ ..= 2¹⁹ − 1.
+const CONVERTER_FULL_SCALE: i32 = 1 << 19;
+
 /// What happened. The value each carries is given per variant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Event {
@@ -88,15 +92,22 @@ impl Event {
         }
     }
 
-    /// The event back from its wire form; `None` for an unknown code, or a
-    /// flag that is neither 0 nor 1 (a corrupt line is refused, not guessed).
+    /// The event back from its wire form; `None` for an unknown code or a
+    /// value the event never carries: a handler mark with a value other
+    /// than 0, a converter code beyond 20 bits, a flag that is neither 0
+    /// nor 1 (a corrupt line is refused, not guessed: none of these is
+    /// dropped or clipped to what it might have been).
     pub const fn decode(code: u8, value: i32) -> Option<Event> {
         let flag = match value {
             0 => Some(false),
             1 => Some(true),
             _ => None,
         };
+        let mark = value == 0;
+        let converter = -CONVERTER_FULL_SCALE <= value && value < CONVERTER_FULL_SCALE;
         Some(match code {
+            0..=5 if !mark => return None,
+            6 | 7 if !converter => return None,
             0 => Event::LoopEnter,
             1 => Event::LoopExit,
             2 => Event::XEnter,
@@ -370,11 +381,32 @@ mod tests {
     }
 
     #[test]
-    fn unknown_codes_and_non_flag_values_are_refused() {
+    fn unknown_codes_and_values_no_event_carries_are_refused() {
         assert_eq!(Event::decode(16, 0), None);
         assert_eq!(Event::decode(255, 0), None);
         assert_eq!(Event::decode(Event::Enable(true).code(), 2), None);
         assert_eq!(Event::decode(Event::Fault(true).code(), -1), None);
+        // Handler marks carry 0 (found by the trace_log fuzz target: an
+        // index exit with a gauge code's value was taken as a mark).
+        for code in 0..=5 {
+            assert!(Event::decode(code, 0).is_some(), "{code}");
+            for v in [1, -1, -41_534, i32::MIN, i32::MAX] {
+                assert_eq!(Event::decode(code, v), None, "{code} {v}");
+            }
+        }
+        // Converter codes are 20-bit two's complement: −2¹⁹ ..= 2¹⁹ − 1.
+        for code in [6, 7] {
+            assert!(Event::decode(code, -524_288).is_some());
+            assert!(Event::decode(code, 524_287).is_some());
+            for v in [524_288, -524_289, i32::MAX, i32::MIN] {
+                assert_eq!(Event::decode(code, v), None, "{code} {v}");
+            }
+        }
+        // The other quantities use all 32 bits.
+        for code in [8, 9, 13, 14, 15] {
+            assert!(Event::decode(code, i32::MIN).is_some(), "{code}");
+            assert!(Event::decode(code, i32::MAX).is_some(), "{code}");
+        }
     }
 
     #[test]

@@ -72,13 +72,16 @@ fuzz_target!(|data: &[u8]| {
         let (seq2, req2) = proto::decode::<Request>(&mut again, REQUEST_KINDS)
             .expect("a re-encoded request decodes");
         assert_eq!(seq2, seq);
-        assert!(req2 == req || format!("{req2:?}") == format!("{req:?}"), "{req:?} / {req2:?}");
+        assert!(
+            req2 == req || format!("{req2:?}") == format!("{req:?}"),
+            "{req:?} / {req2:?}"
+        );
     }
 
     // 2. A stream into the firmware's service.
     let mut d = ServoDesign::brief(20_000);
     d.sign_check_v = 0.0;
-    let (mut lp, _) = Firmware::new(d.config().unwrap()).into_parts();
+    let (mut lp, _, _) = Firmware::new(d.config().unwrap()).into_parts();
     let shared = Shared::new();
     let scope: Box<Scope<64>> = Box::new(Scope::new());
     let tap_shared: TapShared<64> = TapShared::new(&scope);
@@ -127,10 +130,20 @@ fuzz_target!(|data: &[u8]| {
         assert!(r.is_ok(), "a reply is not a frame: {r:?}");
         replies += 1;
     }
-    assert_eq!(pipe.tx.last().copied().unwrap_or(0), 0, "a reply left unterminated");
+    assert_eq!(
+        pipe.tx.last().copied().unwrap_or(0),
+        0,
+        "a reply left unterminated"
+    );
     assert_eq!(replies, nonempty, "one reply per non-empty frame");
     let c = station.frames();
-    let counted = c.ok + c.empty + c.oversize + c.bad_cobs + c.bad_crc + c.bad_version
-        + c.unknown_command + c.malformed;
+    let counted = c.ok
+        + c.empty
+        + c.oversize
+        + c.bad_cobs
+        + c.bad_crc
+        + c.bad_version
+        + c.unknown_command
+        + c.malformed;
     assert_eq!(counted, delimiters, "frames not all counted: {c:?}");
 });

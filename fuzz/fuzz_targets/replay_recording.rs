@@ -1,6 +1,6 @@
 //! The replay recording (`zslide_replay`), as the QEMU replay image reads
 //! it from flash: the container (`container::runs`), each run's setup
-//! (postcard `Setup`, then `Setup::firmware_config`) and its events
+//! (postcard `Setup` through `wire::take`, then `Setup::firmware_config`) and its events
 //! (`wire::Codec::decode`, to the end of the run). From arbitrary bytes: a
 //! mode byte, then
 //!
@@ -12,7 +12,8 @@
 //! * 3: one run's bytes: its setup and events.
 //!
 //! Properties, against an independent reading of the container's format
-//! (field reads, a bitwise CRC-32, a LEB128 varint reader): the header's
+//! (field reads, a bitwise CRC-32, a reader of LEB128 varints in their
+//! shortest form, the only form the format has): the header's
 //! verdict is the first defect in the format's order (magic, version,
 //! length, CRC, run count); the runs come out in order, consecutive in the
 //! payload, at most as many as the count says, the iteration ending at the
@@ -27,7 +28,7 @@ use libfuzzer_sys::fuzz_target;
 use zslide::servo::ServoConfig;
 use zslide_replay::container::{self, MAGIC, VERSION};
 use zslide_replay::setup::setup_of;
-use zslide_replay::wire::{Codec, Event, FormatError, Setup};
+use zslide_replay::wire::{self, Codec, Event, FormatError, Setup};
 
 fn crc32(b: &[u8]) -> u32 {
     let mut c = 0xFFFF_FFFFu32;
@@ -44,12 +45,17 @@ fn crc32(b: &[u8]) -> u32 {
     !c
 }
 
-/// LEB128 (postcard's varint) of a u32: the value and its length.
+/// LEB128 (postcard's varint) of a u32 in its shortest form: the value and
+/// its length. A longer form (a last byte of 0 after the first) is no
+/// varint of the format.
 fn varint_u32(b: &[u8]) -> Option<(u32, usize)> {
     let mut v: u64 = 0;
     for (k, &x) in b.iter().enumerate().take(5) {
         v |= u64::from(x & 0x7F) << (7 * k);
         if x & 0x80 == 0 {
+            if k > 0 && x == 0 {
+                return None;
+            }
             return u32::try_from(v).ok().map(|v| (v, k + 1));
         }
     }
@@ -119,7 +125,7 @@ fn check_container(region: &[u8], built: Option<&[Vec<u8>]>) {
 }
 
 fn check_run(run: &[u8]) {
-    let Ok((setup, mut rest)) = postcard::take_from_bytes::<Setup<'_>>(run) else {
+    let Ok((setup, mut rest)) = wire::take::<Setup<'_>>(run) else {
         return;
     };
     let designs = ServoConfig::at_rate(setup.loop_hz).is_ok();

@@ -165,7 +165,12 @@ pub fn record(case: &Case) -> anyhow::Result<Recorded> {
 
 /// Every case, in one container (what the target's flash holds).
 pub fn record_all() -> anyhow::Result<(Vec<u8>, Vec<Recorded>)> {
-    let runs: Vec<Recorded> = CASES.iter().map(record).collect::<anyhow::Result<_>>()?;
+    record_cases(&CASES)
+}
+
+/// `cases`, in one container.
+pub fn record_cases(cases: &[Case]) -> anyhow::Result<(Vec<u8>, Vec<Recorded>)> {
+    let runs: Vec<Recorded> = cases.iter().map(record).collect::<anyhow::Result<_>>()?;
     let bytes: Vec<Vec<u8>> = runs.iter().map(|r| r.bytes.clone()).collect();
     let container = zslide_replay::container::build(&bytes);
     if container.len() > MAX_BYTES {

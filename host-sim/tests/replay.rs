@@ -4,7 +4,7 @@
 //! it must match frame for frame; one altered code must be reported with
 //! its tick and both values; a damaged container must be refused.
 
-use host_sim::replay::{record, record_all, CASES};
+use host_sim::replay::{record, record_all, record_cases, Case, CASES};
 use zslide_replay::player::Value;
 use zslide_replay::{container, play_run, Call, Dev, Output, RunError};
 
@@ -56,6 +56,28 @@ fn every_recorded_run_replays_bit_exact_on_the_host() {
     // The fault run latched faults and took the operator's requests.
     assert!(played[2].1.requests >= 5);
     assert!(!played[2].1.final_fault.is_empty());
+}
+
+/// Runs recorded shorter (`host-sim replay-record --ms`, the fuzz seeds)
+/// are whole recordings of their length: each plays back bit-exact and
+/// holds exactly its loop ticks (20 kHz × 2 ms = 40).
+#[test]
+fn a_shortened_recording_replays_bit_exact_for_its_length() {
+    let cases = CASES.map(|c| Case {
+        duration_ns: 2_000_000,
+        ..c
+    });
+    let (bytes, _) = record_cases(&cases).unwrap();
+    let region = leak(bytes);
+    let mut n = 0;
+    for (r, case) in container::runs(region).unwrap().zip(&cases) {
+        let o = play_run(r.unwrap());
+        assert_eq!(o.name, case.name);
+        let p = o.result.map_err(|e| e.to_string()).unwrap();
+        assert_eq!(p.ticks, 40, "{}", case.name);
+        n += 1;
+    }
+    assert_eq!(n, CASES.len());
 }
 
 /// One DAC code changed in its least significant bit: the replay stops at

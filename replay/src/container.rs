@@ -7,8 +7,10 @@
 //! "ZSRP" | version u32 LE | payload length u32 LE | payload | CRC-32 (ISO-HDLC) of payload, u32 LE
 //! payload = run count (varint) | run bytes (varint length + bytes) ...
 //! ```
+//!
+//! The varints are LEB128 in their shortest form (`wire::take`).
 
-use crate::wire::FormatError;
+use crate::wire::{take, FormatError};
 
 pub const MAGIC: [u8; 4] = *b"ZSRP";
 pub const VERSION: u32 = 1;
@@ -36,7 +38,7 @@ pub fn runs(region: &[u8]) -> Result<Runs<'_>, FormatError> {
     if CRC.checksum(payload) != crc {
         return Err(FormatError::Corrupt);
     }
-    let (count, rest) = postcard::take_from_bytes::<u32>(payload).map_err(|_| FormatError::Item)?;
+    let (count, rest) = take::<u32>(payload)?;
     Ok(Runs { left: count, rest })
 }
 
@@ -60,7 +62,7 @@ impl<'a> Iterator for Runs<'a> {
             return None;
         }
         self.left -= 1;
-        Some(match postcard::take_from_bytes::<&'a [u8]>(self.rest) {
+        Some(match take::<&'a [u8]>(self.rest) {
             Ok((run, rest)) => {
                 self.rest = rest;
                 Ok(run)
@@ -93,4 +95,57 @@ pub fn build(runs: &[std::vec::Vec<u8>]) -> std::vec::Vec<u8> {
     out.extend_from_slice(&payload);
     out.extend_from_slice(&CRC.checksum(&payload).to_le_bytes());
     out
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::vec::Vec;
+
+    fn container(payload: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        out.extend_from_slice(&MAGIC);
+        out.extend_from_slice(&VERSION.to_le_bytes());
+        out.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+        out.extend_from_slice(payload);
+        out.extend_from_slice(&CRC.checksum(payload).to_le_bytes());
+        out
+    }
+
+    fn all(region: &[u8]) -> Vec<Result<&[u8], FormatError>> {
+        runs(region).unwrap().collect()
+    }
+
+    /// Found by the `replay_recording` fuzz target: a run length of 0 in
+    /// nine varint bytes was a run on the host (postcard reads a `usize`
+    /// length in up to 10 bytes there) and would be refused by the
+    /// 32-bit target (5). Only the shortest form is a length now, on both.
+    #[test]
+    fn a_varint_not_in_its_shortest_form_is_refused_on_every_platform() {
+        // One run "abc": count 1, length 3.
+        assert_eq!(
+            all(&container(&[1, 3, b'a', b'b', b'c'])),
+            [Ok(&b"abc"[..])]
+        );
+        let longer: [&[u8]; 4] = [
+            &[0x83, 0x00],
+            &[0x83, 0x80, 0x80, 0x80, 0x00],
+            &[0x83, 0x80, 0x80, 0x80, 0x80, 0x00],
+            &[0x83, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x00],
+        ];
+        for len in longer {
+            let mut p = std::vec![1];
+            p.extend_from_slice(len);
+            p.extend_from_slice(b"abc");
+            assert_eq!(all(&container(&p)), [Err(FormatError::Item)], "{len:02x?}");
+        }
+        // The fuzz input's own run: length 0 in nine bytes, after a good one.
+        let mut p = std::vec![2, 1, b'a'];
+        p.extend_from_slice(&[0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x00]);
+        assert_eq!(all(&container(&p)), [Ok(&b"a"[..]), Err(FormatError::Item)]);
+        // The run count likewise.
+        let c = container(&[0x81, 0x00, 3, b'a', b'b', b'c']);
+        assert_eq!(runs(&c).err(), Some(FormatError::Item));
+    }
 }

@@ -325,7 +325,7 @@ pub struct Outcome {
 /// Plays one run (its bytes as the container holds them). `'static`: the
 /// firmware keeps the recorded table image.
 pub fn play_run(run: &'static [u8]) -> Outcome {
-    match postcard::take_from_bytes::<Setup<'static>>(run) {
+    match crate::wire::take::<Setup<'static>>(run) {
         Ok((setup, rest)) => Outcome {
             name: setup.name,
             result: play(&setup, rest),

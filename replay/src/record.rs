@@ -303,8 +303,7 @@ pub struct Alteration {
 /// one (from 0) changed in its least significant code bit: the replay of
 /// the result must report exactly that frame.
 pub fn alter(run: &'static [u8], nth: usize) -> Result<(Vec<u8>, Alteration), String> {
-    let (setup, mut rest) =
-        postcard::take_from_bytes::<Setup<'static>>(run).map_err(|e| e.to_string())?;
+    let (setup, mut rest) = crate::wire::take::<Setup<'static>>(run).map_err(|e| e.to_string())?;
     let mut codec = Codec::default();
     let mut events = Vec::new();
     let mut ticks = 0u32;

@@ -252,6 +252,27 @@ enum WireSpindle {
     Tach(i32),
 }
 
+/// One item of a recording from the front of `bytes`, and the rest; read
+/// only in its canonical encoding (every varint in its shortest form, what
+/// the writers produce), anything else is [`FormatError::Item`]. postcard
+/// reads a length (`&str`, `&[u8]`) as a `usize` varint: up to 10 bytes on
+/// the 64-bit host, 5 on the 32-bit target, so an overlong length the host
+/// player took would be refused by the target's (found by the
+/// `replay_recording` fuzz target). Requiring the shortest form makes both
+/// read every recording alike and refuse the same damaged ones.
+pub fn take<'a, T>(bytes: &'a [u8]) -> Result<(T, &'a [u8]), FormatError>
+where
+    T: Deserialize<'a> + Serialize,
+{
+    let (v, rest) = postcard::take_from_bytes::<T>(bytes).map_err(|_| FormatError::Item)?;
+    let canonical = postcard::serialize_with_flavor(&v, postcard::ser_flavors::Size::default())
+        .map_err(|_| FormatError::Item)?;
+    if canonical != bytes.len() - rest.len() {
+        return Err(FormatError::Item);
+    }
+    Ok((v, rest))
+}
+
 /// A recording that cannot be read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FormatError {
@@ -408,8 +429,7 @@ impl Codec {
 
     /// Decodes the next event of `bytes`; returns it and the rest.
     pub fn decode<'a>(&mut self, bytes: &'a [u8]) -> Result<(Event<'a>, &'a [u8]), FormatError> {
-        let (w, rest) =
-            postcard::take_from_bytes::<Wire<'a>>(bytes).map_err(|_| FormatError::Item)?;
+        let (w, rest) = take::<Wire<'a>>(bytes)?;
         let ev = match w {
             Wire::Boot => Event::Boot,
             Wire::Request(c) => Event::Request(Req::from_code(c).ok_or(FormatError::Item)?),
@@ -524,6 +544,69 @@ impl Codec {
         // Serialising into a Vec cannot fail for these types.
         if let Ok(v) = postcard::to_extend(&w, core::mem::take(out)) {
             *out = v;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `bytes` with the one-byte length at `at` written in `n` bytes
+    /// instead (the same value, LEB128 continued with zero groups).
+    fn lengthened(bytes: &[u8], at: usize, n: usize) -> heapless::Vec<u8, 64> {
+        let mut v = heapless::Vec::new();
+        v.extend_from_slice(&bytes[..at]).unwrap();
+        v.push(bytes[at] | 0x80).unwrap();
+        for _ in 2..n {
+            v.push(0x80).unwrap();
+        }
+        v.push(0x00).unwrap();
+        v.extend_from_slice(&bytes[at + 1..]).unwrap();
+        v
+    }
+
+    /// A text's length (a `usize` varint to postcard) in a longer form than
+    /// its shortest is refused, whether the host would have read it (up to
+    /// 10 bytes) or not, as the 32-bit target refuses it beyond 5 bytes.
+    #[test]
+    fn a_fault_text_or_setup_name_with_a_lengthened_length_is_refused() {
+        let mut buf = [0u8; 64];
+        // Wire::Fault: its variant number (one byte), then the length.
+        let f = postcard::to_slice(&Wire::Fault("Bus(GaugeAdc)"), &mut buf).unwrap();
+        let f: heapless::Vec<u8, 64> = heapless::Vec::from_slice(f).unwrap();
+        assert_eq!(f[1], 13);
+        assert_eq!(
+            Codec::default().decode(&f),
+            Ok((Event::Fault("Bus(GaugeAdc)"), &[][..]))
+        );
+        for n in [2, 5, 6, 10] {
+            let long = lengthened(&f, 1, n);
+            assert_eq!(
+                Codec::default().decode(&long),
+                Err(FormatError::Item),
+                "{n}"
+            );
+        }
+        // Setup: its name's length first.
+        let s = Setup {
+            name: "run",
+            loop_hz: 20_000,
+            table: &[1, 2, 3],
+            spindle: SpindleSetup::None,
+            x: XSetup::None,
+            coefficient_output: false,
+            gauge_reversed: false,
+        };
+        let b = postcard::to_slice(&s, &mut buf).unwrap();
+        let b: heapless::Vec<u8, 64> = heapless::Vec::from_slice(b).unwrap();
+        assert_eq!(take::<Setup<'_>>(&b), Ok((s, &[][..])));
+        for n in [2, 5, 6, 10] {
+            assert_eq!(
+                take::<Setup<'_>>(&lengthened(&b, 0, n)).err(),
+                Some(FormatError::Item),
+                "{n}"
+            );
         }
     }
 }

@@ -3,7 +3,8 @@
 //! optionally a copy with one recorded DAC code altered, which the replay
 //! must refuse (the self-check of `cargo xtask qemu`).
 
-use crate::replay::record_all;
+use crate::replay::{record_cases, Case, CASES};
+use crate::sched::Nanos;
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -24,6 +25,11 @@ pub struct Args {
         requires = "altered_out"
     )]
     pub alter_nth: usize,
+    /// Record each run for this many milliseconds instead of its own
+    /// length (300 ms): a short recording, such as the fuzz seeds
+    /// (`docs/RELIABILITY.md`). `cargo xtask qemu` checks the full runs.
+    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u32).range(1..))]
+    pub ms: Option<u32>,
 }
 
 #[derive(serde::Serialize)]
@@ -57,7 +63,14 @@ struct Altered {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let (container, runs) = record_all()?;
+    let cases = CASES.map(|c| match a.ms {
+        Some(ms) => Case {
+            duration_ns: Nanos::from(ms) * 1_000_000,
+            ..c
+        },
+        None => c,
+    });
+    let (container, runs) = record_cases(&cases)?;
     std::fs::write(&a.out, &container).with_context(|| format!("{}", a.out.display()))?;
     let mut altered = None;
     if let Some(path) = &a.altered_out {
