@@ -39,6 +39,9 @@ impl AmplifierDac for Dac {
     fn clamp_to_ground(&mut self) -> Result<(), BusError> {
         Ok(())
     }
+    fn release_clamp(&mut self) -> Result<(), BusError> {
+        Ok(())
+    }
 }
 
 #[derive(Default)]

@@ -13,7 +13,10 @@
 //! * the verdict: a log is refused exactly when the reading finds a bad
 //!   line (the message names the first), or no event at all;
 //! * an accepted log's summary: events, clock, handler runs, the longest
-//!   entry-to-exit time and the span, from the unwrapped clock;
+//!   entry-to-exit time and the span, from the unwrapped clock (each
+//!   clock taken nearest the previous event's, the events then in time
+//!   order: a handler preempted between its clock read and its log line
+//!   logs an earlier time after a later one);
 //! * its VCD: it parses; its timestamps strictly increase and each is an
 //!   event's time; every change changes its value (only changes are
 //!   written); each numeric signal ends at the value of its last event,
@@ -72,7 +75,10 @@ fn event(code: u8, value: i32) -> Option<Event> {
 fn read(log: &[u8]) -> Verdict {
     let mut m = Model::default();
     let mut hz: Option<u32> = None;
-    let (mut wraps, mut last_clock) = (0u64, None::<u32>);
+    // Each clock unwrapped to the count nearest the previous event's
+    // (a step back of less than half a wrap is an earlier event).
+    let mut last = None::<(i64, u32)>;
+    let mut evs: Vec<(i64, Event)> = Vec::new();
     let mut entered = [None::<u64>; 3];
     for (k, raw) in lines(log).into_iter().enumerate() {
         let n = k + 1;
@@ -104,15 +110,26 @@ fn read(log: &[u8]) -> Verdict {
         let Some(e) = event(code, value) else {
             return Verdict::Refused(n);
         };
-        let Some(h) = hz else {
+        if hz.is_none() {
             return Verdict::Refused(n);
-        };
-        if last_clock.is_some_and(|l| clock < l) {
-            wraps += 1;
         }
-        last_clock = Some(clock);
-        let ticks = (u128::from(wraps) << 32) + u128::from(clock);
-        let t_ns = (ticks * 1_000_000_000 / u128::from(h)) as u64;
+        let ticks = match last {
+            None => i64::from(clock),
+            Some((t, c)) => t + i64::from(clock.wrapping_sub(c) as i32),
+        };
+        last = Some((ticks, clock));
+        evs.push((ticks, e));
+    }
+    if evs.is_empty() {
+        return Verdict::Refused(0);
+    }
+    let h = hz.unwrap_or(1);
+    m.clock_hz = h;
+    // In time order, equal times in the log's order.
+    evs.sort_by_key(|&(t, _)| t);
+    let origin = evs[0].0.min(0);
+    for (ticks, e) in evs {
+        let t_ns = ((ticks - origin) as u128 * 1_000_000_000 / u128::from(h)) as u64;
         m.events += 1;
         m.times.push(t_ns);
         let handler = |e: Event| match e {
@@ -159,10 +176,6 @@ fn read(log: &[u8]) -> Verdict {
             }
             _ => {}
         }
-        m.clock_hz = h;
-    }
-    if m.events == 0 {
-        return Verdict::Refused(0);
     }
     Verdict::Accepted(m)
 }

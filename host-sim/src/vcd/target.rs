@@ -9,8 +9,16 @@
 //! * `trace clock <hz> Hz` — the board clock's rate, logged once at boot;
 //!   required before the first event;
 //! * `ev <code> <value> <clock>` — one `zslide::trace::Event` at the board
-//!   clock count `<clock>` (u32, wraps; unwrapped here assuming events less
-//!   than one wrap apart, 21 s at 200 MHz).
+//!   clock count `<clock>` (u32, wraps).
+//!
+//! The log's order is the order the events were logged, not always their
+//! time order: a handler that reads the clock and is preempted before it
+//! logs (the X handler by the loop tick) logs an event stamped before the
+//! preempting handler's. So each clock is unwrapped to the count nearest
+//! the previous event's (consecutive events less than half a wrap apart,
+//! 10.7 s at 200 MHz: a small step back is an earlier event, not a wrap),
+//! and the events are put in time order (stable: equal times keep the
+//! log's order) before the handler runs and signals are drawn.
 //!
 //! Every other line is passed over (the log's ordinary messages). A line
 //! that starts like an event but does not parse as one is an error naming
@@ -90,9 +98,9 @@ pub fn convert<R: BufRead, W: Write>(log: R, out: W) -> Result<TraceSummary> {
     values[index_of(Signal::AngleFirmware)] = f64::NAN;
     let mut sum = TraceSummary::default();
     let mut clock_hz: Option<u32> = None;
-    let (mut wraps, mut last_clock, mut first_t): (u64, Option<u32>, Option<u64>) = (0, None, None);
-    let mut t_ns = 0u64;
-    let mut entered: [Option<u64>; 3] = [None; 3];
+    // (unwrapped clock, event), in the log's order.
+    let mut events: Vec<(i64, Event)> = Vec::new();
+    let mut last: Option<(i64, u32)> = None;
     for (n, line) in log.lines().enumerate() {
         let line = line.with_context(|| format!("reading line {}", n + 1))?;
         if let Some(hz) = parse_clock(&line) {
@@ -119,19 +127,31 @@ pub fn convert<R: BufRead, W: Write>(log: R, out: W) -> Result<TraceSummary> {
                 n + 1
             );
         };
-        let Some(hz) = clock_hz else {
+        if clock_hz.is_none() {
             bail!(
                 "line {}: an event before the `trace clock <hz> Hz` line",
                 n + 1
             );
-        };
-        if last_clock.is_some_and(|l| clock < l) {
-            wraps += 1;
         }
-        last_clock = Some(clock);
-        let ticks = (wraps << 32) | u64::from(clock);
-        t_ns = (u128::from(ticks) * 1_000_000_000 / u128::from(hz)) as u64;
-        first_t.get_or_insert(t_ns);
+        let ticks = match last {
+            None => i64::from(clock),
+            Some((t, c)) => t + i64::from(clock.wrapping_sub(c) as i32),
+        };
+        last = Some((ticks, clock));
+        events.push((ticks, e));
+    }
+    if events.is_empty() {
+        bail!("no trace events in the log (was the image built with trace events? `cargo xtask qemu --vcd FILE` builds one)");
+    }
+    let hz = u128::from(sum.clock_hz);
+    events.sort_by_key(|&(t, _)| t);
+    // An event stamped before the first one logged, at the very start of
+    // the clock, would be negative: times count from the earliest then.
+    let origin = events[0].0.min(0);
+    let ns = |t: i64| ((t - origin) as u128 * 1_000_000_000 / hz) as u64;
+    let mut entered: [Option<u64>; 3] = [None; 3];
+    for &(ticks, e) in &events {
+        let t_ns = ns(ticks);
         sum.events += 1;
         let (sig, v) = match e {
             Event::LoopEnter | Event::XEnter | Event::IndexEnter => {
@@ -168,10 +188,7 @@ pub fn convert<R: BufRead, W: Write>(log: R, out: W) -> Result<TraceSummary> {
         rec.sample(t_ns, &values)?;
     }
     rec.finish()?;
-    if sum.events == 0 {
-        bail!("no trace events in the log (was the image built with trace events? `cargo xtask qemu --vcd FILE` builds one)");
-    }
-    sum.span_s = (t_ns - first_t.unwrap_or(0)) as f64 * 1e-9;
+    sum.span_s = (ns(events[events.len() - 1].0) - ns(events[0].0)) as f64 * 1e-9;
     Ok(sum)
 }
 
@@ -247,6 +264,22 @@ mod tests {
             vcd.contains("#4294967000\n") && vcd.contains("#4294968000\n"),
             "{vcd}"
         );
+    }
+
+    /// The X handler read the clock at 900, the loop tick preempted it
+    /// (1000..1100) and logged first: the late X entry is 0.5 µs early,
+    /// not a wrap 21 s later (as the QEMU log's line 18 889 was taken once:
+    /// a 0.3 s run summarised as 172 s).
+    #[test]
+    fn an_event_logged_after_a_later_one_is_placed_at_its_time_not_a_wrap() {
+        let log = "trace clock 200000000 Hz\nev 0 0 1000\nev 2 0 900\nev 1 0 1100\nev 3 0 1200\n";
+        let (s, vcd) = vcd_of(log).unwrap();
+        assert_eq!(s.events, 4);
+        assert!((s.span_s - 1.5e-6).abs() < 1e-15, "{s:?}");
+        assert_eq!(s.runs, [1, 1, 0]);
+        assert!((s.longest_us[0] - 0.5).abs() < 1e-9 && (s.longest_us[1] - 1.5).abs() < 1e-9);
+        let stamps: Vec<&str> = vcd.lines().filter(|l| l.starts_with('#')).collect();
+        assert_eq!(stamps, ["#4500", "#5000", "#5500", "#6000"], "{vcd}");
     }
 
     #[test]
