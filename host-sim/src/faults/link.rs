@@ -110,7 +110,7 @@ fn nonzero_bytes(rng: &mut Xoshiro256PlusPlus, n: usize) -> Vec<u8> {
 /// The flood, from `seed`: every malformed frame and the valid requests
 /// shuffled, the status request in the middle.
 pub fn flood(seed: u64) -> Flood {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x11_4E_F1_00D);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x1_14EF_100D);
     let mut frames: Vec<Vec<u8>> = Vec::new();
     for _ in 0..GARBAGE {
         let n = rng.random_range(1..=60);
