@@ -5,14 +5,13 @@
 //!
 //! Together they cover both X interfaces (legacy BCD half-mil events with
 //! the coefficient DACs written at each event, and the modern count read by
-//! the loop tick), both spindle sensors (tachometer and encoder), and
+//! the X handler), both spindle sensors (tachometer and encoder), and
 //! faults: a stuck gauge bus that latches `Bus(GaugeAdc)` and clamps the
-//! DAC, then the operator's clear, disarm, clear and re-arm (which ends in
-//! `SignCheck`: nothing releases the AD5791's ground clamp after a fault
-//! that disabled the amplifier, so the doublet does not move the slide;
-//! recorded as the firmware does it). The loop is the default design at
-//! the scenario's rate (a recording carries the rate, and the target
-//! computes the same design).
+//! DAC, then the operator's clear, disarm, clear and re-arm: the clear
+//! releases the AD5791's clamp (zero code, control register, read-back)
+//! and the re-arm's sign check and engagement run again. The loop is the
+//! default design at the scenario's rate (a recording carries the rate,
+//! and the target computes the same design).
 
 use crate::chips::BusFault;
 use crate::fwrig::{add_machine_sources, FirmwareWorld, SpindleSensor, WorldTick, XInterface};
