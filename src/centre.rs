@@ -227,20 +227,7 @@ mod app {
         let Some(mut cp) = cortex_m::Peripherals::take() else {
             boot_failure("core peripherals taken twice");
         };
-        let watchdog_reset = clocks::take_watchdog_reset(&dp.RCC);
-        let source = clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH);
-        clocks::enable_peripherals(&dp.RCC);
-        board::configure_pins();
-        timers::start_free_running(&dp.TIM2, &dp.TIM5);
-        cp.SCB.enable_icache();
-        cp.SCB.enable_dcache(&mut cp.CPUID);
-        // SAFETY: as in zslide-fw: DBGMCU_CR debug-in-sleep bits keep RTT
-        // reachable while the core sleeps; no effect without a debugger.
-        unsafe {
-            dp.DBGMCU
-                .cr()
-                .modify(|r, w| w.bits(r.bits() | 0b111 | (1 << 21) | (1 << 22)));
-        }
+        let (watchdog_reset, source) = board::bring_up(&dp, &mut cp);
         defmt::info!(
             "zslide-centre on NUCLEO-H743ZI2: core {=u32} MHz from {}; centring tick {=u32} Hz; table {=u32} counts/turn",
             clocks::SYSCLK_HZ / 1_000_000,

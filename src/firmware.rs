@@ -52,6 +52,7 @@ use crate::looptick::Estimator;
 use crate::safety::Fault;
 use crate::servo::{Servo, ServoConfig};
 use crate::spindle::{EncoderAngle, TachAngle};
+use crate::table::{TableError, TableIdentity};
 use crate::units::ZInches;
 use crate::xpos::{CountX, XEvent};
 
@@ -194,6 +195,16 @@ impl Firmware {
     /// The command generator of the loaded table (`None`: no table or refused).
     pub fn command_gen(&self) -> Option<&CommandGen<'static>> {
         self.lp.gen.as_ref()
+    }
+    /// The loaded table's identity, or why there is none (the refusal the
+    /// load latched; no table at all is `Missing`): for the boot log and
+    /// the host link's status.
+    pub fn table_identity(&self) -> Result<TableIdentity, TableError> {
+        match (self.command_gen(), self.fault()) {
+            (Some(g), _) => Ok(g.interpolator().table().identity()),
+            (None, Some(Fault::Table(e))) => Err(e),
+            (None, _) => Err(TableError::Missing),
+        }
     }
     pub fn trip(&mut self, fault: Fault) {
         self.lp.trip(fault);

@@ -276,69 +276,74 @@ impl Shared {
         slot[1].store(edge_ticks, Ordering::Relaxed);
         self.index_seq.store(s, Ordering::Release);
     }
+    /// The seqlock reader of the module docs, once for both takers: when
+    /// the newest coefficient set's generation is not `seen`, `read` gets
+    /// its slot, meta word and X between the generation and the slot's
+    /// sequence check. A set overwritten while read (a writer that
+    /// preempts the reader) returns `Err` with its X and leaves `seen`, so
+    /// the next call takes the next one.
+    #[inline(always)]
+    fn read_coefficients<R>(
+        &self,
+        seen: &mut u32,
+        read: impl FnOnce(&CoeffSlot, u32, XInches) -> R,
+    ) -> Result<Option<R>, XInches> {
+        let g = self.coeff_gen.load(Ordering::Acquire);
+        if g == *seen {
+            return Ok(None);
+        }
+        let slot = &self.coeff[(g & 1) as usize];
+        let meta = slot.meta.load(Ordering::Relaxed);
+        let x = XInches::from_bits(slot.x.load(Ordering::Relaxed));
+        let r = read(slot, meta, x);
+        fence(Ordering::Acquire);
+        if slot.seq.load(Ordering::Relaxed) == g {
+            *seen = g;
+            Ok(Some(r))
+        } else {
+            Err(x)
+        }
+    }
+
     /// Copies the latest coefficient set into `c` when its generation is
-    /// not `seen` (the seqlock reader of the module docs). Returns the
-    /// set's X when one was taken; a set overwritten while copied leaves
-    /// `c` null and `seen` unchanged (the next call takes the next one),
-    /// and returns `Err` with its X.
+    /// not `seen`. Returns the set's X when one was taken; a set
+    /// overwritten while copied leaves `c` null and `seen` unchanged, and
+    /// returns `Err` with its X.
     #[inline(always)]
     pub(crate) fn take_coefficients(
         &self,
         seen: &mut u32,
         c: &mut Coefficients,
     ) -> Result<Option<XInches>, XInches> {
-        let g = self.coeff_gen.load(Ordering::Acquire);
-        if g == *seen {
-            return Ok(None);
-        }
-        let slot = &self.coeff[(g & 1) as usize];
-        let meta = slot.meta.load(Ordering::Relaxed);
-        let x = XInches::from_bits(slot.x.load(Ordering::Relaxed));
-        if meta & NULL_META != 0 {
-            c.set_null(x);
-        } else {
-            let n = (meta as usize).min(COLS);
-            for (v, sv) in c.value.iter_mut().zip(slot.value.iter()).take(n) {
-                *v = sv.load(Ordering::Relaxed);
+        let taken = self.read_coefficients(seen, |slot, meta, x| {
+            if meta & NULL_META != 0 {
+                c.set_null(x);
+            } else {
+                let n = (meta as usize).min(COLS);
+                for (v, sv) in c.value.iter_mut().zip(slot.value.iter()).take(n) {
+                    *v = sv.load(Ordering::Relaxed);
+                }
+                c.set_live(n as u8, x);
             }
-            c.set_live(n as u8, x);
-        }
-        fence(Ordering::Acquire);
-        // Overwritten while copying (a writer that preempts the reader):
-        // drop it, take the next one.
-        if slot.seq.load(Ordering::Relaxed) == g {
-            *seen = g;
-            Ok(Some(x))
-        } else {
+            x
+        });
+        if let Err(x) = taken {
             c.set_null(x);
-            Err(x)
         }
+        taken
     }
 
     /// Takes the X and the null flag of the newest coefficient set, not
-    /// its values, if its generation is not `seen` (the same seqlock read
-    /// as [`Self::take_coefficients`]): what the loop tick needs on every
-    /// set, where the values serve only its fallback evaluation. A set
-    /// overwritten while read returns `Err` with its X and leaves `seen`.
+    /// its values, if its generation is not `seen`: what the loop tick
+    /// needs on every set, where the values serve only its fallback
+    /// evaluation. A set overwritten while read returns `Err` with its X
+    /// and leaves `seen`.
     #[inline(always)]
     pub(crate) fn take_coefficient_x(
         &self,
         seen: &mut u32,
     ) -> Result<Option<(XInches, bool)>, XInches> {
-        let g = self.coeff_gen.load(Ordering::Acquire);
-        if g == *seen {
-            return Ok(None);
-        }
-        let slot = &self.coeff[(g & 1) as usize];
-        let meta = slot.meta.load(Ordering::Relaxed);
-        let x = XInches::from_bits(slot.x.load(Ordering::Relaxed));
-        fence(Ordering::Acquire);
-        if slot.seq.load(Ordering::Relaxed) == g {
-            *seen = g;
-            Ok(Some((x, meta & NULL_META != 0)))
-        } else {
-            Err(x)
-        }
+        self.read_coefficients(seen, |_, meta, x| (x, meta & NULL_META != 0))
     }
 
     pub(crate) fn raise(&self, f: Fault) {

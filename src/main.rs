@@ -134,21 +134,7 @@ mod app {
         let Some(mut cp) = cortex_m::Peripherals::take() else {
             boot_failure("core peripherals taken twice");
         };
-        let watchdog_reset = clocks::take_watchdog_reset(&dp.RCC);
-        let source = clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH);
-        clocks::enable_peripherals(&dp.RCC);
-        board::configure_pins();
-        timers::start_free_running(&dp.TIM2, &dp.TIM5);
-        cp.SCB.enable_icache();
-        cp.SCB.enable_dcache(&mut cp.CPUID);
-        // SAFETY: DBGMCU_CR bits 0..2 (DBGSLEEP/STOP/STBY_D1) and 21..22
-        // (D1/D3 debug clocks) keep the debug port and RTT reachable while
-        // the core sleeps in `wfi`; they do nothing without a debugger.
-        unsafe {
-            dp.DBGMCU
-                .cr()
-                .modify(|r, w| w.bits(r.bits() | 0b111 | (1 << 21) | (1 << 22)));
-        }
+        let (watchdog_reset, source) = board::bring_up(&dp, &mut cp);
 
         defmt::info!(
             "zslide-fw on NUCLEO-H743ZI2: core {=u32} MHz, AHB {=u32} MHz from {}; loop tick {=u32} Hz; clock {=u32} Hz",
@@ -180,33 +166,24 @@ mod app {
         let Ok(fw) = Firmware::with_table_region(link::table_region(), config(loop_cfg)) else {
             boot_failure("firmware configuration refused");
         };
-        let table = match fw.command_gen() {
-            Some(g) => {
-                let id = g.interpolator().table().identity();
-                defmt::info!(
-                    "coefficient table: c {=i64} nin, S_y {=i64} nin, tool radius {=i64} nin; {=u8} terms, {=u32} nodes; {=u32} bytes, CRC {=u32:#010x}",
-                    id.geometry.c_nin,
-                    id.geometry.s_y_nin,
-                    id.geometry.tool_radius_nin,
-                    id.terms,
-                    id.node_count,
-                    id.len,
-                    id.crc
-                );
-                Ok(id)
-            }
-            None => match fw.fault() {
-                Some(Fault::Table(e)) => Err(e),
-                _ => Err(zslide::table::TableError::Missing),
-            },
-        };
-        let (mut lp, ev, learn) = fw.into_parts();
-        if let Err(e) = table {
-            defmt::error!(
+        let table = fw.table_identity();
+        match &table {
+            Ok(id) => defmt::info!(
+                "coefficient table: c {=i64} nin, S_y {=i64} nin, tool radius {=i64} nin; {=u8} terms, {=u32} nodes; {=u32} bytes, CRC {=u32:#010x}",
+                id.geometry.c_nin,
+                id.geometry.s_y_nin,
+                id.geometry.tool_radius_nin,
+                id.terms,
+                id.node_count,
+                id.len,
+                id.crc
+            ),
+            Err(e) => defmt::error!(
                 "coefficient table refused, slide held at null: {}",
-                defmt::Display2Format(&e)
-            );
+                defmt::Display2Format(e)
+            ),
         }
+        let (mut lp, ev, learn) = fw.into_parts();
         match param_source {
             ParamSource::Refused(e) => {
                 defmt::error!("servo parameter block refused, amplifier kept off: {}", e);

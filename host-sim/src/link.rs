@@ -201,11 +201,7 @@ pub fn attach(
             "the host link posts requests a replay recording does not see: record without it"
         );
     }
-    let table = match (w.fw.command_gen(), w.fw.fault()) {
-        (Some(g), _) => Ok(g.interpolator().table().identity()),
-        (None, Some(zslide::safety::Fault::Table(e))) => Err(e),
-        (None, _) => Err(zslide::table::TableError::Missing),
-    };
+    let table = w.fw.table_identity();
     let (x_source, spindle_source) = match &w.machine {
         None => (XSource::None, SpindleSource::None),
         Some(_) => (

@@ -77,6 +77,32 @@ pub mod pins {
 
 /// Configures every pin of the map; outputs start at their safe level
 /// (amplifier off, chip selects and LDAC high).
+/// What both images do first after RTT: note a watchdog reset (and clear
+/// its flag), clocks, peripheral clocks, pins, the free-running clock
+/// (TIM2, TIM5), caches, and debug access in sleep. Returns whether the
+/// last reset was the watchdog's and the clock source.
+pub fn bring_up(
+    dp: &stm32h7::stm32h743v::Peripherals,
+    cp: &mut cortex_m::Peripherals,
+) -> (bool, clocks::Source) {
+    let watchdog_reset = clocks::take_watchdog_reset(&dp.RCC);
+    let source = clocks::init(&dp.RCC, &dp.PWR, &dp.FLASH);
+    clocks::enable_peripherals(&dp.RCC);
+    configure_pins();
+    timers::start_free_running(&dp.TIM2, &dp.TIM5);
+    cp.SCB.enable_icache();
+    cp.SCB.enable_dcache(&mut cp.CPUID);
+    // SAFETY: DBGMCU_CR bits 0..2 (DBGSLEEP/STOP/STBY_D1) and 21..22
+    // (D1/D3 debug clocks) keep the debug port and RTT reachable while
+    // the core sleeps in `wfi`; they do nothing without a debugger.
+    unsafe {
+        dp.DBGMCU
+            .cr()
+            .modify(|r, w| w.bits(r.bits() | 0b111 | (1 << 21) | (1 << 22)));
+    }
+    (watchdog_reset, source)
+}
+
 pub fn configure_pins() {
     use pins::*;
     AMP_ENABLE.configure(Mode::Output(false));

@@ -456,12 +456,10 @@ fn main() -> ! {
         defmt::error!("FAIL: configuration refused");
         exit(false);
     };
-    let table = match fw.command_gen() {
-        Some(g) => {
-            let t = g.interpolator().table();
-            let h = t.header();
-            let id = t.identity();
-            defmt::info!(
+    let table = fw.table_identity();
+    if let (Some(g), Ok(id)) = (fw.command_gen(), &table) {
+        let h = g.interpolator().table().header();
+        defmt::info!(
                 "table: {=u8} terms {}, {=u32} nodes, null from {}; c {=i64} nin, S_y {=i64} nin, tool radius {=i64} nin; {=u32} bytes, CRC {=u32:#010x}",
                 h.terms,
                 h.representation,
@@ -473,20 +471,14 @@ fn main() -> ! {
                 id.len,
                 id.crc
             );
-            Ok(t.identity())
-        }
-        None => match fw.fault() {
-            Some(Fault::Table(e)) => Err(e),
-            _ => Err(zslide::table::TableError::Missing),
-        },
-    };
-    let (mut lp, ev, learn) = fw.into_parts();
-    if let Err(e) = table {
+    }
+    if let Err(e) = &table {
         defmt::error!(
             "coefficient table refused, slide held at null: {}",
-            defmt::Display2Format(&e)
+            defmt::Display2Format(e)
         );
     }
+    let (mut lp, ev, learn) = fw.into_parts();
     match param_source {
         ParamSource::Refused(e) => {
             defmt::error!("servo parameter block refused, amplifier kept off: {}", e);
