@@ -963,15 +963,7 @@ pub fn end_to_end() -> Result<u32> {
     let good = proto::encode(9, &Request::Faults { from: 0 }, &mut good)
         .ok_or("encode")?
         .to_vec();
-    let raw = |body: &[u8]| {
-        let mut v = body.to_vec();
-        v.extend(zslide::table::crc32(body).to_le_bytes());
-        let mut o = vec![0u8; v.len() + 2];
-        let n = cobs::encode(&v, &mut o);
-        o.truncate(n);
-        o.push(0);
-        o
-    };
+    let raw = host_sim::faults::link::frame;
     let mut bad_crc = good.clone();
     bad_crc[3] ^= 0x08;
     let mut truncated = good[..good.len() - 4].to_vec();

@@ -66,7 +66,10 @@ pub struct LinkOutcome {
     pub unread_bytes: usize,
 }
 
-fn frame(body: &[u8]) -> Vec<u8> {
+/// A link frame around any body, right or wrong for the firmware: the
+/// body, its CRC and the COBS delimiter, as a well-behaved host frames
+/// (the malformed frames of the flood and of `cargo xtask link-test`).
+pub fn frame(body: &[u8]) -> Vec<u8> {
     let mut v = body.to_vec();
     v.extend(zslide::table::crc32(body).to_le_bytes());
     let mut out = vec![0u8; cobs::max_encoding_length(v.len())];
