@@ -116,7 +116,12 @@ mod app {
     // move the value whole and cannot fail.
     static SHARED: Shared = Shared::new();
     static HANDOFF: Mutex<Cell<Option<Loop>>> = Mutex::new(Cell::new(None));
-    static HANDOFF_X: Mutex<Cell<Option<XHandler>>> = Mutex::new(Cell::new(None));
+    /// The X handler's state is one `.bss` value (`cortex_m::singleton!`)
+    /// handed over by reference: as an `Option<XHandler>` static its
+    /// `None` is niche-encoded nonzero, which put the 8.7 KiB state (the
+    /// slope table) in `.data` twice, the handler's and this cell's, each
+    /// with its flash initialiser.
+    static HANDOFF_X: Mutex<Cell<Option<&'static mut XHandler>>> = Mutex::new(Cell::new(None));
     static HANDOFF_LEARN: Mutex<Cell<Option<LearnState>>> = Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The amplifier is enabled (the loop armed), for the arm button.
@@ -223,13 +228,16 @@ mod app {
             dac,
             spindle: SpindleEncoder::new(),
         };
+        // `None` only on a second run of this code, which cannot happen
+        // (main never returns); the X handler would then stay idle.
+        let x = cortex_m::singleton!(: XHandler = XHandler {
+            ev,
+            quad,
+            generation: 0,
+        });
         critical_section::with(|cs| {
             HANDOFF.borrow(cs).set(Some(lp));
-            HANDOFF_X.borrow(cs).set(Some(XHandler {
-                ev,
-                quad,
-                generation: 0,
-            }));
+            HANDOFF_X.borrow(cs).set(x);
             HANDOFF_LEARN.borrow(cs).set(Some(learn));
         });
 
@@ -386,7 +394,7 @@ mod app {
     /// loop tick; the quad DAC in the coefficient-output mode).
     #[interrupt]
     fn EXTI2() {
-        static mut X: Option<XHandler> = None;
+        static mut X: Option<&'static mut XHandler> = None;
         board::ack_exti(2);
         let word = board::LatchPins.read();
         let now = timers::now_ticks();

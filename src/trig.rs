@@ -86,11 +86,13 @@ const fn round_q30(v: f64) -> i32 {
     (if s >= 0.0 { s + 0.5 } else { s - 0.5 }) as i32
 }
 
-/// The sine table, built by the compiler (its constant evaluation is IEEE and
-/// deterministic, so host and target images hold identical bits). Symmetry
+/// The sine table, built by the compiler (its constant evaluation is IEEE
+/// and deterministic, so host and target images hold identical bits); a
+/// `static`, because a `const` was copied into every function that inlined
+/// `sin_cos` (four times 5 KiB of flash on the NUCLEO). Symmetry
 /// folds every node into the first quadrant, where the series is exact to
 /// f64 precision, so nodes a quarter turn apart are exactly ± each other.
-const SIN_TABLE: [i32; TABLE_LEN] = {
+static SIN_TABLE: [i32; TABLE_LEN] = {
     let mut t = [0i32; TABLE_LEN];
     let quarter = POINTS_PER_TURN / 4;
     let mut k = 0;
