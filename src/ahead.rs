@@ -1,9 +1,10 @@
-//! The command ahead of the loop tick: Z, ∂Z/∂φ and ∂²Z/∂φ² evaluated by
+//! The command ahead of the loop tick: Z, ∂Z/∂φ, ∂²Z/∂φ², the command's
+//! acceleration and the learned correction by spindle angle, evaluated by
 //! the handler below the tick (the learning's, `crate::learning`) at the
 //! angle the next tick is predicted to read, and stepped in the tick to
-//! the angle it does read by a second-order Taylor step (a few multiplies
-//! instead of the sine and the Horner series: `docs/BOARD.md`, interrupt
-//! cost).
+//! the angle it does read (a few multiplies instead of the sine, the
+//! Horner series, the acceleration's products and the learned table's
+//! reads: `docs/BOARD.md`, interrupt cost).
 //!
 //! # The expansion and its error
 //! [`Expansion`] holds, at an angle φ₀, Z in gauge codes Q8 and the two
@@ -19,23 +20,63 @@
 //! The Taylor remainders bound the error against Z and ∂Z/∂φ evaluated
 //! at φ: |ΔZ| ≤ M₃·|δ_rad|³/6 and |Δ∂Z/∂φ| ≤ M₃·δ_rad²/2, where M₃ bounds
 //! |∂³Z/∂φ³|: 0.0222 in/rad³ on the default table (sampled over X and φ,
-//! with 10 % margin; tested). Per δ:
+//! with 10 % margin; tested). The tick forms the velocity ∂Z/∂φ(φ)·Δφ
+//! from p1(φ) and its own Δφ: exact to first order in δ. Per δ:
 //!
-//! | δ | Z error | velocity error at 1200 rpm |
-//! |---|---|---|
-//! | one tick at 300 rpm (2²⁰) | 0.0007 codes | 0.009 codes/tick |
-//! | one tick at 1200 rpm (2²²) | 0.045 codes (0.0009 µin) | 0.14 codes/tick |
-//! | two ticks at 1200 rpm | 0.38 codes (0.007 µin) | 0.58 codes/tick |
-//! | the limit, 3·2²² (0.0184 rad) | 1.2 codes (0.023 µin) | 1.2 codes/tick |
+//! | δ | Z error | velocity error at 1200 rpm | acceleration error at 1200 rpm |
+//! |---|---|---|---|
+//! | one tick at 300 rpm (2²⁰) | 0.0007 codes | 0.009 codes/tick | 0.07 codes/tick² |
+//! | one tick at 1200 rpm (2²²) | 0.045 codes (0.0009 µin) | 0.14 codes/tick | 0.28 codes/tick² |
+//! | two ticks at 1200 rpm | 0.38 codes (0.007 µin) | 0.58 codes/tick | 0.56 codes/tick² |
+//! | the limit, 3·2²² (0.0184 rad) | 1.2 codes (0.023 µin) | 1.2 codes/tick | 0.85 codes/tick² |
 //!
 //! Where the handler runs after every tick (the NUCLEO, host-sim) δ is the
 //! prediction's error (the spindle's speed change over a tick: a fraction
 //! of a count); on QEMU (its timer 1 runs every 2.3 ticks) δ is zero, one
 //! or two ticks of angle. The rounding adds half an LSB of each product:
-//! < 0.01 Q8 codes. ∂²Z/∂φ² is taken at φ₀ (its error M₃·|δ_rad| enters
-//! the acceleration times Δφ²: below 1e-5 codes per tick²). A third-order
-//! term (∂³Z/∂φ³ from the handler) would bring the limit's error to the
-//! fourth-order remainder; not done yet.
+//! < 0.01 Q8 codes. A third-order term (∂³Z/∂φ³ from the handler) would
+//! bring the limit's error to the fourth-order remainder; not done.
+//!
+//! # The acceleration
+//! `Expansion::accel_q16` is the setpoint's acceleration ∂²Z/∂φ²·Δφ² +
+//! ∂Z/∂φ·Δ²φ (`setpoint::acceleration`), formed by the handler at φ₀ with
+//! the step Δφ₀ and the smoothed Δ²φ₀ the requesting tick posted (the next
+//! tick is predicted to repeat them), and not stepped: the tick takes it
+//! as it is. Against the closed form at the tick's φ, Δφ and Δ²φ:
+//!
+//! ```text
+//! |Δa| ≤ M₃|δ|Δφ₀² + M₂|Δφ² − Δφ₀²| + M₂|δ||Δ²φ₀| + M₁|Δ²φ − Δ²φ₀|   (radians)
+//! ```
+//!
+//! with M₁ = 0.0063 in/rad and M₂ = 0.0119 in/rad² on the default table
+//! (sampled as M₃; tested,
+//! `acceleration_from_below_is_within_its_bound_of_the_closed_form`, plus
+//! 0.002 codes per tick² of rounding). The first term is the table's
+//! last column (the acceleration itself is up to 62 codes per tick² at
+//! 1800 rpm on the default table: 1 % of it per tick of δ at 1200 rpm).
+//! The second is the speed's change since the request: a 1 % different
+//! step at 1200 rpm, 0.49 codes per tick² (the tick formed Δφ² from its
+//! own step before, with the same noise one tick later now). The last is
+//! Δ²φ one tick late: its smoothing (64 ticks) moves it by 1/64 of the
+//! step's change per tick; a 1 % step change at 1200 rpm, 0.32 codes per
+//! tick². (This module's docs used to put the first term below 1e-5
+//! codes per tick²: the gauge's codes per inch were missing.)
+//!
+//! # The learned correction
+//! [`Ahead::correction`] is the learned correction by spindle angle at the
+//! same φ₀ (`servo::repetitive::CorrectionAhead`: the table's value, its
+//! slopes and its acceleration there), made after the handler applied the
+//! samples of the ticks before (the table the next tick would have read:
+//! the updates touch bins a lead behind the angle, never the four it
+//! reads). The loop steps it to its angle when it applies it
+//! (`Servo::update`: when is unchanged) and reads the table itself when
+//! none is at hand. Inside φ₀'s bin the step is the direct evaluation up to
+//! the rounding; across a bin boundary it is off by the table's second
+//! (position) and third (rates) differences times the part of δ past the
+//! node: for a learned 100 codes at harmonic 8, a quarter bin past it
+//! (one tick at 1200 rpm), 0.96 codes of position and 0.05 codes per
+//! tick of velocity (`CorrectionAhead`'s docs; tested against the direct
+//! evaluation).
 //!
 //! # Freshness
 //! The tick uses an expansion only if it was made for a tick at most
@@ -49,7 +90,9 @@
 use crate::codes::{CODE_MAX, CODE_MIN};
 use crate::command::{Coefficients, CommandGen};
 use crate::handoff::{Shared, NULL_META};
-use crate::servo::fixed::mul_hi;
+use crate::servo::fixed::{mul_hi, ssat};
+use crate::servo::CorrectionAhead;
+use crate::setpoint::{acceleration, rate_step};
 use crate::units::{SpindleAngle, XInches};
 use core::sync::atomic::{fence, Ordering};
 
@@ -58,7 +101,8 @@ use core::sync::atomic::{fence, Ordering};
 pub const DELTA_LIMIT: i32 = 3 << 22;
 /// Oldest expansion the tick uses, in ticks after the one it was made for.
 pub const MAX_AGE: u32 = 4;
-/// Q8 codes kept for Z: ±2²⁹ (4× the gauge's range, clamped to it later).
+/// Q8 codes kept for Z: −2²⁹ ≤ Z < 2²⁹ (4× the gauge's range, clamped to
+/// it later; one `SSAT`).
 const Z_Q8_LIMIT: i32 = 1 << 29;
 
 /// Gauge codes per tick (Q16) from ∂Z/∂φ (Q30 in/rad) × Δφ (binary angle):
@@ -78,18 +122,29 @@ pub(crate) const FF_K2: i32 = 2_069_806_061;
 pub struct Expansion {
     /// φ₀, where the values hold.
     pub phi: SpindleAngle,
-    /// Z, gauge codes Q8 (saturated to ±2²⁹).
+    /// Z, gauge codes Q8 (saturated to −2²⁹..2²⁹).
     pub z_q8: i32,
     /// ∂Z/∂φ (clamped to ±2²⁷ Q30 in/rad) times `FF_K`/2³², rounded.
     pub p1: i32,
     /// ∂²Z/∂φ² (clamped to ±2²⁸ Q30 in/rad²) times `FF_K2`/2³², rounded.
     pub p2: i32,
+    /// The command's acceleration at φ₀ for the step and Δ²φ it was made
+    /// for (`setpoint::acceleration`), Q16 codes per tick²; not stepped.
+    pub accel_q16: i32,
 }
 
 impl Expansion {
-    /// The command at `phi`, evaluated (non-null coefficients).
+    /// The command at `phi`, evaluated (non-null coefficients), with its
+    /// acceleration for the step `dphi` (`setpoint::rate_step`) and Δ²φ
+    /// `alpha_q4` (Q4).
     #[inline]
-    pub fn direct(gen: &CommandGen, c: &Coefficients, phi: SpindleAngle) -> Self {
+    pub fn direct(
+        gen: &CommandGen,
+        c: &Coefficients,
+        phi: SpindleAngle,
+        dphi: i32,
+        alpha_q4: i32,
+    ) -> Self {
         let cmd = gen.evaluate_phi(c, phi);
         // Bounds that keep every product of the rates a 32-bit multiply:
         // |∂Z/∂φ| ≤ 2²⁷ (1/8 in/rad), |∂²Z/∂φ²| ≤ 2²⁸: far beyond any cut.
@@ -98,11 +153,13 @@ impl Expansion {
         // Codes = Z·25·2²¹/2³⁰; Q8 truncated, so that rounding the Q8 value
         // to a code gives exactly `gauge_code_from_z` (tested).
         let z = (i64::from(cmd.z.to_bits()) * 25) >> 1;
+        let (p1, p2) = (mul_hi(d1, FF_K), mul_hi(d2, FF_K2));
         Self {
             phi,
-            z_q8: z.clamp(-i64::from(Z_Q8_LIMIT), i64::from(Z_Q8_LIMIT)) as i32,
-            p1: mul_hi(d1, FF_K),
-            p2: mul_hi(d2, FF_K2),
+            z_q8: z.clamp(-i64::from(Z_Q8_LIMIT), i64::from(Z_Q8_LIMIT) - 1) as i32,
+            p1,
+            p2,
+            accel_q16: acceleration(p1, p2, dphi, alpha_q4),
         }
     }
 
@@ -119,9 +176,10 @@ impl Expansion {
         let dz = ((i64::from(self.p1 + p1) * i64::from(d) + (1 << 24)) >> 25) as i32;
         Some(Self {
             phi,
-            z_q8: self.z_q8.saturating_add(dz).clamp(-Z_Q8_LIMIT, Z_Q8_LIMIT),
+            z_q8: ssat::<30>(self.z_q8.saturating_add(dz)),
             p1,
             p2: self.p2,
+            accel_q16: self.accel_q16,
         })
     }
 
@@ -140,6 +198,9 @@ pub struct Ahead {
     pub tick: u32,
     /// `None`: the command is null (null zone, no table).
     pub expansion: Option<Expansion>,
+    /// The learned correction at the same φ₀ (whether or not the command
+    /// is null: the loop decides whether it applies).
+    pub correction: CorrectionAhead,
     /// X of the coefficients.
     pub x: XInches,
     /// Their generation ([`Shared::coefficient_generation`]).
@@ -191,24 +252,34 @@ impl AheadState {
                 }
             }
         }
-        let Some((tick, phi, dphi)) = sh.ahead.request() else {
+        let Some((tick, phi, dphi, alpha_q4)) = sh.ahead.request() else {
             return;
         };
         if tick == self.request_seen {
             return;
         }
         self.request_seen = tick;
+        // The next tick predicted: this one's angle plus its step, the
+        // same step and Δ²φ.
         let at = SpindleAngle(phi.wrapping_add(dphi as u32));
         let expansion = match &self.gen {
-            Some(g) if !self.coeffs.null => Some(Expansion::direct(g, &self.coeffs, at)),
+            Some(g) if !self.coeffs.null => Some(Expansion::direct(
+                g,
+                &self.coeffs,
+                at,
+                rate_step(dphi),
+                alpha_q4,
+            )),
             _ => None,
         };
+        let correction = sh.learned.ahead(at, dphi);
         self.published = self.published.wrapping_add(1);
         sh.ahead.publish(
             self.published,
             &Ahead {
                 tick: tick.wrapping_add(1),
                 expansion,
+                correction,
                 x: self.coeffs.x(),
                 coeff_gen: self.coeff_seen,
             },
@@ -221,17 +292,20 @@ impl AheadState {
     }
 }
 
-/// Words of one published expansion: sequence, tick, φ₀, Z, p1, p2, X,
-/// coefficient generation, null flag.
-const WORDS: usize = 9;
+/// Words of one published expansion: sequence, tick, φ₀, Z, p1, p2, the
+/// acceleration, X, coefficient generation, null flag, and the
+/// correction's position, bin slope, slope, slope change and acceleration.
+const WORDS: usize = 15;
 
 /// The hand-off of [`crate::handoff::Shared`] between the tick (angle
 /// requests in, expansions out) and [`AheadState`]: the tick's request is
-/// three words (a torn one only moves φ₀, which the tick checks), the
-/// expansion two slots under the coefficients' seqlock rule.
+/// four words (a torn one only moves φ₀, which the tick checks, or the
+/// acceleration by a tick's change of Δφ or Δ²φ), the expansion two slots
+/// under the coefficients' seqlock rule.
 pub(crate) struct AheadHandoff {
-    /// [φ, Δφ, tick]: the tick's angle and step; tick 0 = none yet.
-    request: [core::sync::atomic::AtomicU32; 3],
+    /// [φ, Δφ, Δ²φ (Q4), tick]: the tick's angle, step and smoothed
+    /// step's change; tick 0 = none yet.
+    request: [core::sync::atomic::AtomicU32; 4],
     gen: core::sync::atomic::AtomicU32,
     slots: [[core::sync::atomic::AtomicU32; WORDS]; 2],
 }
@@ -240,28 +314,31 @@ impl AheadHandoff {
     pub(crate) const fn new() -> Self {
         use core::sync::atomic::AtomicU32;
         Self {
-            request: [const { AtomicU32::new(0) }; 3],
+            request: [const { AtomicU32::new(0) }; 4],
             gen: AtomicU32::new(0),
             slots: [const { [const { AtomicU32::new(0) }; WORDS] }; 2],
         }
     }
 
-    /// The tick's angle and step (the tick; `tick` ≠ 0).
+    /// The tick's angle, step and Δ²φ (the tick; `tick` ≠ 0).
     #[inline(always)]
-    pub(crate) fn post(&self, tick: u32, phi: SpindleAngle, dphi: i32) {
+    pub(crate) fn post(&self, tick: u32, phi: SpindleAngle, dphi: i32, alpha_q4: i32) {
         self.request[0].store(phi.0, Ordering::Relaxed);
         self.request[1].store(dphi as u32, Ordering::Relaxed);
-        self.request[2].store(tick, Ordering::Release);
+        self.request[2].store(alpha_q4 as u32, Ordering::Relaxed);
+        self.request[3].store(tick, Ordering::Release);
     }
 
-    fn request(&self) -> Option<(u32, u32, i32)> {
-        let tick = self.request[2].load(Ordering::Acquire);
+    fn request(&self) -> Option<(u32, u32, i32, i32)> {
+        let tick = self.request[3].load(Ordering::Acquire);
         if tick == 0 {
             return None;
         }
         let phi = self.request[0].load(Ordering::Relaxed);
         let dphi = self.request[1].load(Ordering::Relaxed) as i32;
-        Some((tick, phi, dphi))
+        // Within the bounds the tick gives it, whatever a torn read holds.
+        let alpha = ssat::<25>(self.request[2].load(Ordering::Relaxed) as i32);
+        Some((tick, phi, dphi, alpha))
     }
 
     fn publish(&self, g: u32, a: &Ahead) {
@@ -269,15 +346,22 @@ impl AheadHandoff {
         slot[0].store(g, Ordering::Relaxed);
         fence(Ordering::Release);
         let e = a.expansion.unwrap_or_default();
+        let c = &a.correction;
         let words = [
             a.tick,
-            e.phi.0,
+            c.phi.0,
             e.z_q8 as u32,
             e.p1 as u32,
             e.p2 as u32,
+            e.accel_q16 as u32,
             a.x.to_bits() as u32,
             a.coeff_gen,
             if a.expansion.is_some() { 0 } else { NULL_META },
+            c.position_q8 as u32,
+            c.bin_slope_q8 as u32,
+            c.slope2_q8 as u32,
+            c.slope2_per_bin_q8 as u32,
+            c.accel_q16 as u32,
         ];
         for (w, v) in slot[1..].iter().zip(words) {
             w.store(v, Ordering::Relaxed);
@@ -299,16 +383,26 @@ impl AheadHandoff {
         if slot[0].load(Ordering::Relaxed) != g {
             return None;
         }
+        let phi = SpindleAngle(w[1]);
         Some(Ahead {
             tick: w[0],
-            expansion: (w[7] & NULL_META == 0).then_some(Expansion {
-                phi: SpindleAngle(w[1]),
+            expansion: (w[8] & NULL_META == 0).then_some(Expansion {
+                phi,
                 z_q8: w[2] as i32,
                 p1: w[3] as i32,
                 p2: w[4] as i32,
+                accel_q16: w[5] as i32,
             }),
-            x: XInches::from_bits(w[5] as i32),
-            coeff_gen: w[6],
+            correction: CorrectionAhead {
+                phi,
+                position_q8: w[9] as i32,
+                bin_slope_q8: w[10] as i32,
+                slope2_q8: w[11] as i32,
+                slope2_per_bin_q8: w[12] as i32,
+                accel_q16: w[13] as i32,
+            },
+            x: XInches::from_bits(w[6] as i32),
+            coeff_gen: w[7],
         })
     }
 }
@@ -395,6 +489,91 @@ mod tests {
         1.1 * m
     }
 
+    /// max |∂Z/∂φ| and max |∂²Z/∂φ²| over the default table (sampled as
+    /// [`m3_default`], with its margin), in/rad and in/rad².
+    fn m12_default() -> (f64, f64) {
+        let g = gen();
+        let (mut m1, mut m2) = (0f64, 0f64);
+        for k in 0..=(7.2 * 64.0) as i32 {
+            let Some((_, c)) = coeffs_f64(&g, XInches::from_bits(k * (1 << 18))) else {
+                continue;
+            };
+            for i in 0..1024 {
+                let [_, d1, d2] = exact(&c, f64::from(i) * core::f64::consts::TAU / 1024.0);
+                (m1, m2) = (m1.max(d1.abs()), m2.max(d2.abs()));
+            }
+        }
+        (1.1 * m1, 1.1 * m2)
+    }
+
+    /// The acceleration formed below the tick (at φ₀, for the predicted
+    /// step Δφ₀ and Δ²φ₀) against the closed form ∂²Z/∂φ²·Δφ² +
+    /// ∂Z/∂φ·Δ²φ at the angle, step and Δ²φ of the tick: within the
+    /// module docs' bound M₃|δ|Δφ₀² + M₂|Δφ² − Δφ₀²| + M₂|δ||Δ²φ₀| +
+    /// M₁|Δ²φ − Δ²φ₀| plus 0.002 codes per tick² of rounding, over the
+    /// default table, δ up to the limit, 300 to 1800 rpm, a spindle
+    /// slowing by 5 % in 0.1 s (Δ²φ) and a measured step off the predicted
+    /// one by a count of a 4096-line encoder.
+    #[test]
+    fn acceleration_from_below_is_within_its_bound_of_the_closed_form() {
+        let g = gen();
+        let m3 = m3_default();
+        let (m1, m2) = m12_default();
+        let mut worst = 0f64;
+        let mut seen = 0f64;
+        for k in (0..230u32).step_by(11) {
+            let x = XInches::from_bits((k as i32) * (1 << 19) + 54_321);
+            let Some((c, cf)) = coeffs_f64(&g, x) else {
+                continue;
+            };
+            for m in 0..24u32 {
+                let phi0 = SpindleAngle(m.wrapping_mul(178_956_971));
+                for ticks_per_rev in [4000u32, 1000, 667] {
+                    let dphi0 = (4_294_967_296u64 / u64::from(ticks_per_rev)) as i32;
+                    // 5 % of the step in 2000 ticks, Q4.
+                    let alpha0 = -(dphi0 / 20 / 2000) * 16;
+                    let e = Expansion::direct(&g, &c, phi0, dphi0, alpha0);
+                    for (d, dd, da) in [
+                        (0, 0, 0),
+                        (dphi0, 0, 0),
+                        (2 * dphi0, 1 << 20, 3),
+                        (-dphi0 / 3, -(1 << 20), -40),
+                        (DELTA_LIMIT, 1 << 20, 16),
+                        (-DELTA_LIMIT, -(1 << 20), -16),
+                    ] {
+                        let phi = SpindleAngle(phi0.0.wrapping_add(d as u32));
+                        let Some(s) = e.step(phi) else { continue };
+                        let (dphi, alpha) = (dphi0 + dd, alpha0 + da);
+                        let [_, d1, d2] = exact(&cf, f64::from(phi.0) * RAD);
+                        let (w, w0) = (f64::from(dphi) * RAD, f64::from(dphi0) * RAD);
+                        let (al, al0) = (
+                            f64::from(alpha) / 16.0 * RAD,
+                            f64::from(alpha0) / 16.0 * RAD,
+                        );
+                        let a_exact = (d2 * w * w + d1 * al) * CPI;
+                        let err = (f64::from(s.accel_q16) / 65_536.0 - a_exact).abs();
+                        let h = f64::from(d).abs() * RAD;
+                        let bound = (m3 * h * w0 * w0
+                            + m2 * (w * w - w0 * w0).abs()
+                            + m2 * h * al0.abs()
+                            + m1 * (al - al0).abs())
+                            * CPI
+                            + 0.002;
+                        assert!(err <= bound, "x {k} phi {m} d {d}: {err} > {bound}");
+                        if dd == 0 && da == 0 {
+                            worst = worst.max(err);
+                        }
+                        seen = seen.max(a_exact.abs());
+                    }
+                }
+            }
+        }
+        assert!(seen > 10.0, "a real acceleration: {seen} codes per tick²");
+        std::println!(
+            "M1 {m1} M2 {m2}; worst at the predicted step: {worst} codes/tick² of {seen}"
+        );
+    }
+
     /// The module docs' M₃ of the default table, and the third derivative
     /// against a finite difference of the closed form's second.
     #[test]
@@ -425,11 +604,14 @@ mod tests {
             };
             for m in 0..64u32 {
                 let phi = SpindleAngle(m.wrapping_mul(67_108_864 + 12_345));
-                let e = Expansion::direct(&g, &c, phi);
+                let e = Expansion::direct(&g, &c, phi, 1 << 22, 1000);
                 let cmd = g.evaluate_phi(&c, phi);
                 assert_eq!(e.code(), gauge_code_from_z(cmd.z), "x {k} phi {m}");
                 let d1 = cmd.dz_dphi.to_bits().clamp(-(1 << 27), 1 << 27);
                 assert_eq!(e.p1, mul_hi(d1, FF_K));
+                let d2 = cmd.d2z_dphi2.to_bits().clamp(-(1 << 28), 1 << 28);
+                assert_eq!(e.p2, mul_hi(d2, FF_K2));
+                assert_eq!(e.accel_q16, acceleration(e.p1, e.p2, 1 << 22, 1000));
                 assert_eq!(e.step(phi), Some(e));
             }
         }
@@ -454,7 +636,7 @@ mod tests {
             };
             for m in 0..40u32 {
                 let phi0 = SpindleAngle(m.wrapping_mul(107_374_183));
-                let e = Expansion::direct(&g, &c, phi0);
+                let e = Expansion::direct(&g, &c, phi0, 0, 0);
                 let z0_err = (f64::from(e.z_q8) / 256.0
                     - exact(&cf, f64::from(phi0.0) * RAD)[0] * CPI)
                     .abs();

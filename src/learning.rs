@@ -1,5 +1,4 @@
-//! The learning handler, one priority below the loop tick: it evaluates
-//! the command ahead of the next tick (`crate::ahead`), then takes the
+//! The learning handler, one priority below the loop tick: it takes the
 //! samples the loop tick handed over ([`crate::handoff`]'s learning ring)
 //! and runs the spindle-synchronous learning on them (the hum notch on the
 //! error, the update, the Q-filter: `servo::repetitive::Learner`) into the
@@ -7,7 +6,8 @@
 //! learning is the part of the loop that need not finish before the DAC
 //! write: the table it writes is read a revolution later. Moving it out of
 //! the loop tick keeps the tick's cost the same whether the learning runs
-//! or not (`docs/BOARD.md`, interrupt cost).
+//! or not (`docs/BOARD.md`, interrupt cost). Then it evaluates the command
+//! and the learned correction ahead of the next tick (`crate::ahead`).
 //!
 //! The boards run [`LearnState::run`] after every loop tick (a software-
 //! pended interrupt below the tick on the NUCLEO, the machine-event timer
@@ -21,9 +21,11 @@ use crate::servo::{Learner, ServoConfig};
 /// State of the learning handler.
 #[derive(Clone, Debug)]
 pub struct LearnState {
-    /// The command evaluated ahead of the next tick (`crate::ahead`), run
-    /// first: the next tick needs it, the learned table only a revolution
-    /// later.
+    /// The command and the learned correction evaluated ahead of the next
+    /// tick (`crate::ahead`), run after the samples are applied, so that
+    /// the correction is the one of the table the tick would have read
+    /// (the samples' updates touch only bins a lead behind the angle,
+    /// never the four it reads: `servo::repetitive`).
     ahead: AheadState,
     learner: Learner,
     /// The ring's lost-sample count when last seen.
@@ -49,7 +51,6 @@ impl LearnState {
     /// Never inlined, so `cargo xtask isr-cost` can find and count it.
     #[inline(never)]
     pub fn run(&mut self, sh: &Shared) {
-        self.ahead.run(sh);
         let lost = sh.learn.lost();
         if lost != self.lost_seen {
             // The tick dropped samples while this handler could not run: the
@@ -60,6 +61,9 @@ impl LearnState {
         while let Some(s) = sh.learn.pop() {
             self.learner.apply(&s, &sh.learned);
         }
+        // After the samples: the learned correction it expands is the
+        // table the next tick would have read itself.
+        self.ahead.run(sh);
     }
 
     /// The evaluation ahead of the tick (the coefficients it holds).

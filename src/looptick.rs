@@ -4,7 +4,7 @@
 //! the servo and writes its DAC code. It only orchestrates: the loop
 //! itself is `servo`, the command `command`/`setpoint`.
 
-use crate::ahead::{Expansion, MAX_AGE};
+use crate::ahead::{Ahead, Expansion, MAX_AGE};
 use crate::codes::{CODE_MAX, CODE_MIN};
 use crate::command::{Coefficients, CommandGen};
 use crate::handoff::{Request, Shared, X_FAULTS};
@@ -308,11 +308,16 @@ impl LoopState {
         // The command and its analytic rates: the expansion made below the
         // tick, stepped to this angle (`crate::ahead`).
         let dphi = self.sp.dphi(phi);
-        let command = phi.and_then(|p| self.command_at(sh, p));
+        let (rate_dphi, alpha_q4) = self.sp.advance(phi, dphi);
+        let fresh = sh
+            .ahead
+            .latest()
+            .filter(|a| self.ticks.wrapping_sub(a.tick) <= MAX_AGE);
+        let command = phi.and_then(|p| self.command_at(sh, fresh.as_ref(), p, rate_dphi, alpha_q4));
         self.command_live = command.is_some();
-        let table = setpoint(command.as_ref(), phi, &mut self.sp);
+        let table = setpoint(command.as_ref(), rate_dphi);
         if let Some(p) = phi {
-            sh.ahead.post(self.ticks, p, dphi);
+            sh.ahead.post(self.ticks, p, dphi, alpha_q4);
         }
         let (table_code, slope, accel) = (table.code, table.velocity_q16, table.accel_q16);
         self.table_code = table_code;
@@ -361,6 +366,7 @@ impl LoopState {
                     None
                 },
                 amplifier_tripped: input.amplifier_fault,
+                correction_ahead: fresh.map(|a| a.correction),
             },
             &sh.learned,
         );
@@ -405,11 +411,14 @@ impl LoopState {
     /// while it was null and none has arrived (the first tick or two after
     /// the angle or the coefficients appear).
     #[inline(always)]
-    fn command_at(&mut self, sh: &Shared, phi: SpindleAngle) -> Option<Expansion> {
-        let fresh = sh
-            .ahead
-            .latest()
-            .filter(|a| self.ticks.wrapping_sub(a.tick) <= MAX_AGE);
+    fn command_at(
+        &mut self,
+        sh: &Shared,
+        fresh: Option<&Ahead>,
+        phi: SpindleAngle,
+        dphi: i32,
+        alpha_q4: i32,
+    ) -> Option<Expansion> {
         if let Some(a) = fresh {
             match a.expansion {
                 None => return None,
@@ -423,7 +432,7 @@ impl LoopState {
         if !self.command_live || self.coeff_null {
             return None;
         }
-        self.evaluate_here(sh, phi)
+        self.evaluate_here(sh, phi, dphi, alpha_q4)
     }
 
     /// The fallback of [`Self::command_at`]: rare (a handler below the
@@ -431,7 +440,13 @@ impl LoopState {
     /// not crowd the registers of every tick.
     #[cold]
     #[inline(never)]
-    fn evaluate_here(&mut self, sh: &Shared, phi: SpindleAngle) -> Option<Expansion> {
+    fn evaluate_here(
+        &mut self,
+        sh: &Shared,
+        phi: SpindleAngle,
+        dphi: i32,
+        alpha_q4: i32,
+    ) -> Option<Expansion> {
         let g = self.gen.as_ref()?;
         // The values of the set the tick took (no handler below the tick
         // runs between its take and this copy), copied once per set: the
@@ -443,7 +458,7 @@ impl LoopState {
         {
             return None;
         }
-        Some(Expansion::direct(g, &self.fallback, phi))
+        Some(Expansion::direct(g, &self.fallback, phi, dphi, alpha_q4))
     }
 
     /// Remembers the X of a new coefficient set; a jump freezes learning

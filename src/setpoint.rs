@@ -14,6 +14,14 @@
 //! tachometer's angle steps carry its noise and a raw second difference
 //! would pass it to the feedforward 64 times larger.
 //!
+//! # Where they are formed
+//! The tick forms the velocity, from ∂Z/∂φ stepped to its own angle and
+//! its own Δφ ([`setpoint`]), and keeps the smoothing of Δφ
+//! ([`SetpointState::advance`]); the acceleration is formed below it, at
+//! the predicted angle with the step and Δ²φ the tick posts
+//! ([`acceleration`], `crate::ahead`, where its error is bounded), or in
+//! the tick with its own when it evaluates the command itself.
+//!
 //! # Formats
 //! ∂Z/∂φ Q30 in/rad, ∂²Z/∂φ² Q30 in/rad², Δφ in the binary angle (2³² per
 //! revolution); outputs Q16 codes per tick and per tick² (`i32`). Each
@@ -36,10 +44,6 @@ use crate::units::SpindleAngle;
 
 /// Smoothing of Δφ for the angular acceleration: 2⁻⁶ per tick.
 const ALPHA_SHIFT: u32 = 6;
-/// |Δφ| accepted for the rates: 2²⁶, 1/64 turn per tick (18 750 rpm at
-/// 20 kHz), far beyond any real spindle.
-const DPHI_LIMIT: i32 = 1 << 26;
-
 /// The angle history the rates need.
 #[derive(Clone, Debug, Default)]
 pub struct SetpointState {
@@ -56,6 +60,30 @@ impl SetpointState {
             (Some(p), Some(q)) => q.0.wrapping_sub(p.0) as i32,
             _ => 0,
         }
+    }
+
+    /// Takes this tick's angle `phi` (its step `dphi` = [`Self::dphi`]):
+    /// returns the step for the rates ([`rate_step`]) and Δ²φ, the change
+    /// of the smoothed step (binary angle per tick², Q4, −2²⁴ ≤ Δ²φ < 2²⁴; 0
+    /// without two angles, and on the first tick that has them).
+    #[inline(always)]
+    pub fn advance(&mut self, phi: Option<SpindleAngle>, dphi: i32) -> (i32, i32) {
+        let dphi = rate_step(dphi);
+        let alpha_q4 = match (self.last_phi, phi, self.dphi_q4) {
+            (Some(_), Some(_), Some(f)) => {
+                // An average of steps within ±2³⁰ stays within them.
+                let next = f + ((dphi << 4).saturating_sub(f) >> ALPHA_SHIFT);
+                self.dphi_q4 = Some(next);
+                ssat::<25>(next - f)
+            }
+            (Some(_), Some(_), None) => {
+                self.dphi_q4 = Some(dphi << 4);
+                0
+            }
+            _ => 0,
+        };
+        self.last_phi = phi;
+        (dphi, alpha_q4)
     }
 
     /// The angle of the last tick (`None`: not known).
@@ -76,48 +104,47 @@ impl SetpointState {
     }
 }
 
-/// The table's setpoint from the command's expansion at the tick's angle
-/// `phi` (`None`: a null one); updates the angle history.
+/// The angle step the rates use: −2²⁶ ≤ Δφ < 2²⁶, 1/64 turn per tick
+/// (18 750 rpm at 20 kHz), far beyond any real spindle (one `SSAT`).
 #[inline(always)]
-pub fn setpoint(
-    command: Option<&Expansion>,
-    phi: Option<SpindleAngle>,
-    st: &mut SetpointState,
-) -> Reference {
-    let dphi = st.dphi(phi).clamp(-DPHI_LIMIT, DPHI_LIMIT);
-    // Bounds that keep every product a 32-bit multiply: |Δφ| ≤ 2²⁶,
-    // |p1| < 2²⁶ + 2²¹, |p2| < 2²⁷ (the expansion's clamps).
-    let alpha_q4 = match (st.last_phi, phi, st.dphi_q4) {
-        (Some(_), Some(_), Some(f)) => {
-            // An average of steps within ±2³⁰ stays within them.
-            let next = f + ((dphi << 4).saturating_sub(f) >> ALPHA_SHIFT);
-            st.dphi_q4 = Some(next);
-            (next - f).clamp(-(1 << 24), 1 << 24)
-        }
-        (Some(_), Some(_), None) => {
-            st.dphi_q4 = Some(dphi << 4);
-            0
-        }
-        _ => 0,
-    };
-    st.last_phi = phi;
-    match (command, phi) {
-        (Some(e), Some(_)) => {
+pub(crate) fn rate_step(dphi: i32) -> i32 {
+    ssat::<27>(dphi)
+}
+
+/// The command's acceleration ∂²Z/∂φ²·Δφ² + ∂Z/∂φ·Δ²φ, Q16 codes per
+/// tick², from the scaled derivatives `p1`, `p2` of an [`Expansion`]
+/// (|p1| < 2²⁷, |p2| < 2²⁷), the step `dphi` ([`rate_step`]) and Δ²φ
+/// (Q4, |Δ²φ| ≤ 2²⁴). Formed below the tick at the predicted angle and
+/// step (`crate::ahead`), or in the tick at its own when it evaluates the
+/// command itself.
+#[inline(always)]
+pub(crate) fn acceleration(p1: i32, p2: i32, dphi: i32, alpha_q4: i32) -> i32 {
+    // ∂²Z/∂φ²·Δφ²: < 2²⁷, then < 2³⁰, then < 2³³ before saturation.
+    let q2 = i64::from(p2) * i64::from(dphi);
+    let a2 = (((q2 >> 23) as i32 as i64) * i64::from(dphi)) >> 23;
+    // ∂Z/∂φ·Δ²φ: < 2²⁷ · 2²⁴ >> 20 = 2³¹ before saturation.
+    let a1 = (i64::from(p1) * i64::from(alpha_q4)) >> 20;
+    ssat::<25>(sat_i32(a2 + a1))
+}
+
+/// The table's setpoint from the command's expansion at the tick's angle
+/// (`None`: a null one) and the tick's step `dphi` ([`rate_step`]): the
+/// velocity formed here from ∂Z/∂φ at the tick's angle, the acceleration
+/// the expansion's.
+#[inline(always)]
+pub fn setpoint(command: Option<&Expansion>, dphi: i32) -> Reference {
+    match command {
+        Some(e) => {
             // |p1| < 2²⁷, times |Δφ| ≤ 2²⁶, >> 16: < 2³⁷ before the
             // saturation to 2³⁰ (6 in/s).
             let v = (i64::from(e.p1) * i64::from(dphi)) >> 16;
-            // ∂²Z/∂φ²·Δφ²: < 2²⁷, then < 2³⁰, then < 2³³ before saturation.
-            let q2 = i64::from(e.p2) * i64::from(dphi);
-            let a2 = (((q2 >> 23) as i32 as i64) * i64::from(dphi)) >> 23;
-            // ∂Z/∂φ·Δ²φ: < 2²⁷ · 2²⁴ >> 20 = 2³¹ before saturation.
-            let a1 = (i64::from(e.p1) * i64::from(alpha_q4)) >> 20;
             Reference {
                 code: e.code(),
                 velocity_q16: ssat::<31>(sat_i32(v)),
-                accel_q16: ssat::<25>(sat_i32(a2 + a1)),
+                accel_q16: e.accel_q16,
             }
         }
-        _ => Reference::default(),
+        None => Reference::default(),
     }
 }
 

@@ -94,6 +94,7 @@ fn run(design: ServoDesign, rig_cfg: RigConfig, r: Run) -> Result {
                 angle: Some((phi, dphi)),
                 freeze: r.freeze,
                 amplifier_tripped: rig.amp.tripped(),
+                correction_ahead: None,
             },
             &learned,
         );

@@ -45,7 +45,9 @@ pub mod repetitive;
 
 pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};
 pub use engage::Phase;
-pub use repetitive::{Freeze, LearnRequests, LearnSample, LearnedTable, Learner};
+pub use repetitive::{
+    Correction, CorrectionAhead, Freeze, LearnRequests, LearnSample, LearnedTable, Learner,
+};
 
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
@@ -83,6 +85,10 @@ pub struct ServoInput {
     pub freeze: Option<Freeze>,
     /// The amplifier's fault line (it tripped).
     pub amplifier_tripped: bool,
+    /// The learned correction expanded below the tick near this angle
+    /// (`crate::ahead`), stepped to it when the correction applies;
+    /// `None` (or too far from the angle): read from the table here.
+    pub correction_ahead: Option<CorrectionAhead>,
 }
 
 /// What the servo decided.
@@ -104,6 +110,15 @@ pub struct ServoOutput {
 pub struct SignCheckResult {
     pub moved_code: i32,
     pub expected_code: i32,
+}
+
+/// The correction read from the table in the tick: rare (no fresh
+/// expansion from below the tick), so out of line, where it does not crowd
+/// the registers of every tick.
+#[cold]
+#[inline(never)]
+fn correction_here(learned: &LearnedTable, phi: SpindleAngle, dphi: i32) -> Correction {
+    learned.correction(phi, dphi)
 }
 
 /// The whole loop with its state.
@@ -230,7 +245,7 @@ impl Servo {
     }
 
     /// One loop tick; `learned` is the learner's table (the correction is
-    /// read from it).
+    /// read from it when `input` brings no usable expansion of it).
     #[inline]
     pub fn update(&mut self, input: &ServoInput, learned: &LearnedTable) -> ServoOutput {
         // A 20-bit code (the loop tick's gauge reading), Q8.
@@ -367,7 +382,10 @@ impl Servo {
             self.phase == Phase::Engaged && settled && !matches!(input.freeze, Some(Freeze::Fault));
         match input.angle {
             Some((phi, dphi)) if corrected => {
-                let c = learned.correction(phi, dphi);
+                let c = match input.correction_ahead.and_then(|a| a.step(phi, dphi)) {
+                    Some(c) => c,
+                    None => correction_here(learned, phi, dphi),
+                };
                 reference += c.position_q8;
                 v_ref = v_ref.saturating_add(c.velocity_q16);
                 a_ref += c.accel_q16;

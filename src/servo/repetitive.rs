@@ -216,6 +216,89 @@ pub struct Correction {
     pub accel_q16: i32,
 }
 
+/// The learned correction expanded at one angle φ₀ (by the handler below
+/// the tick, at the angle the next tick is predicted to read:
+/// `crate::ahead`), and stepped in the tick to the angle φ = φ₀ + δ it
+/// reads ([`CorrectionAhead::step`]).
+///
+/// Inside φ₀'s bin the correction is linear in φ (the interpolation
+/// between two entries) and so is its slope (between the centred slopes
+/// at the bin's nodes): the step is the direct evaluation at φ up to the
+/// rounding, 1 + |t₂ − t₁|/2¹⁶ Q8 of position (the direct one drops φ's
+/// low 8 bits) and one Q16 LSB of velocity. Across a bin boundary (|δ| is
+/// below a bin, so at most one) the step continues φ₀'s bin's straight
+/// lines where the direct one bends at the node k crossed. With
+/// `D₂ = |t(k+1) − 2t(k) + t(k−1)|` and
+/// `D₃ = |t(k+2) − 2t(k+1) + 2t(k−1) − t(k−2)|` (the table's second and
+/// third centred differences there) and ε = the part of |δ| past the
+/// node in bins (ε < |δ|/2²⁴ ≤ 3/4) and β = |Δφ|/2²⁴ the tick's step in
+/// bins, in gauge codes:
+///
+/// ```text
+/// position     |Δc| ≤ D₂·ε
+/// velocity     |Δv| ≤ D₃·ε·β/2      per tick
+/// acceleration |Δa| ≤ D₃·β²/2       per tick²
+/// ```
+///
+/// (the acceleration is piecewise constant per bin: the one of φ₀'s bin
+/// at the predicted step Δφ₀; for the step Δφ the tick measures it is off
+/// by a further |s₂ − s₁|·|β² − β₀²|/2). The differences scale with the
+/// learned shape: a harmonic h of amplitude A codes has D₂ ≤ Aω² and
+/// D₃ ≤ 2Aω³, ω = 2πh/256. For 100 codes (1.9 µin) at h = 8 stepped a
+/// quarter bin past a node (one tick at 1200 rpm, β = ¼): position 0.96
+/// codes, velocity 0.05 codes per tick, acceleration 0.05 codes per tick²
+/// (the command's own Taylor step at that δ: 0.045 codes, 0.14 codes per
+/// tick; `crate::ahead`). Tested against the direct evaluation
+/// (`correction_step_is_the_direct_evaluation_within_its_bound`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CorrectionAhead {
+    /// φ₀.
+    pub phi: SpindleAngle,
+    /// c(φ₀), gauge codes Q8.
+    pub position_q8: i32,
+    /// The position's slope in φ₀'s bin, t₂ − t₁: Q8 codes per bin.
+    pub bin_slope_q8: i32,
+    /// The centred slope at φ₀ (Q8 codes per bin, times 2).
+    pub slope2_q8: i32,
+    /// Its change per bin in φ₀'s bin, s₂ − s₁.
+    pub slope2_per_bin_q8: i32,
+    /// The acceleration of φ₀'s bin at the step the expansion was made
+    /// for, Q16 codes per tick².
+    pub accel_q16: i32,
+}
+
+impl CorrectionAhead {
+    /// The correction at `phi` with its rates for the step `dphi` (None
+    /// beyond `crate::ahead::DELTA_LIMIT` from φ₀).
+    #[inline(always)]
+    pub fn step(&self, phi: SpindleAngle, dphi: i32) -> Option<Correction> {
+        let d = phi.0.wrapping_sub(self.phi.0) as i32;
+        if !(-crate::ahead::DELTA_LIMIT..=crate::ahead::DELTA_LIMIT).contains(&d) {
+            return None;
+        }
+        Some(self.at(d, dphi))
+    }
+
+    /// The correction δ = `d` from φ₀ (|d| ≤ 2²⁴: the products below stay
+    /// within 2⁵¹ before their shifts, 2²⁷ after).
+    #[inline(always)]
+    fn at(&self, d: i32, dphi: i32) -> Correction {
+        let c_q8 =
+            self.position_q8 + ((i64::from(self.bin_slope_q8) * i64::from(d)) >> BIN_BITS) as i32;
+        let slope2 = self.slope2_q8
+            + ((i64::from(self.slope2_per_bin_q8) * i64::from(d)) >> BIN_BITS) as i32;
+        let dd = dphi.clamp(-MAX_DPHI, MAX_DPHI);
+        // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17
+        // (< 2³²: saturated).
+        let v = sat_i32((i64::from(slope2) * i64::from(dd)) >> (BIN_BITS - 7));
+        Correction {
+            position_q8: c_q8,
+            velocity_q16: v,
+            accel_q16: self.accel_q16,
+        }
+    }
+}
+
 /// The learned table (gauge codes Q8 per bin): the loop tick reads it, the
 /// learner writes it. Atomic words (single loads and stores on the M4), so
 /// it can live in the `Shared` hand-off between the two priorities.
@@ -247,9 +330,19 @@ impl LearnedTable {
     }
 
     /// The correction to add to the reference at `phi`, with its rates for
-    /// an angle step of `dphi` per tick (the feedforward's input).
+    /// an angle step of `dphi` per tick (the feedforward's input): the
+    /// expansion at `phi` taken there (the tick's fallback when no fresh
+    /// expansion from below it is at hand, `crate::ahead`).
     #[inline]
     pub fn correction(&self, phi: SpindleAngle, dphi: i32) -> Correction {
+        self.ahead(phi, dphi).at(0, dphi)
+    }
+
+    /// The correction's expansion at `phi` for a step `dphi` (the handler
+    /// below the tick makes it at the predicted angle; see
+    /// [`CorrectionAhead`]).
+    #[inline]
+    pub fn ahead(&self, phi: SpindleAngle, dphi: i32) -> CorrectionAhead {
         let i = (phi.0 >> BIN_BITS) as usize;
         // The position inside the bin, Q16.
         let f = ((phi.0 >> (BIN_BITS - 16)) & 0xFFFF) as i32;
@@ -265,16 +358,16 @@ impl LearnedTable {
         let (s1, s2) = (t2 - t0, t3 - t1);
         let slope2 = s1 + ((i64::from(s2 - s1) * i64::from(f)) >> 16) as i32;
         let d = dphi.clamp(-MAX_DPHI, MAX_DPHI);
-        // slope/2 · dphi / 2²⁴ codes Q8 per tick → Q16: ·2⁸ → >> 17
-        // (< 2³²: saturated).
-        let v = sat_i32((i64::from(slope2) * i64::from(d)) >> (BIN_BITS - 7));
         // (s2 − s1)/2 per bin² · dphi² / 2⁴⁸, Q8 → Q16: >> 41 in two
         // steps (< 2²⁹, then < 2³⁰).
         let a1 = ((i64::from(s2 - s1) * i64::from(d)) >> 20) as i32;
         let a = ((i64::from(a1) * i64::from(d)) >> (2 * BIN_BITS - 27)) as i32;
-        Correction {
+        CorrectionAhead {
+            phi,
             position_q8: c_q8,
-            velocity_q16: v,
+            bin_slope_q8: t2 - t1,
+            slope2_q8: slope2,
+            slope2_per_bin_q8: s2 - s1,
             accel_q16: a,
         }
     }
@@ -472,6 +565,7 @@ impl Learner {
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
+    extern crate std;
     use super::*;
 
     const TURN: f64 = 4_294_967_296.0;
@@ -561,6 +655,112 @@ mod tests {
                 "{k}: {acc} vs {a_exact}"
             );
         }
+    }
+
+    /// The table's second and third centred differences at node `k`
+    /// (the module docs' D₂, D₃), Q8.
+    fn differences(t: &LearnedTable, k: usize) -> (f64, f64) {
+        let g = |j: usize| f64::from(t.get(j));
+        let (m2, m1, p1, p2) = (k + BINS - 2, k + MASK, k + 1, k + 2);
+        (
+            (g(p1) - 2.0 * g(k) + g(m1)).abs(),
+            (g(p2) - 2.0 * g(p1) + 2.0 * g(m1) - g(m2)).abs(),
+        )
+    }
+
+    /// The correction expanded at φ₀ and stepped to φ against the table
+    /// read at φ: the same bits at δ = 0 (the tick's fallback is the
+    /// expansion's arithmetic), within the rounding inside φ₀'s bin, and
+    /// within `CorrectionAhead`'s bound across a node, on smooth learned
+    /// shapes and on a rough table, for steps up to the limit and a
+    /// measured step off the predicted one.
+    #[test]
+    fn correction_step_is_the_direct_evaluation_within_its_bound() {
+        let limit = crate::ahead::DELTA_LIMIT;
+        let mut seed = 0x2545_f491u32;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        let smooth = LearnedTable::new();
+        let rough = LearnedTable::new();
+        for i in 0..BINS {
+            let th = core::f64::consts::TAU * i as f64 / BINS as f64;
+            let v = 400.0 * libm::sin(th + 0.3)
+                + 150.0 * libm::cos(3.0 * th)
+                + 100.0 * libm::sin(8.0 * th + 1.0)
+                + 20.0 * libm::sin(21.0 * th);
+            smooth.set(i, (v * 256.0) as i32);
+            rough.set(i, (rnd() % 512_000) as i32 - 256_000);
+        }
+        let mut crossed = 0;
+        let mut worst = [0f64; 3];
+        for t in [&smooth, &rough] {
+            for _ in 0..4000 {
+                let phi0 = SpindleAngle(rnd());
+                let dphi0 = (rnd() % (1 << 22)) as i32 + 1;
+                let dphi = dphi0 + (rnd() % 2001) as i32 - 1000;
+                let e = t.ahead(phi0, dphi0);
+                assert_eq!(e.step(phi0, dphi0), Some(t.correction(phi0, dphi0)));
+                let d = (rnd() % (2 * limit as u32 + 1)) as i32 - limit;
+                let phi = SpindleAngle(phi0.0.wrapping_add(d as u32));
+                let s = e.step(phi, dphi).unwrap();
+                let c = t.correction(phi, dphi);
+                let (b0, b) = (phi0.0 >> BIN_BITS, phi.0 >> BIN_BITS);
+                // The node crossed and the part of the step past it, bins.
+                let (d2, d3, eps) = if b0 == b {
+                    (0.0, 0.0, 0.0)
+                } else {
+                    crossed += 1;
+                    let k = if d > 0 { b } else { b0 };
+                    let past = phi.0.wrapping_sub(k << BIN_BITS) as i32;
+                    let (d2, d3) = differences(t, k as usize);
+                    (d2, d3, f64::from(past).abs() / f64::from(1u32 << BIN_BITS))
+                };
+                let i = phi0.0 >> BIN_BITS;
+                let (t1, t2, t0, t3) = (
+                    t.get(i as usize),
+                    t.get(i as usize + 1),
+                    t.get(i as usize + MASK),
+                    t.get(i as usize + 2),
+                );
+                let ck = f64::from((t3 - t1) - (t2 - t0)).abs();
+                let dd = f64::from(dphi.clamp(-MAX_DPHI, MAX_DPHI)).abs();
+                let pos = f64::from(s.position_q8 - c.position_q8).abs();
+                // The direct one drops φ's low 8 bits: a 2⁻¹⁶ of the slope
+                // of φ's bin (φ₀'s, or it plus D₂).
+                let pos_bound = d2 * eps + 2.0 + (f64::from(t2 - t1).abs() + d2) / 65_536.0;
+                assert!(pos <= pos_bound, "position {pos} > {pos_bound}");
+                let vel = f64::from(s.velocity_q16 - c.velocity_q16).abs();
+                let vel_bound = (d3 * eps + 2.0 + (ck + d3) / 65_536.0) * dd / 131_072.0 + 1.0;
+                assert!(vel <= vel_bound, "velocity {vel} > {vel_bound}");
+                let acc = f64::from(s.accel_q16 - c.accel_q16).abs();
+                let dd0 = f64::from(dphi0);
+                // Each side's two truncations: below |Δφ|/2²¹ + 1.
+                let acc_bound = (d3 * dd * dd + ck * (dd * dd - dd0 * dd0).abs()) / 2f64.powi(41)
+                    + dd.max(dd0) / 2_097_152.0
+                    + 1.0;
+                assert!(acc <= acc_bound, "acceleration {acc} > {acc_bound}");
+                if core::ptr::eq(t, &smooth) {
+                    worst = [
+                        worst[0].max(pos - pos_bound + d2 * eps),
+                        worst[1].max(vel),
+                        worst[2].max(acc),
+                    ];
+                }
+            }
+        }
+        // Both sides of the bound were exercised: crossings, and within a
+        // bin.
+        assert!(crossed > 1000 && crossed < 7000, "{crossed}");
+        std::println!(
+            "smooth table: worst position {} Q8, velocity {} Q16, acceleration {} Q16",
+            worst[0],
+            worst[1],
+            worst[2]
+        );
     }
 
     #[test]
