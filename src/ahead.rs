@@ -93,7 +93,7 @@ use crate::handoff::{Shared, NULL_META};
 use crate::servo::fixed::{mul_hi, ssat};
 use crate::servo::CorrectionAhead;
 use crate::setpoint::{acceleration, rate_step};
-use crate::units::{SpindleAngle, XInches};
+use crate::units::SpindleAngle;
 use core::sync::atomic::{fence, Ordering};
 
 /// Largest |φ − φ₀| an expansion is stepped over: 3·2²², 1/341 turn
@@ -190,8 +190,8 @@ impl Expansion {
     }
 }
 
-/// What the tick takes from the hand-off: the expansion, for which tick,
-/// and the coefficient set it was evaluated from.
+/// What the tick takes from the hand-off: the expansion and the learned
+/// correction, for which tick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Ahead {
     /// The tick it was predicted for ([`crate::looptick::LoopState::ticks`]).
@@ -201,10 +201,6 @@ pub struct Ahead {
     /// The learned correction at the same φ₀ (whether or not the command
     /// is null: the loop decides whether it applies).
     pub correction: CorrectionAhead,
-    /// X of the coefficients.
-    pub x: XInches,
-    /// Their generation ([`Shared::coefficient_generation`]).
-    pub coeff_gen: u32,
 }
 
 /// State of the evaluation ahead of the tick (runs in the learning
@@ -280,8 +276,6 @@ impl AheadState {
                 tick: tick.wrapping_add(1),
                 expansion,
                 correction,
-                x: self.coeffs.x(),
-                coeff_gen: self.coeff_seen,
             },
         );
     }
@@ -293,9 +287,11 @@ impl AheadState {
 }
 
 /// Words of one published expansion: sequence, tick, φ₀, Z, p1, p2, the
-/// acceleration, X, coefficient generation, null flag, and the
-/// correction's position, bin slope, slope, slope change and acceleration.
-const WORDS: usize = 15;
+/// acceleration, null flag, and the correction's position, bin slope,
+/// slope, slope change and acceleration. (The X and the generation of the
+/// coefficients it was made from were published too until nothing read
+/// them: two loads a tick.)
+const WORDS: usize = 13;
 
 /// The hand-off of [`crate::handoff::Shared`] between the tick (angle
 /// requests in, expansions out) and [`AheadState`]: the tick's request is
@@ -354,8 +350,6 @@ impl AheadHandoff {
             e.p1 as u32,
             e.p2 as u32,
             e.accel_q16 as u32,
-            a.x.to_bits() as u32,
-            a.coeff_gen,
             if a.expansion.is_some() { 0 } else { NULL_META },
             c.position_q8 as u32,
             c.bin_slope_q8 as u32,
@@ -386,7 +380,7 @@ impl AheadHandoff {
         let phi = SpindleAngle(w[1]);
         Some(Ahead {
             tick: w[0],
-            expansion: (w[8] & NULL_META == 0).then_some(Expansion {
+            expansion: (w[6] & NULL_META == 0).then_some(Expansion {
                 phi,
                 z_q8: w[2] as i32,
                 p1: w[3] as i32,
@@ -395,14 +389,12 @@ impl AheadHandoff {
             }),
             correction: CorrectionAhead {
                 phi,
-                position_q8: w[9] as i32,
-                bin_slope_q8: w[10] as i32,
-                slope2_q8: w[11] as i32,
-                slope2_per_bin_q8: w[12] as i32,
-                accel_q16: w[13] as i32,
+                position_q8: w[7] as i32,
+                bin_slope_q8: w[8] as i32,
+                slope2_q8: w[9] as i32,
+                slope2_per_bin_q8: w[10] as i32,
+                accel_q16: w[11] as i32,
             },
-            x: XInches::from_bits(w[6] as i32),
-            coeff_gen: w[7],
         })
     }
 }
@@ -414,6 +406,7 @@ mod tests {
     use super::*;
     use crate::codes::gauge_code_from_z;
     use crate::table::CoeffTable;
+    use crate::units::XInches;
     use crate::DEFAULT_TABLE;
 
     /// Gauge codes per inch, and radians per binary-angle unit.
