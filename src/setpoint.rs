@@ -19,7 +19,7 @@
 //! its own Δφ ([`setpoint`]), and keeps the smoothing of Δφ
 //! ([`SetpointState::advance`]); the acceleration is formed below it, at
 //! the predicted angle with the step and Δ²φ the tick posts
-//! ([`acceleration`], `crate::ahead`, where its error is bounded), or in
+//! (`acceleration`, `crate::ahead`, where its error is bounded), or in
 //! the tick with its own when it evaluates the command itself.
 //!
 //! # Formats
@@ -63,7 +63,7 @@ impl SetpointState {
     }
 
     /// Takes this tick's angle `phi` (its step `dphi` = [`Self::dphi`]):
-    /// returns the step for the rates ([`rate_step`]) and Δ²φ, the change
+    /// returns the step for the rates (`rate_step`) and Δ²φ, the change
     /// of the smoothed step (binary angle per tick², Q4, −2²⁴ ≤ Δ²φ < 2²⁴; 0
     /// without two angles, and on the first tick that has them).
     #[inline(always)]
@@ -113,7 +113,7 @@ pub(crate) fn rate_step(dphi: i32) -> i32 {
 
 /// The command's acceleration ∂²Z/∂φ²·Δφ² + ∂Z/∂φ·Δ²φ, Q16 codes per
 /// tick², from the scaled derivatives `p1`, `p2` of an [`Expansion`]
-/// (|p1| < 2²⁷, |p2| < 2²⁷), the step `dphi` ([`rate_step`]) and Δ²φ
+/// (|p1| < 2²⁷, |p2| < 2²⁷), the step `dphi` (`rate_step`) and Δ²φ
 /// (Q4, |Δ²φ| ≤ 2²⁴). Formed below the tick at the predicted angle and
 /// step (`crate::ahead`), or in the tick at its own when it evaluates the
 /// command itself.
@@ -128,7 +128,7 @@ pub(crate) fn acceleration(p1: i32, p2: i32, dphi: i32, alpha_q4: i32) -> i32 {
 }
 
 /// The table's setpoint from the command's expansion at the tick's angle
-/// (`None`: a null one) and the tick's step `dphi` ([`rate_step`]): the
+/// (`None`: a null one) and the tick's step `dphi` (`rate_step`): the
 /// velocity formed here from ∂Z/∂φ at the tick's angle, the acceleration
 /// the expansion's.
 #[inline(always)]

@@ -35,8 +35,10 @@
 //! trusted or the machine jumped.
 //!
 //! # Two priorities
-//! The loop tick reads the correction ([`LearnedTable::correction`]); the
-//! learning itself (the hum notch on the error, the update, the Q-filter)
+//! The loop tick uses the correction, expanded below it at the predicted
+//! angle after the learning's update ([`LearnedTable::ahead`], stepped by
+//! [`CorrectionAhead::step`]; read directly, [`LearnedTable::correction`],
+//! without a fresh expansion); the learning itself (the hum notch on the error, the update, the Q-filter)
 //! runs below it, in its own handler ([`Learner`], driven by
 //! `crate::learning`), on the samples each tick hands over
 //! ([`LearnSample`]). The table is shared as atomic words. The update
@@ -44,8 +46,8 @@
 //! i − lead + 1, all below the bins i − 1 .. i + 2 the tick reads at
 //! bin i (lead ≥ [`MIN_LEAD`]), so as long as the learner runs within a
 //! bin of the tick (it runs after every tick on the boards, and in the
-//! `Firmware` bundle) the tick reads exactly what the update would have
-//! left had it run inside the tick.
+//! `Firmware` bundle) the tick reads, or is handed, exactly what the
+//! update would have left had it run inside the tick.
 //!
 //! # Number formats
 //! Table entries: gauge codes Q8 (`i32`, |entry| ≤ 2²⁵). Angle: the binary
