@@ -243,18 +243,10 @@ pub struct Drive {
 impl Drive {
     fn of(o: &Outcome) -> Option<Drive> {
         let t_inj = (o.row.injected_at_s? * 1e9).round() as u64;
-        let mut after = o.trace.iter().filter(|x| x.t_ns >= t_inj);
-        let first = after.next()?;
-        let last = o
-            .trace
-            .iter()
-            .filter(|x| x.t_ns >= t_inj && x.amp_enabled)
-            .last()?;
-        let deepest = o
-            .trace
-            .iter()
-            .filter(|x| x.t_ns >= t_inj)
-            .max_by(|a, b| b.err_in.total_cmp(&a.err_in))?;
+        let after = || o.trace.iter().filter(|x| x.t_ns >= t_inj);
+        let first = after().next()?;
+        let last = after().rev().find(|x| x.amp_enabled)?;
+        let deepest = after().max_by(|a, b| b.err_in.total_cmp(&a.err_in))?;
         // The exact command under the tool: the slide minus its error.
         let exact = |x: &crate::faults::Sample| x.z_in - x.err_in;
         Some(Drive {
