@@ -177,7 +177,7 @@ fn run_sweep(
         crate::faults::X_INJECT_IN
     );
     println!(
-        "{:>6} {:>9} {:>8} {:>6} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8}",
+        "{:>6} {:>9} {:>8} {:>6} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8}",
         "turn",
         "t_inj s",
         "detected",
@@ -191,13 +191,14 @@ fn run_sweep(
         "Δcmd µin",
         "Δz µin",
         "rel µin",
+        "v in/s",
         "peak ms"
     );
     for r in &rows {
         let d = r.drive.as_ref();
         let f = |v: Option<f64>, p: usize| v.map_or("-".into(), |v| format!("{v:.p$}"));
         println!(
-            "{:>6.4} {:>9.4} {:>8} {:>6} {:>10} {:>10.1} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8}",
+            "{:>6.4} {:>9.4} {:>8} {:>6} {:>10} {:>10.1} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8}",
             r.after_turns,
             r.row.injected_at_s.unwrap_or(f64::NAN),
             opt(r.row.detected),
@@ -211,6 +212,7 @@ fn run_sweep(
             f(d.map(|d| d.command_move_uin), 1),
             f(d.map(|d| d.slide_move_uin), 1),
             f(d.map(|d| d.at_release_uin), 1),
+            f(d.map(|d| d.release_velocity_in_s), 4),
             f(d.map(|d| d.peak_at_ms), 2),
         );
     }
@@ -236,6 +238,9 @@ pub struct Drive {
     pub slide_move_uin: f64,
     /// Into the part at the release, µin (< 0: out of it).
     pub at_release_uin: f64,
+    /// The slide's velocity at the release, in/s (what carries the
+    /// released slide on: docs/SAFETY.md, v·√(m/k)).
+    pub release_velocity_in_s: f64,
     /// When the tool was deepest, ms after the stall.
     pub peak_at_ms: f64,
 }
@@ -257,6 +262,7 @@ impl Drive {
             command_move_uin: (exact(last) - exact(first)) * 1e6,
             slide_move_uin: (last.z_in - first.z_in) * 1e6,
             at_release_uin: -last.err_in * 1e6,
+            release_velocity_in_s: last.velocity_in_s,
             peak_at_ms: (deepest.t_ns - t_inj) as f64 * 1e-6,
         })
     }
