@@ -289,7 +289,7 @@ mod app {
         let (mut button, mut since) = (false, timers::micros());
         // Fed here, below every handler, and only when the loop tick ran
         // (`zslide::watchdog`): a hung handler or a stopped loop tick
-        // lets the 10 ms watchdog reset the chip.
+        // lets the 5 ms watchdog reset the chip.
         let mut gate = FeedGate::new(TICKS.load(Ordering::Relaxed), 1);
         loop {
             if gate.may_feed(TICKS.load(Ordering::Relaxed)) {
@@ -445,7 +445,7 @@ mod app {
         cortex_m::interrupt::disable();
         board::force_amplifier_off();
         defmt::error!("hard fault at pc {=u32:#010x}: {}", ef.pc(), Fault::Panic);
-        // The watchdog, no longer fed, resets the chip within 10 ms.
+        // The watchdog, no longer fed, resets the chip within 5 ms.
         loop {
             cortex_m::asm::nop();
         }

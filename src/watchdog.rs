@@ -13,7 +13,7 @@
 //!
 //! Fed from the loop tick itself, as before, a hung X or index handler
 //! went unnoticed (the tick preempts them and kept feeding) and only a
-//! dead loop tick was caught. The watchdog's own timeout (10 ms on the
+//! dead loop tick was caught. The watchdog's own timeout (5 ms on the
 //! NUCLEO) then resets the chip, which drops the amplifier enable.
 
 /// The feed decision, kept by the background.

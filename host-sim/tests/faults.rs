@@ -4,7 +4,7 @@
 //! deeper into the part than the depth of cut (docs/SAFETY.md, "Fault
 //! campaign", derives the bound).
 
-use host_sim::faults::{campaign, run_case, spec, Case};
+use host_sim::faults::{campaign, run_case, run_case_at, spec, sweep, Case, Inject};
 use zslide::safety::Reaction;
 
 /// Chapter 5's depth of cut, in: the stock the finishing pass removes.
@@ -155,13 +155,71 @@ fn malformed_host_frames_are_refused_and_counted_and_leave_the_cut_unchanged() {
 }
 
 #[test]
-fn the_watchdog_resets_the_chip_ten_milliseconds_after_the_loop_stops() {
+fn the_watchdog_resets_the_chip_five_milliseconds_after_the_loop_stops() {
     let o = run_case(&legacy(), Case::StalledLoop, 0).unwrap();
     let t = o.row.time_to_safe_ms.unwrap();
-    // IWDG1: 80 counts of 125 µs after the last feed (the last tick ran
-    // within one loop period, 50 µs, before the stall; the count that sees
-    // no feed is at most one count late).
-    assert!((10.0..=10.0 + 0.125 + 0.05 + 0.125).contains(&t), "{t}");
+    // IWDG1: 40 counts of 125 µs (LSI 32 kHz / 4, RLR = 39) after the last
+    // feed (the last tick ran within one loop period, 50 µs, before the
+    // stall; the count that sees no feed is at most one count late).
+    assert!((5.0..=5.0 + 0.125 + 0.05 + 0.125).contains(&t), "{t}");
+}
+
+/// The stalled loop at 16 instants over one revolution (the part's 2/rev
+/// command and the cutting force at every phase, each held by the frozen
+/// DAC code for the watchdog's 5 ms), on two seed streams: each is caught
+/// by the watchdog 5 ms after the last feed, ends with the amplifier
+/// disabled and leaves the tool within the depth of cut. (The worst of 128
+/// instants on 16 seed streams: docs/SAFETY.md.)
+#[test]
+fn a_loop_stalled_at_any_phase_of_the_revolution_is_reset_safe_within_the_depth_of_cut() {
+    const PHASES: usize = 16;
+    let spec = legacy();
+    let rev_s = 60.0 / spec.rpm;
+    for seed in [0, 2] {
+        let out = sweep(&spec, Case::StalledLoop, PHASES, seed).unwrap();
+        assert_eq!(out.len(), PHASES);
+        let t0 = out[0].row.injected_at_s.unwrap();
+        for (k, o) in out.iter().enumerate() {
+            let r = &o.row;
+            // Evenly over one revolution, to the nanosecond.
+            let at = r.injected_at_s.unwrap() - t0;
+            assert!(
+                (at - k as f64 * rev_s / PHASES as f64).abs() < 1e-9,
+                "{r:?}"
+            );
+            assert_eq!(o.latched, Some(zslide::safety::Fault::Watchdog), "{r:?}");
+            assert_eq!(r.detected, Some(true), "{r:?}");
+            assert_eq!(r.safe_state, Some(true), "{r:?}");
+            assert!(!o.trace.last().unwrap().amp_enabled, "{r:?}");
+            // 40 counts of 125 µs after the last feed; the last tick ran
+            // within one loop period (50 µs) before the stall, the feed at
+            // the first count after it, the reset seen at the next tick.
+            let t = r.time_to_safe_ms.unwrap();
+            assert!(
+                (5.0 - 0.05..=5.0 + 0.125 + 0.05).contains(&t),
+                "{t} ms: {r:?}"
+            );
+            let e = r.max_excursion_uin.unwrap();
+            assert!(
+                e < DEPTH_OF_CUT_IN * 1e6,
+                "seed stream {seed}, stalled {k}/{PHASES} of a turn in: {e} µin into the part"
+            );
+        }
+    }
+}
+
+/// An injection instant the case cannot have is refused, not ignored.
+#[test]
+fn an_injection_instant_outside_the_cut_is_refused() {
+    let spec = legacy();
+    let at = |after_turns| Inject { after_turns };
+    for bad in [-0.5, f64::NAN, f64::INFINITY] {
+        let e = run_case_at(&spec, Case::StalledLoop, 0, at(bad)).unwrap_err();
+        assert!(e.to_string().contains("revolutions"), "{e}");
+    }
+    // Injected at boot or at arm: no instant in the cut to move.
+    let e = run_case_at(&spec, Case::CorruptTable, 0, at(0.25)).unwrap_err();
+    assert!(e.to_string().contains("at boot"), "{e}");
 }
 
 #[test]

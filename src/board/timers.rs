@@ -7,7 +7,7 @@
 //! | TIM2 | 200 MHz, free-running 32 bit | `hw::Clock` (5 ns ticks, wraps every 21.5 s); input captures of the spindle index (CH1) and of every encoder edge (CH3/CH4), [`start_captures`] |
 //! | TIM4 | encoder mode 3 | spindle count; CH3 captures it at the index |
 //! | TIM5 | 1 MHz, free-running 32 bit | defmt timestamp, µs (wraps every 71.6 min) |
-//! | IWDG1 | LSI 32 kHz / 4 | 10 ms watchdog, refreshed by the background when the loop tick ran (`zslide::watchdog`) |
+//! | IWDG1 | LSI 32 kHz / 4 | 5 ms watchdog, refreshed by the background when the loop tick ran (`zslide::watchdog`) |
 //!
 //! The AD4020 converts on CNV's rising edge (t_CONV ≤ 320 ns) and, in its
 //! three-wire mode with SDI high, puts its result on SDO once CNV falls; so
@@ -98,17 +98,26 @@ pub fn ack_loop_tick() {
     unsafe { (*TIM3::ptr()).sr().write(|w| w.bits(!SR_CC2IF)) };
 }
 
-/// Starts IWDG1 with a 10 ms timeout; frozen while a debugger halts the core.
+/// Starts IWDG1 with a 5 ms timeout; frozen while a debugger halts the core.
+///
+/// 5 ms, not longer: until the reset the amplifier is driven by the DAC
+/// code the stalled loop left, and the tool drifts into the part with the
+/// part's 2/rev surface (docs/SAFETY.md, "Fault campaign": worst of a
+/// sweep over the stall instant 272 µin at 10 ms, 155 µin at 5 ms, for a
+/// 300 µin depth of cut). Not shorter than the background's longest pass
+/// allows with margin: a parameter design (72 392 instructions) inside a
+/// station poll (≤ 11 374), under 1 ms with the handlers' load
+/// (docs/BOARD.md, `cargo xtask isr-cost`).
 pub fn start_watchdog(iwdg: &IWDG, dbgmcu: &DBGMCU) {
     // SAFETY: DBGMCU_APB4FZ1 bit 18 (DBG_IWDG1) only affects debug halts.
     // IWDG key sequence of RM0433 §45.3: start, unlock, prescaler /4
-    // (PR = 0), reload 79 (80 counts of 125 µs), wait for the update, reload.
+    // (PR = 0), reload 39 (40 counts of 125 µs), wait for the update, reload.
     unsafe {
         dbgmcu.apb4fz1().modify(|r, w| w.bits(r.bits() | (1 << 18)));
         iwdg.kr().write(|w| w.bits(0xCCCC));
         iwdg.kr().write(|w| w.bits(0x5555));
         iwdg.pr().write(|w| w.bits(0));
-        iwdg.rlr().write(|w| w.bits(79));
+        iwdg.rlr().write(|w| w.bits(39));
         while iwdg.sr().read().bits() != 0 {}
         iwdg.kr().write(|w| w.bits(0xAAAA));
     }

@@ -36,7 +36,7 @@ enum In {
 
 /// What to measure: report name, a predicate on symbol names, and the
 /// variants that must hold it.
-const TARGETS: [(&str, &str, In); 8] = [
+const TARGETS: [(&str, &str, In); 10] = [
     // The firmware's entry points (monomorphised in the QEMU image): the
     // loop tick with its converter drivers, the legacy X event, the modern
     // X count event, the index, the learning (all its pending samples).
@@ -48,6 +48,15 @@ const TARGETS: [(&str, &str, In); 8] = [
     // The host link's part of the loop tick (zslide::link::tap), called by
     // the board right after loop_tick: not inside the loop_tick count.
     ("link_tap", "7TickTap10after_tick", In::Both),
+    // The background's steps (thread mode, preempted by every handler;
+    // each call counts its own instructions only): the host link's
+    // station, every call of the run (each monomorphisation: the checked
+    // run's scripted host and the UART session), and the servo design a
+    // parameter set runs inside it (measured at boot, `params::at_boot`).
+    // The watchdog's timeout must hold the longest with the handlers' load
+    // (docs/SAFETY.md, "Fault campaign").
+    ("station_poll", "7station16Station$LT$_$GT$4poll", In::Both),
+    ("servo_design", "11ServoDesign6config", In::Both),
     // The whole timer handlers: timer 0 = loop tick plus the slide model's
     // step (the simulated world, not firmware) and the board glue; timer 1 =
     // the synthetic machine's event playback around the X and index events.
@@ -109,12 +118,14 @@ pub struct Args {
 
 /// Report names `--profile` accepts: each target in each variant that
 /// holds it.
-const REPORTS: [&str; 14] = [
+const REPORTS: [&str; 18] = [
     "loop_tick",
     "x_event",
     "index_event",
     "link_tap",
     "learn",
+    "station_poll",
+    "servo_design",
     "TIMER0_handler_with_plant",
     "TIMER1_handler_with_machine",
     "loop_tick_modern",
@@ -122,6 +133,8 @@ const REPORTS: [&str; 14] = [
     "index_event_modern",
     "link_tap_modern",
     "learn_modern",
+    "station_poll_modern",
+    "servo_design_modern",
     "TIMER0_handler_with_plant_modern",
     "TIMER1_handler_with_machine_modern",
 ];
@@ -235,15 +248,20 @@ fn measure(variant: &str, suffix: &str, args: &Args) -> Result<Measured, String>
         if only != In::Both && only != holds {
             continue;
         }
-        let found = funcs
+        // Every function matching (a generic one has a copy per
+        // instantiation), into one report.
+        let mut found = funcs
             .iter()
-            .find(|f| f.name == pattern || (pattern.len() > 8 && f.name.contains(pattern)));
-        let Some(f) = found else {
+            .filter(|f| f.name == pattern || (pattern.len() > 8 && f.name.contains(pattern)))
+            .peekable();
+        if found.peek().is_none() {
             return Err(format!(
                 "isr-cost: no function `{pattern}` in the {variant} image"
             ));
-        };
-        targets.insert(f.addr, format!("{report}{suffix}"));
+        }
+        for f in found {
+            targets.insert(f.addr, format!("{report}{suffix}"));
+        }
     }
     // The worst-case stack depth of each entry point, from the code.
     let named: Vec<(String, &str)> = TARGETS

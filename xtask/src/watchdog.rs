@@ -2,7 +2,7 @@
 //! `zslide-qemu-watchdog` hangs each firmware handler in turn (X, index,
 //! loop tick) and stops the loop tick, and the CMSDK watchdog, fed by the
 //! background through `zslide::watchdog::FeedGate`, must expire within its
-//! 10 ms every time; with the feed moved into the loop tick (the control)
+//! 5 ms every time; with the feed moved into the loop tick (the control)
 //! a hung X handler must go uncaught.
 
 use std::path::PathBuf;
@@ -33,5 +33,5 @@ pub fn check() -> Result<String> {
             "the watchdog check failed (exit status {code}, {caught} of 4 stops caught)"
         ));
     }
-    Ok("a hung X, index and loop-tick handler and a stopped loop tick each trip it within 10 ms; fed from the loop tick a hung X handler is missed".into())
+    Ok("a hung X, index and loop-tick handler and a stopped loop tick each trip it within 5 ms; fed from the loop tick a hung X handler is missed".into())
 }

@@ -2,7 +2,7 @@
 //! per fault; `--out DIR` a trace plot (PNG, SVG, CSV) per fault and the
 //! table as CSV. Bound and rows: docs/SAFETY.md ("Fault campaign").
 
-use crate::faults::{campaign, spec, Case, Outcome, Row};
+use crate::faults::{campaign_at, spec, Case, Inject, Outcome, Row};
 use crate::plot::{write_plot, Series};
 use anyhow::Context;
 use std::io::Write;
@@ -25,6 +25,15 @@ pub struct Args {
     /// Write a trace plot per fault and `faults.csv` into this directory.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Inject this many spindle revolutions after the pre-roll (default 0:
+    /// the campaign's instant; refused for the faults injected at boot).
+    #[arg(long, value_name = "TURNS", default_value_t = 0.0)]
+    pub after_turns: f64,
+    /// Instead of the campaign: the stalled loop injected at N instants
+    /// evenly spread over one revolution after the pre-roll, one row per
+    /// instant, what drove the tool until the reset, and the worst.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000), conflicts_with_all = ["fault", "out", "after_turns"])]
+    pub stall_sweep: Option<u32>,
 }
 
 /// The JSON document.
@@ -41,13 +50,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let sc = args.scenario.load()?;
     let name = sc.file.name.clone();
     let spec = spec(sc)?;
+    if let Some(n) = args.stall_sweep {
+        return run_sweep(&spec, &name, n as usize, args.seed, args.json);
+    }
     let cases: Vec<Case> = if args.fault.is_empty() {
         Case::ALL.to_vec()
     } else {
         args.fault.clone()
     };
     let wall0 = std::time::Instant::now();
-    let out = campaign(&spec, &cases, args.seed)?;
+    let at = Inject {
+        after_turns: args.after_turns,
+    };
+    let out = campaign_at(&spec, &cases, args.seed, at)?;
     let wall_s = wall0.elapsed().as_secs_f64();
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -93,6 +108,164 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// One instant of the stall sweep: the row and what drove the tool from
+/// the stall to the reset.
+#[derive(serde::Serialize, Debug)]
+pub struct SweepRow<'a> {
+    /// Spindle turns after the pre-roll at the stall (its phase).
+    pub after_turns: f64,
+    pub row: &'a Row,
+    pub drive: Option<Drive>,
+}
+
+/// The stall sweep's JSON document.
+#[derive(serde::Serialize, Debug)]
+pub struct SweepSummary<'a> {
+    pub scenario: String,
+    pub seed: u64,
+    pub x_in: f64,
+    pub phases: usize,
+    pub wall_s: f64,
+    pub worst_excursion_uin: f64,
+    pub worst_after_turns: f64,
+    pub rows: Vec<SweepRow<'a>>,
+}
+
+fn run_sweep(
+    spec: &crate::cut::CutSpec,
+    name: &str,
+    phases: usize,
+    seed: u64,
+    json: bool,
+) -> anyhow::Result<()> {
+    let wall0 = std::time::Instant::now();
+    let out = crate::faults::sweep(spec, Case::StalledLoop, phases, seed)?;
+    let wall_s = wall0.elapsed().as_secs_f64();
+    let rows: Vec<SweepRow> = out
+        .iter()
+        .enumerate()
+        .map(|(k, o)| SweepRow {
+            after_turns: k as f64 / phases as f64,
+            row: &o.row,
+            drive: Drive::of(o),
+        })
+        .collect();
+    let excursion = |r: &SweepRow| r.row.max_excursion_uin.unwrap_or(f64::NAN);
+    let worst = rows
+        .iter()
+        .max_by(|a, b| excursion(a).total_cmp(&excursion(b)))
+        .context("no rows")?;
+    let (worst_excursion_uin, worst_after_turns) = (excursion(worst), worst.after_turns);
+    if json {
+        let s = SweepSummary {
+            scenario: name.to_string(),
+            seed,
+            x_in: crate::faults::X_INJECT_IN,
+            phases,
+            wall_s,
+            worst_excursion_uin,
+            worst_after_turns,
+            rows,
+        };
+        println!("{}", serde_json::to_string_pretty(&s)?);
+        return Ok(());
+    }
+    println!(
+        "stalled loop swept over one revolution on {name}, {phases} instants, cut at X = {} in (seed stream {seed}): {wall_s:.1} s wall",
+        crate::faults::X_INJECT_IN
+    );
+    println!(
+        "{:>6} {:>9} {:>8} {:>6} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8}",
+        "turn",
+        "t_inj s",
+        "detected",
+        "safe",
+        "to safe ms",
+        "excur µin",
+        "held V",
+        "I A",
+        "F0 lbf",
+        "ΔF lbf",
+        "Δcmd µin",
+        "Δz µin",
+        "rel µin",
+        "v in/s",
+        "peak ms"
+    );
+    for r in &rows {
+        let d = r.drive.as_ref();
+        let f = |v: Option<f64>, p: usize| v.map_or("-".into(), |v| format!("{v:.p$}"));
+        println!(
+            "{:>6.4} {:>9.4} {:>8} {:>6} {:>10} {:>10.1} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8}",
+            r.after_turns,
+            r.row.injected_at_s.unwrap_or(f64::NAN),
+            opt(r.row.detected),
+            opt(r.row.safe_state),
+            f(r.row.time_to_safe_ms, 2),
+            excursion(r),
+            f(d.map(|d| d.held_v), 4),
+            f(d.map(|d| d.current_a), 3),
+            f(d.map(|d| d.force_at_stall_lbf), 3),
+            f(d.map(|d| d.force_change_lbf), 3),
+            f(d.map(|d| d.command_move_uin), 1),
+            f(d.map(|d| d.slide_move_uin), 1),
+            f(d.map(|d| d.at_release_uin), 1),
+            f(d.map(|d| d.release_velocity_in_s), 4),
+            f(d.map(|d| d.peak_at_ms), 2),
+        );
+    }
+    println!(
+        "worst: {worst_excursion_uin:.1} µin into the part, stalled {worst_after_turns:.4} turn after the pre-roll (bound: the depth of cut, 300 µin)"
+    );
+    Ok(())
+}
+
+/// What drove the tool from the stall to the release (the last sample
+/// with the amplifier enabled): the DAC output held, the coil current,
+/// the cutting force and its change, the exact command's move (the part's
+/// surface under the tool) and the slide's; the tool goes into the part by
+/// the command's move minus the slide's (+: toward +Z, out of the part).
+#[derive(serde::Serialize, Debug, Clone, Copy)]
+pub struct Drive {
+    pub held_v: f64,
+    /// Coil current at the release, A.
+    pub current_a: f64,
+    pub force_at_stall_lbf: f64,
+    pub force_change_lbf: f64,
+    pub command_move_uin: f64,
+    pub slide_move_uin: f64,
+    /// Into the part at the release, µin (< 0: out of it).
+    pub at_release_uin: f64,
+    /// The slide's velocity at the release, in/s (what carries the
+    /// released slide on: docs/SAFETY.md, v·√(m/k)).
+    pub release_velocity_in_s: f64,
+    /// When the tool was deepest, ms after the stall.
+    pub peak_at_ms: f64,
+}
+
+impl Drive {
+    fn of(o: &Outcome) -> Option<Drive> {
+        let t_inj = (o.row.injected_at_s? * 1e9).round() as u64;
+        let after = || o.trace.iter().filter(|x| x.t_ns >= t_inj);
+        let first = after().next()?;
+        let last = after().rev().find(|x| x.amp_enabled)?;
+        let deepest = after().max_by(|a, b| b.err_in.total_cmp(&a.err_in))?;
+        // The exact command under the tool: the slide minus its error.
+        let exact = |x: &crate::faults::Sample| x.z_in - x.err_in;
+        Some(Drive {
+            held_v: last.dac_v,
+            current_a: last.current_a,
+            force_at_stall_lbf: first.force_lbf,
+            force_change_lbf: last.force_lbf - first.force_lbf,
+            command_move_uin: (exact(last) - exact(first)) * 1e6,
+            slide_move_uin: (last.z_in - first.z_in) * 1e6,
+            at_release_uin: -last.err_in * 1e6,
+            release_velocity_in_s: last.velocity_in_s,
+            peak_at_ms: (deepest.t_ns - t_inj) as f64 * 1e-6,
+        })
+    }
 }
 
 fn opt(b: Option<bool>) -> String {

@@ -238,6 +238,13 @@ pub struct Sample {
     pub reference_in: f64,
     /// Amplifier input (the DAC's analog output), V.
     pub dac_v: f64,
+    /// Coil current, A (the motor's force is 2.9 lbf/A of it, toward
+    /// +Z for a positive current).
+    pub current_a: f64,
+    /// The cutting force on the tool (+Z: out of the part), lbf.
+    pub force_lbf: f64,
+    /// Slide carriage velocity, in/s.
+    pub velocity_in_s: f64,
     pub fault: bool,
     /// The enable line as the amplifier sees it.
     pub amp_enabled: bool,
@@ -258,6 +265,16 @@ pub fn spec(scenario: crate::scenario::Scenario) -> anyhow::Result<CutSpec> {
     let mut spec = CutSpec::chapter5(scenario, Controller::Digital, None, None, false)?;
     spec.preroll_revs = PREROLL_REVS;
     Ok(spec)
+}
+
+/// When a fault is injected into the cut: `after_turns` revolutions after
+/// the pre-roll (0: the campaign's instant, `PREROLL_REVS` revolutions
+/// in). The spindle angle at the injection is the fraction of a turn; the
+/// X feed is started so that the tool centre is at `X_INJECT_IN` whatever
+/// the instant.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Inject {
+    pub after_turns: f64,
 }
 
 /// What one simulated run left.
@@ -298,20 +315,36 @@ fn force_profile(
     }
 }
 
-/// Simulates `case` (the malformed-frame row: `flood` is what the host
-/// writes at the injection, `None` the undisturbed run with the link idle).
+/// Simulates `case` injected `at` (the malformed-frame row: `flood` is
+/// what the host writes at the injection, `None` the undisturbed run with
+/// the link idle).
 fn simulate(
     spec: &CutSpec,
     case: Case,
     seed_index: u64,
+    at: Inject,
     flood: Option<Vec<u8>>,
 ) -> anyhow::Result<Run> {
     let f = spec.feed_per_rev_in;
     let rev_s = 60.0 / spec.rpm;
     let t_inj: Nanos = if case.at_boot() {
+        if at.after_turns != 0.0 {
+            bail!(
+                "{}: injected at boot or at arm, it has no instant in the cut ({} revolutions after the pre-roll asked)",
+                case.name(),
+                at.after_turns
+            );
+        }
         0
     } else {
-        (PREROLL_REVS * rev_s * 1e9).round() as Nanos
+        if !(at.after_turns >= 0.0 && at.after_turns.is_finite()) {
+            bail!(
+                "{}: the injection instant must be a finite number of revolutions ≥ 0 after the pre-roll ({} asked)",
+                case.name(),
+                at.after_turns
+            );
+        }
+        ((PREROLL_REVS + at.after_turns) * rev_s * 1e9).round() as Nanos
     };
     let feed_in_per_s = f / rev_s;
     // The tool centre reaches X_INJECT_IN (or, for the X fault, the first
@@ -379,6 +412,9 @@ fn simulate(
                 command_in: f64::from(w.fw.command_code()) / CODES_PER_IN,
                 reference_in: f64::from(sv.reference_q8()) / 256.0 / CODES_PER_IN,
                 dac_v: w.rig.v_in,
+                current_a: w.rig.slide.current_a(),
+                force_lbf: w.rig.f_ext,
+                velocity_in_s: w.rig.slide.velocity_in_s(),
                 fault: w.fw.fault().is_some(),
                 amp_enabled: w.rig.amp.enabled(),
             });
@@ -527,11 +563,22 @@ fn into_part(v: &[&Sample]) -> f64 {
     v.iter().map(|x| -x.err_in).fold(0.0f64, f64::max).max(0.0) * 1e6
 }
 
-/// Runs one case; `seed_index` 0 is the scenario's own seeds, others mix
-/// into every random stream (as the cut's stretches do).
+/// Runs one case at the campaign's instant; `seed_index` 0 is the
+/// scenario's own seeds, others mix into every random stream (as the cut's
+/// stretches do).
 pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<Outcome> {
+    run_case_at(spec, case, seed_index, Inject::default())
+}
+
+/// Runs one case injected `at`.
+pub fn run_case_at(
+    spec: &CutSpec,
+    case: Case,
+    seed_index: u64,
+    at: Inject,
+) -> anyhow::Result<Outcome> {
     if case == Case::MalformedHostFrame {
-        return run_link_case(spec, seed_index);
+        return run_link_case(spec, seed_index, at);
     }
     let Run {
         latched,
@@ -539,7 +586,7 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
         t_inj,
         t_end,
         ..
-    } = simulate(spec, case, seed_index, None)?;
+    } = simulate(spec, case, seed_index, at, None)?;
     let reaction = latched.map(Fault::reaction);
     let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
     let before: Vec<&Sample> = trace.iter().filter(|x| x.t_ns < t_inj).collect();
@@ -594,11 +641,11 @@ pub fn run_case(spec: &CutSpec, case: Case, seed_index: u64) -> anyhow::Result<O
 /// the machine changed (no fault, the loop engaged, the tool's path
 /// sample for sample the undisturbed run's) and the valid requests in the
 /// flood were answered.
-fn run_link_case(spec: &CutSpec, seed_index: u64) -> anyhow::Result<Outcome> {
+fn run_link_case(spec: &CutSpec, seed_index: u64, at: Inject) -> anyhow::Result<Outcome> {
     let case = Case::MalformedHostFrame;
     let fl = link::flood(seed_index);
-    let run = simulate(spec, case, seed_index, Some(fl.bytes.clone()))?;
-    let quiet = simulate(spec, case, seed_index, None)?;
+    let run = simulate(spec, case, seed_index, at, Some(fl.bytes.clone()))?;
+    let quiet = simulate(spec, case, seed_index, at, None)?;
     let l = run.link.as_ref().context("the link was attached")?;
     let judged = link::judge(&fl, l);
     let after = |t: &[Sample]| -> f64 {
@@ -663,11 +710,61 @@ fn run_link_case(spec: &CutSpec, seed_index: u64) -> anyhow::Result<Outcome> {
     })
 }
 
-/// Runs `cases` (in parallel, each on its own thread's simulation).
+/// Runs `cases` at the campaign's instant.
 pub fn campaign(spec: &CutSpec, cases: &[Case], seed_index: u64) -> anyhow::Result<Vec<Outcome>> {
+    campaign_at(spec, cases, seed_index, Inject::default())
+}
+
+/// Runs `cases`, each injected `at`.
+pub fn campaign_at(
+    spec: &CutSpec,
+    cases: &[Case],
+    seed_index: u64,
+    at: Inject,
+) -> anyhow::Result<Vec<Outcome>> {
+    let runs: Vec<(Case, Inject)> = cases.iter().map(|&c| (c, at)).collect();
+    run_all(spec, &runs, seed_index)
+}
+
+/// Runs `case` injected at `phases` instants evenly spread over one
+/// revolution after the pre-roll (phase k at k/`phases` of a turn): the
+/// spindle angle, and with it the part's command and the cutting force, at
+/// the injection.
+pub fn sweep(
+    spec: &CutSpec,
+    case: Case,
+    phases: usize,
+    seed_index: u64,
+) -> anyhow::Result<Vec<Outcome>> {
+    if phases == 0 {
+        bail!("a sweep needs at least one phase");
+    }
+    let runs: Vec<(Case, Inject)> = (0..phases)
+        .map(|k| {
+            let after_turns = k as f64 / phases as f64;
+            (case, Inject { after_turns })
+        })
+        .collect();
+    run_all(spec, &runs, seed_index)
+}
+
+/// Runs each (case, instant) in parallel, each on its own thread's
+/// simulation.
+fn run_all(
+    spec: &CutSpec,
+    runs: &[(Case, Inject)],
+    seed_index: u64,
+) -> anyhow::Result<Vec<Outcome>> {
     use rayon::prelude::*;
-    cases
-        .par_iter()
-        .map(|&c| run_case(spec, c, seed_index).with_context(|| format!("fault {}", c.name())))
+    runs.par_iter()
+        .map(|&(c, at)| {
+            run_case_at(spec, c, seed_index, at).with_context(|| {
+                format!(
+                    "fault {} injected {} revolutions after the pre-roll",
+                    c.name(),
+                    at.after_turns
+                )
+            })
+        })
         .collect()
 }

@@ -6,23 +6,23 @@
 //! IRQ 9) and the index handler (dual timer, IRQ 10) share the lower
 //! priority 0x80 and run `EventState::x_event` / `index_event` on a
 //! synthetic feed (a half-mil every 1.5 ms) and spindle (an index every
-//! 20 ms, 3000 rpm). The background (thread mode) feeds the CMSDK watchdog (10 ms
+//! 20 ms, 3000 rpm). The background (thread mode) feeds the CMSDK watchdog (5 ms
 //! timeout, its interrupt is the NMI) through `zslide::watchdog::FeedGate`,
 //! as `src/main.rs` feeds the IWDG: only when the loop tick has run since
 //! the last feed.
 //!
-//! Phases, each ended by the watchdog's NMI or by a 30 ms limit on the hang:
+//! Phases, each ended by the watchdog's NMI or by a 15 ms limit on the hang:
 //! 0. 40 ms with every handler alive: the watchdog must not expire;
 //! 1. the X handler hangs (spins) at its next event: the loop tick goes on
 //!    preempting it (counted), the background is starved, the watchdog
-//!    must expire within its 10 ms of the last feed;
+//!    must expire within its 5 ms of the last feed;
 //! 2. the same for the index handler;
 //! 3. the same for the loop tick itself (everything below it starves);
 //! 4. the loop tick stops firing (its timer stopped): the background runs
 //!    on but the tick count stands still, and the watchdog must expire;
 //! 5. the control: fed from the loop tick instead (the design the feed
 //!    gate replaced), a hung X handler is not caught: the hang runs out
-//!    its 30 ms without an expiry.
+//!    its 15 ms without an expiry.
 //!
 //! The NMI handler stands for the reset the real watchdog causes: it
 //! records the instant and releases the hang, so the next phase can run.
@@ -51,16 +51,16 @@ use zslide_qemu::board::{
 use zslide_qemu::exit;
 
 const LOOP_HZ: u32 = 20_000;
-/// The watchdog's timeout: 10 ms of PCLK, as the NUCLEO's IWDG.
-const TIMEOUT: u32 = PCLK_HZ / 100;
-/// Longest an injected hang spins when no NMI releases it: 30 ms.
+/// The watchdog's timeout: 5 ms of PCLK, as the NUCLEO's IWDG.
+const TIMEOUT: u32 = PCLK_HZ / 200;
+/// Longest an injected hang spins when no NMI releases it: 15 ms.
 const HANG_LIMIT: u32 = 3 * TIMEOUT;
 /// The expiry must come within the timeout of the hang's start, and no
 /// earlier than the timeout less the longest gap between two feeds (one
 /// loop period, 50 µs, plus the background's own pass).
 const EXPIRY_MIN: u32 = TIMEOUT - PCLK_HZ / LOOP_HZ - PCLK_HZ / 10_000;
-/// Phase 0 length, PCLK cycles (40 ms: four timeouts).
-const ALIVE: u32 = 4 * TIMEOUT;
+/// Phase 0 length, PCLK cycles (40 ms: eight timeouts, two index events).
+const ALIVE: u32 = PCLK_HZ / 25;
 
 /// Which handler hangs next (`NONE`: none).
 const NONE: u8 = 0;
@@ -318,7 +318,13 @@ fn main() -> ! {
         // A hung X or index handler is preempted by the loop tick, which
         // keeps running (so feeding from the loop tick would have missed
         // it); a hung loop tick stops it.
-        let expected_ticks = if which == LOOP { 0..=1 } else { 150..=200 };
+        // (The loop tick runs 100 times in a timeout.)
+        let per_timeout = TIMEOUT / (PCLK_HZ / LOOP_HZ);
+        let expected_ticks = if which == LOOP {
+            0..=1
+        } else {
+            per_timeout * 3 / 4..=per_timeout
+        };
         if !(EXPIRY_MIN..=TIMEOUT).contains(&after) || !expected_ticks.contains(&ticks_during) {
             defmt::error!(
                 "FAIL: hung {=str}: expiry time or loop ticks out of bounds",
@@ -373,7 +379,7 @@ fn main() -> ! {
         if caught {
             "caught"
         } else {
-            "not caught in 30 ms"
+            "not caught in 15 ms"
         }
     );
     if caught || !HANG_TIMED_OUT.load(Ordering::Acquire) {
