@@ -234,6 +234,13 @@ struct Summary {
 }
 
 /// Everything the loop-tick handler owns.
+///
+/// `repr(C)`, the loop's state first: `loop_tick` is specialised to this
+/// static's address, and a field more than 4 KiB into it (the 40 KiB plant
+/// was laid out first) needs its offset built in a register (`movw`) on
+/// every access; within the first 4 KiB the offset is the load's own
+/// 12-bit immediate.
+#[repr(C)]
 struct Run {
     lp: LoopState,
     tap: TickTap,
