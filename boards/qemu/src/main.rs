@@ -253,9 +253,14 @@ struct Run {
 }
 
 /// Everything the event handler owns.
+///
+/// `repr(C)`, the learner first, for the reason given at [`Run`]: the X
+/// handler's state (8.7 KiB with its slope table) would otherwise put it
+/// beyond the loads' 12-bit offsets.
+#[repr(C)]
 struct Events {
-    ev: EventState,
     learn: LearnState,
+    ev: EventState,
     next_x: u32,
     next_index: u32,
     /// Coefficient generation last traced.
