@@ -115,14 +115,15 @@ mod app {
     // TIM3 and EXTI2); `Cell::take`/`set`/`get` under the critical section
     // move the value whole and cannot fail.
     static SHARED: Shared = Shared::new();
-    static HANDOFF: Mutex<Cell<Option<Loop>>> = Mutex::new(Cell::new(None));
-    /// The X handler's state is one `.bss` value (`cortex_m::singleton!`)
-    /// handed over by reference: as an `Option<XHandler>` static its
-    /// `None` is niche-encoded nonzero, which put the 8.7 KiB state (the
-    /// slope table) in `.data` twice, the handler's and this cell's, each
-    /// with its flash initialiser.
+    // Each handler's state is one `.bss` value (`cortex_m::singleton!`)
+    // handed over by reference: as an `Option<T>` static (the handler's
+    // and the cell's) a niche-encoded nonzero `None` put the state in
+    // `.data` twice, each copy with its flash initialiser (8.7 KiB for the
+    // X handler's slope table).
+    static HANDOFF: Mutex<Cell<Option<&'static mut Loop>>> = Mutex::new(Cell::new(None));
     static HANDOFF_X: Mutex<Cell<Option<&'static mut XHandler>>> = Mutex::new(Cell::new(None));
-    static HANDOFF_LEARN: Mutex<Cell<Option<LearnState>>> = Mutex::new(Cell::new(None));
+    static HANDOFF_LEARN: Mutex<Cell<Option<&'static mut LearnState>>> =
+        Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The amplifier is enabled (the loop armed), for the arm button.
     static ARMED: AtomicBool = AtomicBool::new(false);
@@ -229,16 +230,18 @@ mod app {
             spindle: SpindleEncoder::new(),
         };
         // `None` only on a second run of this code, which cannot happen
-        // (main never returns); the X handler would then stay idle.
+        // (main never returns); that handler would then stay idle.
+        let lp = cortex_m::singleton!(: Loop = lp);
         let x = cortex_m::singleton!(: XHandler = XHandler {
             ev,
             quad,
             generation: 0,
         });
+        let learn = cortex_m::singleton!(: LearnState = learn);
         critical_section::with(|cs| {
-            HANDOFF.borrow(cs).set(Some(lp));
+            HANDOFF.borrow(cs).set(lp);
             HANDOFF_X.borrow(cs).set(x);
-            HANDOFF_LEARN.borrow(cs).set(Some(learn));
+            HANDOFF_LEARN.borrow(cs).set(learn);
         });
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
@@ -357,7 +360,7 @@ mod app {
 
     #[interrupt]
     fn TIM3() {
-        static mut LOOP: Option<Loop> = None;
+        static mut LOOP: Option<&'static mut Loop> = None;
         timers::ack_loop_tick();
         if LOOP.is_none() {
             *LOOP = critical_section::with(|cs| HANDOFF.borrow(cs).take());
@@ -418,7 +421,7 @@ mod app {
     /// not used): the tick's samples into the learned table.
     #[interrupt]
     fn TIM7() {
-        static mut LEARN: Option<LearnState> = None;
+        static mut LEARN: Option<&'static mut LearnState> = None;
         if LEARN.is_none() {
             *LEARN = critical_section::with(|cs| HANDOFF_LEARN.borrow(cs).take());
         }
