@@ -178,10 +178,7 @@ impl Servo {
             hum: notch(cfg.hum_notch),
             mode: notch(cfg.mode_notch),
             observer: Observer::new(cfg.observer),
-            learn_req: LearnRequests {
-                clear: false,
-                hold: None,
-            },
+            learn_req: LearnRequests::NONE,
             settle_left: 0,
             correction_q8: 0,
             correction_v_q16: 0,
@@ -259,7 +256,7 @@ impl Servo {
                 return self.idle();
             }
             self.arm_requested = false;
-            self.learn_req.clear = true;
+            self.learn_req.clear();
             self.current.reset();
             self.following.reset();
             if self.sign.enabled() {

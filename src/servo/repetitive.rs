@@ -139,6 +139,8 @@ const S_ANGLE: u32 = 1 << 3;
 const S_CLEAR: u32 = 1 << 4;
 const S_HOLD_SHIFT: u32 = 5;
 const S_TICKS_SHIFT: u32 = 8;
+/// The longest hold a sample carries.
+const S_TICKS_MAX: u32 = (1 << 24) - 1;
 
 impl LearnSample {
     pub fn new(
@@ -155,7 +157,7 @@ impl LearnSample {
             error_q8 as u32,
             phi,
             dphi as u32,
-            Freeze::code(freeze) | a | requests.flags(),
+            Freeze::code(freeze) | a | requests.0,
         ])
     }
     /// Command − gauge, codes Q8.
@@ -170,40 +172,44 @@ impl LearnSample {
         Freeze::from_code(self.0[3] & 7)
     }
     pub fn requests(&self) -> LearnRequests {
-        let f = self.0[3];
-        LearnRequests {
-            clear: f & S_CLEAR != 0,
-            hold: Freeze::from_code((f >> S_HOLD_SHIFT) & 7).map(|r| (r, f >> S_TICKS_SHIFT)),
-        }
+        LearnRequests(self.0[3] & S_REQUESTS)
     }
 }
 
-/// What the loop asks of the learning besides learning.
+/// What the loop asks of the learning besides learning: forget everything
+/// learned first (arming), hold it frozen for a number of ticks
+/// (engagement, an X jump). Kept as the sample's flag bits (clear, hold
+/// reason and ticks: [`LearnSample`]), so that the tick hands them over
+/// with one load and one store.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LearnRequests {
-    /// Forget everything learned first (arming).
-    pub clear: bool,
-    /// Hold it frozen for this many more ticks (engagement, an X jump).
-    pub hold: Option<(Freeze, u32)>,
-}
+pub struct LearnRequests(u32);
+
+const S_REQUESTS: u32 = S_CLEAR | (7 << S_HOLD_SHIFT) | (S_TICKS_MAX << S_TICKS_SHIFT);
 
 impl LearnRequests {
-    /// Two holds before one sample: the longer time, the later reason
-    /// (what two holds in a row leave in the learner).
-    pub fn hold(&mut self, reason: Freeze, ticks: u32) {
-        let t = self.hold.map_or(ticks, |(_, t)| t.max(ticks));
-        self.hold = Some((reason, t));
+    pub const NONE: Self = Self(0);
+
+    /// Forget the table first.
+    pub fn clear(&mut self) {
+        self.0 |= S_CLEAR;
     }
 
-    fn flags(&self) -> u32 {
-        let hold = self.hold.map_or(0, |(r, t)| {
-            Freeze::code(Some(r)) << S_HOLD_SHIFT | t.min((1 << 24) - 1) << S_TICKS_SHIFT
-        });
-        if self.clear {
-            hold | S_CLEAR
-        } else {
-            hold
-        }
+    /// Hold the learning frozen for `ticks` (at most 2²⁴ − 1 kept). Two
+    /// holds before one sample: the longer time, the later reason (what
+    /// two holds in a row leave in the learner).
+    pub fn hold(&mut self, reason: Freeze, ticks: u32) {
+        let ticks = ticks.min(S_TICKS_MAX);
+        let t = self.held().map_or(ticks, |(_, t)| t.max(ticks));
+        self.0 =
+            (self.0 & S_CLEAR) | Freeze::code(Some(reason)) << S_HOLD_SHIFT | t << S_TICKS_SHIFT;
+    }
+
+    pub fn clears(&self) -> bool {
+        self.0 & S_CLEAR != 0
+    }
+
+    pub fn held(&self) -> Option<(Freeze, u32)> {
+        Freeze::from_code((self.0 >> S_HOLD_SHIFT) & 7).map(|r| (r, self.0 >> S_TICKS_SHIFT))
     }
 }
 
@@ -454,12 +460,12 @@ impl Learner {
     #[inline]
     pub fn apply(&mut self, s: &LearnSample, table: &LearnedTable) {
         let r = s.requests();
-        if r.clear {
+        if r.clears() {
             table.clear();
             self.last_bin = None;
             self.passes = 0;
         }
-        if let Some((reason, ticks)) = r.hold {
+        if let Some((reason, ticks)) = r.held() {
             self.hold_for(reason, ticks);
         }
         let error_q8 = match &mut self.hum {
@@ -793,10 +799,8 @@ mod tests {
         r.apply(&none, &t);
         assert_eq!(r.frozen(), Some(Freeze::NoAngle));
         assert!(t.peak_code() > 0);
-        let clear = LearnRequests {
-            clear: true,
-            hold: None,
-        };
+        let mut clear = LearnRequests::NONE;
+        clear.clear();
         r.apply(&LearnSample::new(0, None, None, clear), &t);
         assert_eq!(t.peak_code(), 0);
     }
@@ -835,12 +839,19 @@ mod tests {
                 Some((Freeze::NotEngaged, 786)),
             ),
         ] {
-            let req = LearnRequests { clear, hold };
+            let mut req = LearnRequests::NONE;
+            if clear {
+                req.clear();
+            }
+            if let Some((r, t)) = hold {
+                req.hold(r, t);
+            }
             let s = LearnSample::new(-123_456, angle, freeze, req);
             assert_eq!(
-                (s.error_q8(), s.angle(), s.freeze(), s.requests()),
-                (-123_456, angle, freeze, req)
+                (s.error_q8(), s.angle(), s.freeze()),
+                (-123_456, angle, freeze)
             );
+            assert_eq!((s.requests().clears(), s.requests().held()), (clear, hold));
         }
     }
 }
