@@ -97,19 +97,21 @@ impl SlewProfile {
             // ≤ S and the step is u₀ + a: no root.
             up
         } else {
-            // 2·a·|d| in Q32 (a Q16, |d| Q8·2⁸): below 2⁶⁴. The root is
-            // needed only when S lies strictly inside the window; the
-            // squares decide the other cases (accelerating or at the rate
-            // limit: S ≥ u₀ + a; braking at the limit: S ≤ u₀ − a).
+            // 2·a·|d| in Q32 (a Q16, |d| Q8·2⁸): below 2⁶⁴. The squares
+            // decide without the root where S ≥ u₀ + a (accelerating, or at
+            // the rate limit), where the root's truncation could put it
+            // below u₀ + a or v_max.
             let x = 2 * u64::from(a.unsigned_abs()) * (u64::from(dist) << 8);
             let sq = |v: i32| u64::from(v.unsigned_abs()) * u64::from(v.unsigned_abs());
             let s = if self.v_max_sq <= x {
                 self.v_max_q16
             } else if up <= 0 || sq(up) <= x {
                 up
-            } else if down >= 0 && sq(down + 1) > x {
-                down
             } else {
+                // Braking on the curve, or beyond it at the limit (S ≤ u₀ −
+                // a: the clamp below gives u₀ − a, as the root is no more
+                // than S). No test for the latter: it would lengthen the
+                // root's path, the tick's longest, by its own cost.
                 sqrt_u64(x) as i32
             };
             s.max(down).min(up)
@@ -179,9 +181,14 @@ pub fn sqrt_u64(x: u64) -> u64 {
 #[inline(always)]
 fn root_or_above(xs: u32) -> u32 {
     // xs·2²ʲ lies in [2²⁹, 2³¹) (xs ≠ 0): its top five bits pick the seed,
-    // scaled back by 2ʲ (at least 1 for xs ≠ 0; 0 for xs = 0).
-    let j = xs.leading_zeros().saturating_sub(1) / 2;
-    let seed = u32::from(ROOT_SEEDS[((xs << (2 * j)) >> 26) as usize & 31]) >> j;
+    // scaled back by 2ʲ (at least 1 for xs ≠ 0; 0 for xs = 0). j = 0 for
+    // every x ≥ 2²⁹ (the braking speed's): no shift to find.
+    let seed = if xs >> 29 != 0 {
+        u32::from(ROOT_SEEDS[(xs >> 26) as usize & 31])
+    } else {
+        let j = xs.leading_zeros().saturating_sub(1) / 2;
+        u32::from(ROOT_SEEDS[((xs << (2 * j)) >> 26) as usize & 31]) >> j
+    };
     // xs < 2³¹ and g < 2³¹: g + xs/g never overflows. Each step from any
     // g ≥ 1 lands at or above the floor root (the arithmetic-geometric
     // mean).
