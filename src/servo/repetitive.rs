@@ -818,6 +818,27 @@ mod tests {
         assert!(t.peak_code() <= ENTRY_LIMIT >> 8);
     }
 
+    /// Two holds before one sample leave the longer time and the later
+    /// reason, a clear survives a hold, and a hold beyond the sample's
+    /// 24 bits is carried as the longest it can say (14 minutes at 20 kHz),
+    /// not wrapped into a short one.
+    #[test]
+    fn requests_merge_holds_and_cap_their_ticks() {
+        let mut r = LearnRequests::NONE;
+        assert_eq!((r.clears(), r.held()), (false, None));
+        r.hold(Freeze::NotEngaged, 400);
+        r.clear();
+        r.hold(Freeze::XJump, 20);
+        assert_eq!((r.clears(), r.held()), (true, Some((Freeze::XJump, 400))));
+        r.hold(Freeze::NotEngaged, 20_000);
+        assert_eq!(r.held(), Some((Freeze::NotEngaged, 20_000)));
+        let mut long = LearnRequests::NONE;
+        long.hold(Freeze::XJump, u32::MAX);
+        let s = LearnSample::new(0, None, None, long);
+        assert_eq!(s.requests().held(), Some((Freeze::XJump, (1 << 24) - 1)));
+        assert!(!s.requests().clears());
+    }
+
     #[test]
     fn samples_round_trip_through_their_words() {
         assert_eq!(Freeze::from_code(Freeze::code(None)), None);
