@@ -182,7 +182,8 @@ pub fn sqrt_u64(x: u64) -> u64 {
 fn root_or_above(xs: u32) -> u32 {
     // xs·2²ʲ lies in [2²⁹, 2³¹) (xs ≠ 0): its top five bits pick the seed,
     // scaled back by 2ʲ (at least 1 for xs ≠ 0; 0 for xs = 0). j = 0 for
-    // every x ≥ 2²⁹ (the braking speed's): no shift to find.
+    // every x ≥ 2²⁹: no shift to find for the braking speed's argument at
+    // the default design's limits (beyond the near window it exceeds 2³⁶).
     let seed = if xs >> 29 != 0 {
         u32::from(ROOT_SEEDS[(xs >> 26) as usize & 31])
     } else {
