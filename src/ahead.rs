@@ -465,38 +465,26 @@ mod tests {
         Some((c, f))
     }
 
-    /// M₃ = max |∂³Z/∂φ³| over the default table (X every 1/64 in to the
-    /// null zone, φ every 1/1024 turn), in/rad³, with 10 % margin for what
-    /// the sampling misses between its points.
-    fn m3_default() -> f64 {
+    /// M₁, M₂, M₃ = max |∂Z/∂φ|, |∂²Z/∂φ²|, |∂³Z/∂φ³| over the default
+    /// table (X every 1/64 in to the null zone, φ every 1/1024 turn), in/rad,
+    /// in/rad², in/rad³, each with 10 % margin for what the sampling misses
+    /// between its points.
+    fn bounds_default() -> [f64; 3] {
         let g = gen();
-        let mut m = 0f64;
+        let mut m = [0f64; 3];
         for k in 0..=(7.2 * 64.0) as i32 {
             let Some((_, c)) = coeffs_f64(&g, XInches::from_bits(k * (1 << 18))) else {
                 continue;
             };
             for i in 0..1024 {
-                m = m.max(third(&c, f64::from(i) * core::f64::consts::TAU / 1024.0).abs());
+                let phi = f64::from(i) * core::f64::consts::TAU / 1024.0;
+                let [_, d1, d2] = exact(&c, phi);
+                for (m, d) in m.iter_mut().zip([d1, d2, third(&c, phi)]) {
+                    *m = m.max(d.abs());
+                }
             }
         }
-        1.1 * m
-    }
-
-    /// max |∂Z/∂φ| and max |∂²Z/∂φ²| over the default table (sampled as
-    /// [`m3_default`], with its margin), in/rad and in/rad².
-    fn m12_default() -> (f64, f64) {
-        let g = gen();
-        let (mut m1, mut m2) = (0f64, 0f64);
-        for k in 0..=(7.2 * 64.0) as i32 {
-            let Some((_, c)) = coeffs_f64(&g, XInches::from_bits(k * (1 << 18))) else {
-                continue;
-            };
-            for i in 0..1024 {
-                let [_, d1, d2] = exact(&c, f64::from(i) * core::f64::consts::TAU / 1024.0);
-                (m1, m2) = (m1.max(d1.abs()), m2.max(d2.abs()));
-            }
-        }
-        (1.1 * m1, 1.1 * m2)
+        m.map(|m| 1.1 * m)
     }
 
     /// The acceleration formed below the tick (at φ₀, for the predicted
@@ -510,8 +498,7 @@ mod tests {
     #[test]
     fn acceleration_from_below_is_within_its_bound_of_the_closed_form() {
         let g = gen();
-        let m3 = m3_default();
-        let (m1, m2) = m12_default();
+        let [m1, m2, m3] = bounds_default();
         let mut worst = 0f64;
         let mut seen = 0f64;
         for k in (0..230u32).step_by(11) {
@@ -579,7 +566,7 @@ mod tests {
             (fd - third(&c, 0.7)).abs() <= 1e-6 * fd.abs().max(1e-6),
             "{fd}"
         );
-        let m3 = m3_default();
+        let [_, _, m3] = bounds_default();
         std::println!("M3 {m3}");
         assert!(m3 > 0.0 && m3 <= M3_DOC, "M3 {m3}");
     }
@@ -618,7 +605,7 @@ mod tests {
     #[test]
     fn taylor_step_is_within_its_remainder_of_the_closed_form() {
         let g = gen();
-        let m3 = m3_default();
+        let [_, _, m3] = bounds_default();
         let dphi_1200 = 4_294_967_296.0 / 1000.0;
         let mut worst = [0f64; 2];
         let mut seen_z = 0f64;
