@@ -16,6 +16,16 @@
 //! dead loop tick was caught. The watchdog's own timeout (5 ms on the
 //! NUCLEO) then resets the chip, which drops the amplifier enable.
 
+/// IWDG1's reload value on the NUCLEO (`board::timers::start_watchdog`;
+/// RLR is a 12-bit register): 40 counts of its clock, LSI 32 kHz / 4. The
+/// one figure the board, the simulator's model of it and the QEMU
+/// watchdog check take the timeout from (why 5 ms: `start_watchdog`).
+pub const IWDG_RELOAD: u16 = 39;
+/// One count of IWDG1's clock, ns (LSI 32 kHz / 4, PR = 0).
+pub const IWDG_COUNT_NS: u32 = 125_000;
+/// The watchdog's timeout, µs: 5 ms.
+pub const TIMEOUT_US: u32 = (IWDG_RELOAD as u32 + 1) * (IWDG_COUNT_NS / 1000);
+
 /// The feed decision, kept by the background.
 #[derive(Clone, Debug)]
 pub struct FeedGate {

@@ -111,13 +111,14 @@ pub fn ack_loop_tick() {
 pub fn start_watchdog(iwdg: &IWDG, dbgmcu: &DBGMCU) {
     // SAFETY: DBGMCU_APB4FZ1 bit 18 (DBG_IWDG1) only affects debug halts.
     // IWDG key sequence of RM0433 §45.3: start, unlock, prescaler /4
-    // (PR = 0), reload 39 (40 counts of 125 µs), wait for the update, reload.
+    // (PR = 0), reload 39 (`watchdog::IWDG_RELOAD`: 40 counts of 125 µs),
+    // wait for the update, reload.
     unsafe {
         dbgmcu.apb4fz1().modify(|r, w| w.bits(r.bits() | (1 << 18)));
         iwdg.kr().write(|w| w.bits(0xCCCC));
         iwdg.kr().write(|w| w.bits(0x5555));
         iwdg.pr().write(|w| w.bits(0));
-        iwdg.rlr().write(|w| w.bits(39));
+        iwdg.rlr().write(|w| w.bits(zslide::watchdog::IWDG_RELOAD));
         while iwdg.sr().read().bits() != 0 {}
         iwdg.kr().write(|w| w.bits(0xAAAA));
     }

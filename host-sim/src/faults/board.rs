@@ -15,9 +15,9 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 /// IWDG1 counter clock: LSI 32 kHz / 4 (`start_watchdog`: PR = 0).
-pub const IWDG_COUNT_NS: Nanos = 125_000;
-/// Reload value RLR = 39: 40 counts, 5 ms.
-pub const IWDG_RELOAD: u32 = 39;
+pub const IWDG_COUNT_NS: Nanos = zslide::watchdog::IWDG_COUNT_NS as Nanos;
+/// Reload value, the board's: 40 counts, 5 ms.
+pub const IWDG_RELOAD: u32 = zslide::watchdog::IWDG_RELOAD as u32;
 
 /// IWDG1: a down-counter on its own clock, reloaded when the board's
 /// background feeds it, which it does only when the loop tick has run since

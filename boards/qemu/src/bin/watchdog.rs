@@ -51,8 +51,8 @@ use zslide_qemu::board::{
 use zslide_qemu::exit;
 
 const LOOP_HZ: u32 = 20_000;
-/// The watchdog's timeout: 5 ms of PCLK, as the NUCLEO's IWDG.
-const TIMEOUT: u32 = PCLK_HZ / 200;
+/// The watchdog's timeout: 5 ms of PCLK, the NUCLEO's IWDG's.
+const TIMEOUT: u32 = PCLK_HZ / 1_000_000 * zslide::watchdog::TIMEOUT_US;
 /// Longest an injected hang spins when no NMI releases it: 15 ms.
 const HANG_LIMIT: u32 = 3 * TIMEOUT;
 /// The expiry must come within the timeout of the hang's start, and no
