@@ -211,6 +211,7 @@ pub fn param_block(args: &ParamBlockArgs) -> Result<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use zslide::table::CoeffTable;
 
     fn region_of(memory_x: &str, name: &str) -> (u32, u32) {
         let line = memory_x
