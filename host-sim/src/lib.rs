@@ -13,6 +13,7 @@ pub mod fwrig;
 pub mod geometry;
 pub mod link;
 pub mod machine;
+pub mod part;
 pub mod plant;
 pub mod plot;
 pub mod replay;
