@@ -27,6 +27,7 @@
 pub mod biconic;
 pub mod config;
 pub mod plan;
+pub mod reference;
 pub mod conic;
 pub mod saggrid;
 pub mod sinusoid;

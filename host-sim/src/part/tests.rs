@@ -399,3 +399,155 @@ fn a_sharp_tool_cuts_the_surface_itself() {
         assert!((t - s.sag(1.3 * phi.cos(), 1.3 * phi.sin())).abs() < 1e-18);
     }
 }
+
+/// The committed example tables through the firmware's own command path
+/// (`zcmd`'s `z_at`: `zslide::command`, fixed point, bit-exact with the
+/// target) at seeded random points: within each part's stated bound of
+/// the exact command.
+#[test]
+fn example_tables_command_within_their_stated_bound_at_random_points() {
+    use rand::{Rng, SeedableRng};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tables");
+    for name in ["toric-lens", "zernike-freeform", "sinusoidal-grid"] {
+        let lp = super::config::load_part(&dir.join(format!("{name}.toml"))).unwrap();
+        let image = std::fs::read(dir.join(format!("{name}.zsct"))).unwrap();
+        let t = zslide::table::CoeffTable::parse(&image).unwrap();
+        assert!(super::header_is_not_a_paraboloid(&t.header().geometry));
+        let gen = zslide::command::CommandGen::new(t);
+        let x_hi = t.x_null().to_f64();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+        let mut worst = 0.0f64;
+        for _ in 0..300 {
+            let x = rng.random_range(0.0..x_hi);
+            let deg = rng.random_range(0.0..360.0);
+            let z = crate::cmd::zcmd::z_at(&gen, x, deg).unwrap();
+            let exact = lp.part.z(x, f64::to_radians(deg)).unwrap();
+            worst = worst.max((z - exact).abs() * 1e6);
+        }
+        assert!(
+            worst <= lp.bound_uin,
+            "{name}: {worst} µin from the exact command, stated bound {} µin",
+            lp.bound_uin
+        );
+        eprintln!("{name}: firmware command within {worst:.4} µin (bound {})", lp.bound_uin);
+    }
+}
+
+#[test]
+fn a_bound_no_table_can_meet_is_refused_with_the_reason() {
+    // A sinusoidal grid of 0.5 in periods out to 2 in: 2πX/period = 25,
+    // harmonics far beyond the format's 15.
+    let lp = super::config::PartFile::from_toml(
+        "[surface]\nkind = \"sinusoidal-grid\"\namplitude_in = 0.0001\nperiod_x_in = 0.5\nperiod_y_in = 0.5\n\
+         [tool]\nnose_radius_in = 0.0\nclearance_deg = 7.0\n[table]\nx_max_in = 2.0\nbound_uin = 0.5\n",
+    )
+    .unwrap()
+    .load("fine", std::path::Path::new("."))
+    .unwrap();
+    let spec = PartTableSpec {
+        step: 0.25,
+        ..lp.table.clone()
+    };
+    let why = super::table::pick(
+        &lp.part,
+        &spec,
+        &[0.25],
+        lp.bound_uin,
+        lp.allowance_uin,
+        0.0,
+        2.0,
+        crate::coeffgen::Sampling {
+            per_interval: 2,
+            phi: 180,
+        },
+    )
+    .unwrap_err();
+    assert!(
+        why.contains("no table within the format") && why.contains("truncation alone is"),
+        "{why}"
+    );
+}
+
+#[test]
+fn part_file_errors_name_the_field() {
+    let load = |t: &str| {
+        super::config::PartFile::from_toml(t)
+            .and_then(|f| f.load("p", std::path::Path::new(".")).map(|_| ()))
+            .unwrap_err()
+    };
+    let tool = "[tool]\nnose_radius_in = 0.1\nclearance_deg = 7.0\n[table]\nx_max_in = 2.0\nbound_uin = 0.5\n";
+    for (surface, expect) in [
+        ("kind = \"sinusoidal-grid\"\namplitude_in = 1e-4\nperiod_x_in = 0.0\nperiod_y_in = 1.0", "surface.period_x_in = 0"),
+        ("kind = \"sinusoidal-grid\"\namplitude_in = 1e-4\nperiod_x = 1.0\nperiod_y_in = 1.0", "unknown field `period_x`"),
+        ("kind = \"toric\"\nradius_x_in = -5.0\nradius_y_in = 40.0", "surface.radius_x_in = -5"),
+        ("kind = \"zernike\"\nordering = \"fringe\"\nnormalization_radius_in = 0.0\ncoefficients_in = [0.0]", "surface.normalization_radius_in = 0"),
+        ("kind = \"off-axis-conic\"\nconic_constant = -1.0\noff_axis_in = 5.0", "exactly one of vertex_radius_in"),
+        ("kind = \"helix\"", "unknown variant `helix`"),
+    ] {
+        let e = load(&format!("[surface]\n{surface}\n{tool}"));
+        assert!(e.contains(expect), "{surface:?}: {e}");
+    }
+    let e = load("[surface]\nkind = \"toric\"\nradius_x_in = 50.0\nradius_y_in = 40.0\n[tool]\nnose_radius_in = -0.1\nclearance_deg = 7.0\n[table]\nx_max_in = 2.0\nbound_uin = 0.5\n");
+    assert!(e.starts_with("tool.nose_radius_in = -0.1"), "{e}");
+}
+
+mod plan_checks {
+    use super::super::config::PartFile;
+    use super::super::plan::{plan, sections, Machine};
+    use nalgebra::Complex;
+
+    fn plan_of(toml: &str) -> super::super::plan::Plan {
+        let lp = PartFile::from_toml(toml)
+            .unwrap()
+            .load("p", std::path::Path::new("."))
+            .unwrap();
+        let sc = crate::scenario::load("modern-hw").unwrap();
+        let s = sections(&lp, 9).unwrap();
+        // A first-order sensitivity stands in for the measured one: these
+        // checks do not depend on it.
+        plan(&lp, &s, &Machine::of(&sc), 300.0, &|f| {
+            Complex::new(0.0, f) / Complex::new(80.0, f)
+        })
+    }
+
+    fn failed(p: &super::super::plan::Plan) -> Vec<String> {
+        p.checks.iter().filter(|c| !c.ok).map(|c| c.name.clone()).collect()
+    }
+
+    #[test]
+    fn plan_refuses_a_stroke_beyond_the_slide_range() {
+        // Toric, Rx 20 in × Ry 40 in to 2 in: X²/2·(1/Rx − 1/Ry) = 0.025 in
+        // of Z stroke, against the ±0.0095 in command range.
+        let p = plan_of(
+            "[surface]\nkind = \"toric\"\nradius_x_in = 20.0\nradius_y_in = 40.0\n\
+             [tool]\nnose_radius_in = 0.125\nclearance_deg = 7.0\n[table]\nx_max_in = 2.0\nbound_uin = 0.5\n",
+        );
+        assert!(!p.feasible);
+        assert!(failed(&p).contains(&"z_stroke".to_string()), "{:?}", failed(&p));
+        let c = p.checks.iter().find(|c| c.name == "z_stroke").unwrap();
+        assert!((c.value - 0.025).abs() < 0.001, "{}", c.value);
+        assert!(c.reason.as_ref().unwrap().contains("exceeds the slide's command range"));
+        assert!(!failed(&p).contains(&"slope_along_cut".to_string()));
+    }
+
+    #[test]
+    fn plan_refuses_a_slope_beyond_the_clearance_angle() {
+        // z = 0.2·x·y: ∂Z/∂φ = 0.2 X² cos 2φ, so the slope along the cut is
+        // atan(0.2 X) = 0.573° at X = 0.05 in, beyond a 0.5° clearance,
+        // with a stroke of only 0.0005 in.
+        let p = plan_of(
+            "[surface]\nkind = \"xy-polynomial\"\nterms = [{ x_power = 1, y_power = 1, coefficient = 0.2 }]\n\
+             [tool]\nnose_radius_in = 0.0\nclearance_deg = 0.5\n[table]\nx_max_in = 0.05\nbound_uin = 0.5\n",
+        );
+        assert_eq!(failed(&p), vec!["slope_along_cut".to_string()]);
+        let c = p.checks.iter().find(|c| c.name == "slope_along_cut").unwrap();
+        assert!((c.value - 0.2f64.mul_add(0.05, 0.0).atan().to_degrees()).abs() < 1e-3, "{}", c.value);
+        assert!(c.reason.as_ref().unwrap().contains("the flank would rub"));
+        // The same part with a 7° clearance passes.
+        let ok = plan_of(
+            "[surface]\nkind = \"xy-polynomial\"\nterms = [{ x_power = 1, y_power = 1, coefficient = 0.2 }]\n\
+             [tool]\nnose_radius_in = 0.0\nclearance_deg = 7.0\n[table]\nx_max_in = 0.05\nbound_uin = 0.5\n",
+        );
+        assert!(ok.feasible, "{:?}", failed(&ok));
+    }
+}

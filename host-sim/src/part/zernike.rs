@@ -21,13 +21,15 @@ pub enum Ordering {
     Fringe,
 }
 
-/// One term: radial order n, azimuthal m ≥ 0, cos (true) or sin, scale.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// One term: radial order n, azimuthal m ≥ 0, cos (true) or sin, scale,
+/// and `R_n^m` as (power, coefficient) pairs.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Term {
     pub n: u32,
     pub m: u32,
     pub cos: bool,
     pub norm: f64,
+    pub radial: Vec<(i32, f64)>,
 }
 
 /// Highest index accepted (Fringe's usual 37; Noll to radial order 14).
@@ -71,20 +73,25 @@ pub fn fringe(j: usize) -> (u32, u32, bool) {
     }
 }
 
-/// `R_n^m(ρ)` and its derivative.
-pub fn radial(n: u32, m: u32, rho: f64) -> (f64, f64) {
+/// `R_n^m` as (power, coefficient) pairs:
+/// `Σ_k (−1)^k (n−k)! / (k! ((n+m)/2−k)! ((n−m)/2−k)!) ρ^(n−2k)`.
+pub fn radial_terms(n: u32, m: u32) -> Vec<(i32, f64)> {
     let fact = |v: u32| (1..=v).fold(1.0f64, |a, b| a * f64::from(b));
-    let (mut r, mut dr) = (0.0, 0.0);
-    for k in 0..=(n - m) / 2 {
-        let c = if k % 2 == 0 { 1.0 } else { -1.0 } * fact(n - k)
-            / (fact(k) * fact((n + m) / 2 - k) * fact((n - m) / 2 - k));
-        let p = n - 2 * k;
-        r += c * rho.powi(p as i32);
-        if p > 0 {
-            dr += c * f64::from(p) * rho.powi(p as i32 - 1);
-        }
-    }
-    (r, dr)
+    (0..=(n - m) / 2)
+        .map(|k| {
+            let c = if k % 2 == 0 { 1.0 } else { -1.0 } * fact(n - k)
+                / (fact(k) * fact((n + m) / 2 - k) * fact((n - m) / 2 - k));
+            ((n - 2 * k) as i32, c)
+        })
+        .collect()
+}
+
+/// `R(ρ)` and `R'(ρ)` of (power, coefficient) pairs.
+fn radial(terms: &[(i32, f64)], rho: f64) -> (f64, f64) {
+    terms.iter().fold((0.0, 0.0), |(r, dr), &(p, c)| {
+        let d = if p > 0 { c * f64::from(p) * rho.powi(p - 1) } else { 0.0 };
+        (r + c * rho.powi(p), dr + d)
+    })
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -139,7 +146,16 @@ impl Zernike {
                 Ordering::Standard => (2.0 * f64::from(n + 1)).sqrt(),
             };
             if a != 0.0 {
-                coeffs.push((Term { n, m, cos, norm }, a));
+                coeffs.push((
+                    Term {
+                        n,
+                        m,
+                        cos,
+                        norm,
+                        radial: radial_terms(n, m),
+                    },
+                    a,
+                ));
             }
         }
         Ok(Self {
@@ -153,8 +169,9 @@ impl Zernike {
     /// Value and `(∂/∂ρ, ∂/∂θ)` of the Zernike sum.
     fn polar(&self, rho: f64, th: f64) -> (f64, f64, f64) {
         let (mut z, mut zr, mut zt) = (0.0, 0.0, 0.0);
-        for &(t, a) in &self.coeffs {
-            let (r, dr) = radial(t.n, t.m, rho);
+        for (t, a) in &self.coeffs {
+            let a = *a;
+            let (r, dr) = radial(&t.radial, rho);
             let mt = f64::from(t.m) * th;
             let (ang, dang) = if t.cos {
                 (mt.cos(), -f64::from(t.m) * mt.sin())
