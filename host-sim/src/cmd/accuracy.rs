@@ -155,7 +155,12 @@ type XResult = (f64, bool, f64, f64, f64, u64);
 /// paraboloid its header names.
 pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<Report> {
     let t = CoeffTable::parse(image).map_err(|e| anyhow::anyhow!("table refused: {e}"))?;
-    measure_against(image, &Reference::of_header(&t.header().geometry)?, per_interval, phi)
+    measure_against(
+        image,
+        &Reference::of_header(&t.header().geometry)?,
+        per_interval,
+        phi,
+    )
 }
 
 /// Measures a table image through the firmware path against `surface`.
@@ -260,7 +265,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let r = match &args.part {
         Some(p) => {
             let lp = crate::part::config::load_part(p)?;
-            measure_against(&image, &Reference::Part(lp.part), args.per_interval, args.phi)?
+            measure_against(
+                &image,
+                &Reference::Part(lp.part),
+                args.per_interval,
+                args.phi,
+            )?
         }
         None => measure(&image, args.per_interval, args.phi)?,
     };

@@ -110,8 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(c) = &args.check {
-        let committed =
-            std::fs::read(c).with_context(|| format!("reading {}", c.display()))?;
+        let committed = std::fs::read(c).with_context(|| format!("reading {}", c.display()))?;
         anyhow::ensure!(
             committed == image,
             "{} is not the table part {} gives (regenerate it with --out)",
@@ -138,7 +137,10 @@ pub fn part_cut(
             crate::cmd::accuracy::load_table(Some(&beside))?
         }
         None => {
-            eprintln!("part {}: no table given or beside the part file; making one", lp.name);
+            eprintln!(
+                "part {}: no table given or beside the part file; making one",
+                lp.name
+            );
             make(&lp)?.1
         }
     };

@@ -109,7 +109,14 @@ fn print(p: &Plan) {
             p.machine.min_rpm, p.machine.max_rpm, p.error_bound_uin
         ),
     }
-    println!("{}", if p.feasible { "feasible" } else { "NOT feasible" });
+    println!(
+        "{}",
+        if p.feasible {
+            "feasible"
+        } else {
+            "NOT feasible"
+        }
+    );
 }
 
 fn write_map(dir: &std::path::Path, p: &Plan) -> anyhow::Result<()> {

@@ -130,12 +130,16 @@ impl CutSpec {
 
     /// The table image the firmware runs.
     pub fn table(&self) -> &'static [u8] {
-        self.part.as_ref().map_or(zslide::DEFAULT_TABLE, |p| p.table)
+        self.part
+            .as_ref()
+            .map_or(zslide::DEFAULT_TABLE, |p| p.table)
     }
 
     /// Radii the CMM measures (tool centre for a part, surface else), in.
     pub fn cmm_x(&self) -> Vec<f64> {
-        self.part.as_ref().map_or(CMM_X_IN.to_vec(), |p| p.cmm_x.clone())
+        self.part
+            .as_ref()
+            .map_or(CMM_X_IN.to_vec(), |p| p.cmm_x.clone())
     }
 
     /// Surface radius over tool-centre radius of a contact (FOREX4's

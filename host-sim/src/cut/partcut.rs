@@ -157,7 +157,10 @@ mod tests {
             harmonics: 12,
             ..lp.table.clone()
         };
-        let image = crate::part::table::generate(&lp.part, &spec).unwrap().image().unwrap();
+        let image = crate::part::table::generate(&lp.part, &spec)
+            .unwrap()
+            .image()
+            .unwrap();
         let cut = Arc::new(PartCut::new("s", lp.part.clone(), image).unwrap());
         let mut n = PartNominal::new(cut);
         let mut worst = 0.0f64;

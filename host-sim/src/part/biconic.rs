@@ -45,7 +45,8 @@ impl Biconic {
 
 impl Sag for Biconic {
     fn sag(&self, x: f64, y: f64) -> f64 {
-        let w = 1.0 - (1.0 + self.kx) * (self.cx * x).powi(2) - (1.0 + self.ky) * (self.cy * y).powi(2);
+        let w =
+            1.0 - (1.0 + self.kx) * (self.cx * x).powi(2) - (1.0 + self.ky) * (self.cy * y).powi(2);
         if w < 0.0 {
             return f64::NAN;
         }
@@ -128,6 +129,9 @@ impl Sag for Toric {
     }
 
     fn describe(&self) -> String {
-        format!("toric Rx = {} in (swept), Ry = {} in (profile)", self.rx, self.ry)
+        format!(
+            "toric Rx = {} in (swept), Ry = {} in (profile)",
+            self.rx, self.ry
+        )
     }
 }

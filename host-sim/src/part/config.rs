@@ -201,21 +201,20 @@ impl SurfaceCfg {
                 off_axis_in,
                 tilt_deg,
             } => {
-                let r = match (vertex_radius_in, curvature_per_in) {
-                    (Some(r), None) => *r,
-                    (None, Some(c)) if c.is_finite() && *c > 0.0 => 1.0 / c,
-                    (None, Some(c)) => {
-                        return Err(format!(
-                            "surface.curvature_per_in = {c}: must be a finite number > 0"
-                        ))
-                    }
-                    _ => {
-                        return Err(
+                let r =
+                    match (vertex_radius_in, curvature_per_in) {
+                        (Some(r), None) => *r,
+                        (None, Some(c)) if c.is_finite() && *c > 0.0 => 1.0 / c,
+                        (None, Some(c)) => {
+                            return Err(format!(
+                                "surface.curvature_per_in = {c}: must be a finite number > 0"
+                            ))
+                        }
+                        _ => return Err(
                             "surface: give exactly one of vertex_radius_in and curvature_per_in"
                                 .into(),
-                        )
-                    }
-                };
+                        ),
+                    };
                 Arc::new(OffAxisConic::new(
                     r,
                     *conic_constant,
@@ -228,7 +227,12 @@ impl SurfaceCfg {
                 radius_y_in,
                 conic_x,
                 conic_y,
-            } => Arc::new(Biconic::new(*radius_x_in, *radius_y_in, *conic_x, *conic_y)?),
+            } => Arc::new(Biconic::new(
+                *radius_x_in,
+                *radius_y_in,
+                *conic_x,
+                *conic_y,
+            )?),
             Self::Toric {
                 radius_x_in,
                 radius_y_in,
@@ -254,7 +258,11 @@ impl SurfaceCfg {
                 amplitude_in,
                 period_x_in,
                 period_y_in,
-            } => Arc::new(SinusoidalGrid::new(*amplitude_in, *period_x_in, *period_y_in)?),
+            } => Arc::new(SinusoidalGrid::new(
+                *amplitude_in,
+                *period_x_in,
+                *period_y_in,
+            )?),
             Self::SagGrid { file } => Arc::new(SagGrid::read(&dir.join(file))?),
         })
     }
@@ -316,10 +324,7 @@ impl PartFile {
         })?;
         Ok(LoadedPart {
             name: name.to_string(),
-            description: self
-                .description
-                .clone()
-                .unwrap_or_else(|| sag.describe()),
+            description: self.description.clone().unwrap_or_else(|| sag.describe()),
             part: Part {
                 sag,
                 tool: Tool {

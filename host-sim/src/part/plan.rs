@@ -200,7 +200,8 @@ pub fn plan(
     sens: &dyn Fn(f64) -> Complex<f64>,
 ) -> Plan {
     let w = TAU * rpm / 60.0;
-    let (mut v_pk, mut a_pk, mut i_pk, mut u_pk, mut slope) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let (mut v_pk, mut a_pk, mut i_pk, mut u_pk, mut slope) =
+        (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let mut slope_at = (0.0, 0.0);
     let mut hi_hz = 0.0f64;
     let m = machine;
@@ -274,12 +275,18 @@ pub fn plan(
                 "the table's X range {lo}..{hi} in reaches beyond the faceplate radius {FACEPLATE_RADIUS_IN} in"
             )
         }),
-        check("rpm_band", (rpm - 0.5 * (m.min_rpm + m.max_rpm)).abs(), 0.5 * (m.max_rpm - m.min_rpm), "rpm from mid-band", || {
-            format!(
-                "{rpm} rpm is outside the speed band the firmware accepts ({}..{} rpm)",
-                m.min_rpm, m.max_rpm
-            )
-        }),
+        check(
+            "rpm_band",
+            (rpm - 0.5 * (m.min_rpm + m.max_rpm)).abs(),
+            0.5 * (m.max_rpm - m.min_rpm),
+            "rpm from mid-band",
+            || {
+                format!(
+                    "{rpm} rpm is outside the speed band the firmware accepts ({}..{} rpm)",
+                    m.min_rpm, m.max_rpm
+                )
+            },
+        ),
         check("predicted_following_error", pk, bound, "µin", || {
             format!(
                 "the predicted following error peaks at {pk:.2} µin at {rpm} rpm, beyond plan.error_bound_uin = {bound} µin (highest significant harmonic at {hi_hz:.1} Hz against the loop's {} Hz bandwidth): lower the speed",

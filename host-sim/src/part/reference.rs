@@ -41,7 +41,8 @@ impl Reference {
                     .map_err(|e| anyhow::anyhow!("surface at X = {x}: {e}"))?,
             ),
             Self::Part(p) => RefSection::Part(
-                p.section(x).map_err(|e| anyhow::anyhow!("part at X = {x}: {e}"))?,
+                p.section(x)
+                    .map_err(|e| anyhow::anyhow!("part at X = {x}: {e}"))?,
                 p,
             ),
         })

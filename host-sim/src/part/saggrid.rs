@@ -113,12 +113,10 @@ impl SagGrid {
                     pts.push((v[0], v[1], v[2]))
                 }
                 _ if n == 0 => {} // header
-                _ => {
-                    return Err(format!(
-                        "{name} line {}: expected three finite numbers `x_in,y_in,z_in`, got {line:?}",
-                        n + 1
-                    ))
-                }
+                _ => return Err(format!(
+                    "{name} line {}: expected three finite numbers `x_in,y_in,z_in`, got {line:?}",
+                    n + 1
+                )),
             }
         }
         Self::from_points(&pts, &name)

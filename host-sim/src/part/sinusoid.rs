@@ -18,7 +18,9 @@ pub struct SinusoidalGrid {
 impl SinusoidalGrid {
     pub fn new(amplitude: f64, period_x: f64, period_y: f64) -> Result<Self, String> {
         if !amplitude.is_finite() {
-            return Err(format!("surface.amplitude_in = {amplitude}: must be finite"));
+            return Err(format!(
+                "surface.amplitude_in = {amplitude}: must be finite"
+            ));
         }
         for (f, v) in [("period_x_in", period_x), ("period_y_in", period_y)] {
             if !(v.is_finite() && v > 0.0) {

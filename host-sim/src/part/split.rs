@@ -104,9 +104,10 @@ fn max_over_phi(samples: &[f64], f: impl Fn(f64) -> f64) -> (f64, f64) {
                 f1 = f(m1);
             }
         }
-        let (v, p) = [(b, i as f64 * h), (f1, m1), (f2, m2)]
-            .into_iter()
-            .fold((f64::NEG_INFINITY, 0.0), |acc, c| if c.0 > acc.0 { c } else { acc });
+        let (v, p) = [(b, i as f64 * h), (f1, m1), (f2, m2)].into_iter().fold(
+            (f64::NEG_INFINITY, 0.0),
+            |acc, c| if c.0 > acc.0 { c } else { acc },
+        );
         if v > best {
             best = v;
             at = p;
@@ -169,7 +170,9 @@ impl Part {
             return Err(format!("X = {x}: must be a finite radius >= 0"));
         }
         let rt = self.tool.nose_radius;
-        let phis: Vec<f64> = (0..SAMPLES).map(|j| TAU * j as f64 / SAMPLES as f64).collect();
+        let phis: Vec<f64> = (0..SAMPLES)
+            .map(|j| TAU * j as f64 / SAMPLES as f64)
+            .collect();
         match self.tool.compensation {
             Compensation::ProfileNormal => {
                 let t = phis
@@ -177,7 +180,8 @@ impl Part {
                     .map(|&p| self.centre_profile_normal(x, p).map(|v| v.0))
                     .collect::<Result<Vec<_>, _>>()?;
                 let (y, _) = max_over_phi(&t, |p| {
-                    self.centre_profile_normal(x, p).map_or(f64::NEG_INFINITY, |v| v.0)
+                    self.centre_profile_normal(x, p)
+                        .map_or(f64::NEG_INFINITY, |v| v.0)
                 });
                 Ok(Section {
                     x,

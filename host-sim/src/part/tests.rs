@@ -58,7 +58,11 @@ fn sphere_on_the_turning_axis_is_exact_and_has_no_z_motion() {
     let s = OffAxisConic::new(r, 0.0, 10.0, None).unwrap();
     for &(x, y) in &PTS {
         let exact = r - (r * r - x * x - y * y).sqrt();
-        assert!((s.sag(x, y) - exact).abs() < 1e-13, "{} vs {exact}", s.sag(x, y));
+        assert!(
+            (s.sag(x, y) - exact).abs() < 1e-13,
+            "{} vs {exact}",
+            s.sag(x, y)
+        );
     }
     check_gradient(&s, &PTS, 1e-8);
     for comp in [Compensation::ProfileNormal, Compensation::Forex4] {
@@ -68,7 +72,11 @@ fn sphere_on_the_turning_axis_is_exact_and_has_no_z_motion() {
             // The tool centre is on the sphere of radius R − r_t about the
             // centre (0, 0, R); its lowest point is r_t above the vertex.
             let y = r - ((r - rt) * (r - rt) - x * x).sqrt();
-            assert!((sec.y - y).abs() < 1e-12, "{comp:?} X={x}: {} vs {y}", sec.y);
+            assert!(
+                (sec.y - y).abs() < 1e-12,
+                "{comp:?} X={x}: {} vs {y}",
+                sec.y
+            );
             for j in 0..16 {
                 let z = sec.z(&p, j as f64 * 0.41).unwrap();
                 assert!(z.abs() < 1e-12, "{comp:?} X={x}: Z = {z}");
@@ -146,7 +154,10 @@ fn paraboloid_off_axis_conic_is_eq_2_15_and_the_default_table() {
         }
     }
     // tables/default.toml: picked for 0.07 µin less 0.01 for the firmware.
-    assert!(worst_table <= 0.06, "{worst_table} µin from the default table");
+    assert!(
+        worst_table <= 0.06,
+        "{worst_table} µin from the default table"
+    );
     // The header names the paraboloid.
     let spec = PartTableSpec {
         x_min: 0.0,
@@ -158,13 +169,17 @@ fn paraboloid_off_axis_conic_is_eq_2_15_and_the_default_table() {
         x_frac_bits: 24,
     };
     let g = generate(&p, &spec).unwrap().header.geometry;
-    assert_eq!((g.c_nin, g.s_y_nin, g.tool_radius_nin), (316_700_000_000, 28_000_000_000, 125_000_000));
+    assert_eq!(
+        (g.c_nin, g.s_y_nin, g.tool_radius_nin),
+        (316_700_000_000, 28_000_000_000, 125_000_000)
+    );
 }
 
 #[test]
 fn profile_normal_paraboloid_matches_the_surface_modules_envelope() {
     let p = dissertation_conic(Compensation::ProfileNormal);
-    let reference = crate::surface::Surface::dissertation().with_compensation(Compensation::ProfileNormal);
+    let reference =
+        crate::surface::Surface::dissertation().with_compensation(Compensation::ProfileNormal);
     for &x in &[1.0, 4.0, 7.2] {
         let sec = p.section(x).unwrap();
         for j in 0..36 {
@@ -173,7 +188,10 @@ fn profile_normal_paraboloid_matches_the_surface_modules_envelope() {
             // The surface module's Y is FOREX4's ridge; this split's is the
             // maximum of the offset profile: compare the φ-variation.
             let z0 = sec.z(&p, 0.01).unwrap() - reference.z(x, 0.01).unwrap();
-            assert!((z - e - z0).abs() < 1e-11, "X={x} φ={phi}: {z} vs {e} (+{z0})");
+            assert!(
+                (z - e - z0).abs() < 1e-11,
+                "X={x} φ={phi}: {z} vs {e} (+{z0})"
+            );
         }
     }
 }
@@ -258,11 +276,27 @@ fn zernike_terms_at_known_points_in_both_orderings() {
         let th = f64::atan2(y, x);
         let cases: [(Ordering, usize, f64); 7] = [
             (Ordering::Standard, 4, 3f64.sqrt() * (2.0 * rho * rho - 1.0)),
-            (Ordering::Standard, 6, 6f64.sqrt() * rho * rho * (2.0 * th).cos()),
-            (Ordering::Standard, 8, 8f64.sqrt() * (3.0 * rho.powi(3) - 2.0 * rho) * th.cos()),
-            (Ordering::Standard, 11, 5f64.sqrt() * (6.0 * rho.powi(4) - 6.0 * rho * rho + 1.0)),
+            (
+                Ordering::Standard,
+                6,
+                6f64.sqrt() * rho * rho * (2.0 * th).cos(),
+            ),
+            (
+                Ordering::Standard,
+                8,
+                8f64.sqrt() * (3.0 * rho.powi(3) - 2.0 * rho) * th.cos(),
+            ),
+            (
+                Ordering::Standard,
+                11,
+                5f64.sqrt() * (6.0 * rho.powi(4) - 6.0 * rho * rho + 1.0),
+            ),
             (Ordering::Fringe, 6, rho * rho * (2.0 * th).sin()),
-            (Ordering::Fringe, 9, 6.0 * rho.powi(4) - 6.0 * rho * rho + 1.0),
+            (
+                Ordering::Fringe,
+                9,
+                6.0 * rho.powi(4) - 6.0 * rho * rho + 1.0,
+            ),
             (Ordering::Fringe, 10, rho.powi(3) * (3.0 * th).cos()),
         ];
         for (ord, j, expect) in cases {
@@ -313,8 +347,14 @@ fn sag_grid_of_a_known_function_interpolates_within_its_order() {
     let mut worst = 0.0f64;
     for i in 0..97 {
         for j in 0..89 {
-            let (x, y) = (-1.99 + 3.98 * i as f64 / 96.0, -1.99 + 3.98 * j as f64 / 88.0);
-            assert!((gq.sag(x, y) - quad(x, y)).abs() < 1e-15, "quadratic at ({x}, {y})");
+            let (x, y) = (
+                -1.99 + 3.98 * i as f64 / 96.0,
+                -1.99 + 3.98 * j as f64 / 88.0,
+            );
+            assert!(
+                (gq.sag(x, y) - quad(x, y)).abs() < 1e-15,
+                "quadratic at ({x}, {y})"
+            );
             worst = worst.max((gw.sag(x, y) - wave(x, y)).abs());
         }
     }
@@ -359,7 +399,11 @@ fn toric_and_biconic_sections_are_their_circles() {
     let p = part(t, 0.0, Compensation::ProfileNormal);
     let h = p.section(1.0).unwrap().harmonics(4);
     let expect = 0.25 * (1.0 / rx - 1.0 / ry);
-    assert!((h.c[2] - expect).abs() < 1e-6 * expect.abs(), "{} vs {expect}", h.c[2]);
+    assert!(
+        (h.c[2] - expect).abs() < 1e-6 * expect.abs(),
+        "{} vs {expect}",
+        h.c[2]
+    );
 }
 
 #[test]
@@ -377,12 +421,25 @@ fn xy_polynomial_at_known_points() {
 
 #[test]
 fn every_kind_gives_its_gradient() {
-    check_gradient(&OffAxisConic::new(100.0, -0.6, 12.0, None).unwrap(), &PTS, 1e-8);
-    check_gradient(&OffAxisConic::new(80.0, 0.4, 9.0, Some(0.05)).unwrap(), &PTS, 1e-8);
+    check_gradient(
+        &OffAxisConic::new(100.0, -0.6, 12.0, None).unwrap(),
+        &PTS,
+        1e-8,
+    );
+    check_gradient(
+        &OffAxisConic::new(80.0, 0.4, 9.0, Some(0.05)).unwrap(),
+        &PTS,
+        1e-8,
+    );
     check_gradient(&SinusoidalGrid::new(3e-4, 2.0, 3.0).unwrap(), &PTS, 1e-8);
     check_gradient(
-        &Zernike::new(Ordering::Fringe, 2.5, Some(60.0), &[0.0, 1e-4, -2e-4, 3e-4, 0.0, 5e-5, 1e-5, 0.0, 2e-5])
-            .unwrap(),
+        &Zernike::new(
+            Ordering::Fringe,
+            2.5,
+            Some(60.0),
+            &[0.0, 1e-4, -2e-4, 3e-4, 0.0, 5e-5, 1e-5, 0.0, 2e-5],
+        )
+        .unwrap(),
         &PTS,
         1e-8,
     );
@@ -429,7 +486,10 @@ fn example_tables_command_within_their_stated_bound_at_random_points() {
             "{name}: {worst} µin from the exact command, stated bound {} µin",
             lp.bound_uin
         );
-        eprintln!("{name}: firmware command within {worst:.4} µin (bound {})", lp.bound_uin);
+        eprintln!(
+            "{name}: firmware command within {worst:.4} µin (bound {})",
+            lp.bound_uin
+        );
     }
 }
 
@@ -511,7 +571,11 @@ mod plan_checks {
     }
 
     fn failed(p: &super::super::plan::Plan) -> Vec<String> {
-        p.checks.iter().filter(|c| !c.ok).map(|c| c.name.clone()).collect()
+        p.checks
+            .iter()
+            .filter(|c| !c.ok)
+            .map(|c| c.name.clone())
+            .collect()
     }
 
     #[test]
@@ -523,10 +587,18 @@ mod plan_checks {
              [tool]\nnose_radius_in = 0.125\nclearance_deg = 7.0\n[table]\nx_max_in = 2.0\nbound_uin = 0.5\n",
         );
         assert!(!p.feasible);
-        assert!(failed(&p).contains(&"z_stroke".to_string()), "{:?}", failed(&p));
+        assert!(
+            failed(&p).contains(&"z_stroke".to_string()),
+            "{:?}",
+            failed(&p)
+        );
         let c = p.checks.iter().find(|c| c.name == "z_stroke").unwrap();
         assert!((c.value - 0.025).abs() < 0.001, "{}", c.value);
-        assert!(c.reason.as_ref().unwrap().contains("exceeds the slide's command range"));
+        assert!(c
+            .reason
+            .as_ref()
+            .unwrap()
+            .contains("exceeds the slide's command range"));
         assert!(!failed(&p).contains(&"slope_along_cut".to_string()));
     }
 
@@ -540,8 +612,16 @@ mod plan_checks {
              [tool]\nnose_radius_in = 0.0\nclearance_deg = 0.5\n[table]\nx_max_in = 0.05\nbound_uin = 0.5\n",
         );
         assert_eq!(failed(&p), vec!["slope_along_cut".to_string()]);
-        let c = p.checks.iter().find(|c| c.name == "slope_along_cut").unwrap();
-        assert!((c.value - 0.2f64.mul_add(0.05, 0.0).atan().to_degrees()).abs() < 1e-3, "{}", c.value);
+        let c = p
+            .checks
+            .iter()
+            .find(|c| c.name == "slope_along_cut")
+            .unwrap();
+        assert!(
+            (c.value - 0.2f64.mul_add(0.05, 0.0).atan().to_degrees()).abs() < 1e-3,
+            "{}",
+            c.value
+        );
         assert!(c.reason.as_ref().unwrap().contains("the flank would rub"));
         // The same part with a 7° clearance passes.
         let ok = plan_of(

@@ -25,12 +25,12 @@ impl XyPolynomial {
                 ));
             }
             if !c.is_finite() {
-                return Err(format!("surface.terms[{n}].coefficient = {c}: must be finite"));
+                return Err(format!(
+                    "surface.terms[{n}].coefficient = {c}: must be finite"
+                ));
             }
             if terms[..n].iter().any(|&(a, b, _)| (a, b) == (i, j)) {
-                return Err(format!(
-                    "surface.terms[{n}]: x^{i} y^{j} is given twice"
-                ));
+                return Err(format!("surface.terms[{n}]: x^{i} y^{j} is given twice"));
             }
         }
         Ok(Self { terms })
@@ -43,13 +43,24 @@ fn pow(v: f64, n: u32) -> f64 {
 
 impl Sag for XyPolynomial {
     fn sag(&self, x: f64, y: f64) -> f64 {
-        self.terms.iter().map(|&(i, j, c)| c * pow(x, i) * pow(y, j)).sum()
+        self.terms
+            .iter()
+            .map(|&(i, j, c)| c * pow(x, i) * pow(y, j))
+            .sum()
     }
 
     fn grad(&self, x: f64, y: f64) -> (f64, f64) {
         self.terms.iter().fold((0.0, 0.0), |(gx, gy), &(i, j, c)| {
-            let dx = if i == 0 { 0.0 } else { f64::from(i) * pow(x, i - 1) * pow(y, j) };
-            let dy = if j == 0 { 0.0 } else { f64::from(j) * pow(x, i) * pow(y, j - 1) };
+            let dx = if i == 0 {
+                0.0
+            } else {
+                f64::from(i) * pow(x, i - 1) * pow(y, j)
+            };
+            let dy = if j == 0 {
+                0.0
+            } else {
+                f64::from(j) * pow(x, i) * pow(y, j - 1)
+            };
             (gx + c * dx, gy + c * dy)
         })
     }

@@ -89,7 +89,11 @@ pub fn radial_terms(n: u32, m: u32) -> Vec<(i32, f64)> {
 /// `R(ρ)` and `R'(ρ)` of (power, coefficient) pairs.
 fn radial(terms: &[(i32, f64)], rho: f64) -> (f64, f64) {
     terms.iter().fold((0.0, 0.0), |(r, dr), &(p, c)| {
-        let d = if p > 0 { c * f64::from(p) * rho.powi(p - 1) } else { 0.0 };
+        let d = if p > 0 {
+            c * f64::from(p) * rho.powi(p - 1)
+        } else {
+            0.0
+        };
         (r + c * rho.powi(p), dr + d)
     })
 }
@@ -133,7 +137,9 @@ impl Zernike {
         let mut coeffs = Vec::new();
         for (i, &a) in coefficients.iter().enumerate() {
             if !a.is_finite() {
-                return Err(format!("surface.coefficients_in[{i}] = {a}: must be finite"));
+                return Err(format!(
+                    "surface.coefficients_in[{i}] = {a}: must be finite"
+                ));
             }
             let j = i + 1;
             let (n, m, cos) = match ordering {
@@ -218,10 +224,7 @@ impl Sag for Zernike {
         let (c, s) = (x / r, y / r);
         let dzdr = zr / self.r_norm;
         let (_, b) = self.base(r * r);
-        (
-            b * x + c * dzdr - s * zt / r,
-            b * y + s * dzdr + c * zt / r,
-        )
+        (b * x + c * dzdr - s * zt / r, b * y + s * dzdr + c * zt / r)
     }
 
     fn describe(&self) -> String {
