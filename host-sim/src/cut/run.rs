@@ -5,7 +5,7 @@
 //! measures.
 
 use super::engage::Engagement;
-use super::nominal::Nominal;
+use super::nominal::Command;
 use super::part::{Pass, PassLog, CMM_PHI_COUNT};
 use crate::fwrig::{Machine, TickHook};
 use crate::plant::Rig;
@@ -38,7 +38,7 @@ pub struct StretchLog {
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
 pub struct Cutter {
     eng: Engagement,
-    nominal: Nominal,
+    nominal: Command,
     index_phase_turns: f64,
     /// Recording windows of tool-centre X, in (lo, hi).
     windows: Vec<(f64, f64)>,
@@ -64,7 +64,7 @@ pub struct Cutter {
 impl Cutter {
     pub fn new(
         eng: Engagement,
-        nominal: Nominal,
+        nominal: impl Into<Command>,
         index_phase_turns: f64,
         windows: Vec<(f64, f64)>,
         trace_window: (f64, f64),
@@ -73,7 +73,7 @@ impl Cutter {
         Self {
             settle_s,
             eng,
-            nominal,
+            nominal: nominal.into(),
             index_phase_turns,
             windows,
             trace_window,
