@@ -15,7 +15,6 @@ use crate::safety::{Device, Fault, Reaction};
 use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
 use crate::spindle::{EncoderAngle, TachAngle};
 use crate::units::{SpindleAngle, XInches};
-use core::sync::atomic::{fence, Ordering};
 
 /// One spindle reading, as the hw traits deliver it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -174,7 +173,7 @@ impl LoopState {
     /// Picks up what the X / index handlers published.
     #[inline(always)]
     pub(crate) fn take_published(&mut self, sh: &Shared) {
-        let xf = sh.x_faults.load(Ordering::Relaxed);
+        let xf = sh.x_faults();
         if xf != self.x_faults_seen {
             let new = xf & !self.x_faults_seen;
             self.x_faults_seen = xf;
@@ -184,38 +183,33 @@ impl LoopState {
                 }
             }
         }
-        let s = sh.index_seq.load(Ordering::Acquire);
-        if s != self.index_seen {
-            let missed = s.wrapping_sub(self.index_seen) > 1;
-            let slot = &sh.index[(s & 1) as usize];
-            let count = slot[0].load(Ordering::Relaxed);
-            let edge = slot[1].load(Ordering::Relaxed);
-            fence(Ordering::Acquire);
-            if slot[2].load(Ordering::Relaxed) != s {
+        match sh.take_index(&mut self.index_seen) {
+            Ok(None) => {}
+            Err(()) => {
                 // Overwritten while read (a writer that can preempt the
                 // tick): the pulses came faster than the loop rate.
-                self.index_seen = s;
                 self.trip(Fault::IndexExtra);
                 return;
             }
-            self.index_seen = s;
-            if missed {
-                // Two index pulses within one loop period: noise.
-                self.trip(Fault::IndexExtra);
-            }
-            let r = match &mut self.spindle {
-                Estimator::Encoder(e) => e.on_index(count, edge),
-                Estimator::Tach(t) => t.on_index(edge),
-                Estimator::None => Ok(()),
-            };
-            if let Err(f) = r {
-                self.trip(f);
+            Ok(Some(p)) => {
+                if p.missed {
+                    // Two index pulses within one loop period: noise.
+                    self.trip(Fault::IndexExtra);
+                }
+                let r = match &mut self.spindle {
+                    Estimator::Encoder(e) => e.on_index(p.count_at_index, p.edge_ticks),
+                    Estimator::Tach(t) => t.on_index(p.edge_ticks),
+                    Estimator::None => Ok(()),
+                };
+                if let Err(f) = r {
+                    self.trip(f);
+                }
             }
         }
         if self.x_published {
             // The X and the null flag only: the values are copied if the
             // tick has to evaluate the command itself (`command_at`).
-            match sh.take_coefficient_x(&mut self.coeff_seen) {
+            match sh.coefficients().take_x(&mut self.coeff_seen) {
                 Ok(Some((x, null))) => {
                     self.coeff_null = null;
                     self.note_x(x);
@@ -311,14 +305,14 @@ impl LoopState {
         let dphi = self.sp.dphi(phi);
         let (rate_dphi, alpha_q4) = self.sp.advance(phi, dphi);
         let fresh = sh
-            .ahead
+            .ahead()
             .latest()
             .filter(|a| self.ticks.wrapping_sub(a.tick) <= MAX_AGE);
         let command = phi.and_then(|p| self.command_at(sh, fresh.as_ref(), p, rate_dphi, alpha_q4));
         self.command_live = command.is_some();
         let table = setpoint(command.as_ref(), rate_dphi);
         if let Some(p) = phi {
-            sh.ahead.post(self.ticks, p, dphi, alpha_q4);
+            sh.ahead().post(self.ticks, p, dphi, alpha_q4);
         }
         let (table_code, slope, accel) = (table.code, table.velocity_q16, table.accel_q16);
         self.table_code = table_code;
@@ -369,11 +363,11 @@ impl LoopState {
                 amplifier_tripped: input.amplifier_fault,
                 correction_ahead: fresh.map(|a| a.correction),
             },
-            &sh.learned,
+            sh.learned(),
         );
         if let Some(s) = &out.learn {
             // The learner runs below this priority (`crate::firmware::learning`).
-            sh.learn.push(s);
+            sh.learn_queue().push(s);
         }
         if let Some(f) = out.fault {
             self.trip(f);
@@ -453,7 +447,8 @@ impl LoopState {
         // runs between its take and this copy), copied once per set: the
         // only use of them in the tick.
         if sh
-            .take_coefficients(&mut self.fallback_seen, &mut self.fallback)
+            .coefficients()
+            .take(&mut self.fallback_seen, &mut self.fallback)
             .is_err()
             || self.fallback.null
         {
@@ -479,10 +474,10 @@ impl LoopState {
     /// Operator requests posted in [`Shared`].
     #[inline(always)]
     pub(crate) fn take_requests(&mut self, sh: &Shared, amplifier_fault: bool) {
-        if sh.requests.load(Ordering::Relaxed) == 0 {
+        if !sh.requests_pending() {
             return;
         }
-        let r = sh.requests.swap(0, Ordering::Acquire);
+        let r = sh.take_requests();
         if r & Request::Disarm.bit() != 0 {
             self.servo.disarm();
         }

@@ -261,6 +261,9 @@ impl Firmware {
 }
 
 #[cfg(test)]
+mod preemption_tests;
+
+#[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     extern crate std;
@@ -1175,7 +1178,9 @@ mod tests {
             while checked < 20_000 {
                 lp.loop_tick(&shared, &TickInput::NONE, &mut g, &mut d);
                 // The values as the tick's fallback copies them.
-                let _ = shared.take_coefficients(&mut lp.fallback_seen, &mut lp.fallback);
+                let _ = shared
+                    .coefficients()
+                    .take(&mut lp.fallback_seen, &mut lp.fallback);
                 let c = &lp.fallback;
                 if !c.null && shared.coefficient_generation() != seen {
                     seen = shared.coefficient_generation();
