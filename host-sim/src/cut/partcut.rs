@@ -115,8 +115,8 @@ impl PartNominal {
                 self.at_hi = self.expand(k + 1);
             }
             self.at_lo = self.expand(k);
-            for j in 0..self.slope.len() {
-                self.slope[j] = (self.at_hi[j] - self.at_lo[j]) / NODE_IN;
+            for ((s, hi), lo) in self.slope.iter_mut().zip(&self.at_hi).zip(&self.at_lo) {
+                *s = (hi - lo) / NODE_IN;
             }
             self.lo = k;
         }

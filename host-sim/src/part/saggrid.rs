@@ -113,10 +113,12 @@ impl SagGrid {
                     pts.push((v[0], v[1], v[2]))
                 }
                 _ if n == 0 => {} // header
-                _ => return Err(format!(
+                _ => {
+                    return Err(format!(
                     "{name} line {}: expected three finite numbers `x_in,y_in,z_in`, got {line:?}",
                     n + 1
-                )),
+                ))
+                }
             }
         }
         Self::from_points(&pts, &name)
@@ -141,7 +143,7 @@ impl SagGrid {
         let u = (x - self.x0) / self.hx;
         let v = (y - self.y0) / self.hy;
         let (mx, my) = ((self.nx - 1) as f64, (self.ny - 1) as f64);
-        if !(u >= 0.0 && u <= mx && v >= 0.0 && v <= my) {
+        if !((0.0..=mx).contains(&u) && (0.0..=my).contains(&v)) {
             return (f64::NAN, f64::NAN, f64::NAN);
         }
         let ix = (u.floor() as usize).min(self.nx - 2);

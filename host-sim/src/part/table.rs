@@ -252,7 +252,7 @@ pub fn pick(
     sampling: Sampling,
 ) -> Result<(PartTableSpec, PickResult), String> {
     let budget = bound_uin - allowance_uin;
-    if !(budget > 0.0) {
+    if budget.is_nan() || budget <= 0.0 {
         return Err(format!(
             "the bound {bound_uin} µin leaves nothing after the firmware's allowance of {allowance_uin} µin"
         ));

@@ -618,7 +618,7 @@ mod plan_checks {
             .find(|c| c.name == "slope_along_cut")
             .unwrap();
         assert!(
-            (c.value - 0.2f64.mul_add(0.05, 0.0).atan().to_degrees()).abs() < 1e-3,
+            (c.value - (0.2f64 * 0.05).atan().to_degrees()).abs() < 1e-3,
             "{}",
             c.value
         );

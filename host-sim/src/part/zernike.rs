@@ -39,7 +39,7 @@ pub const MAX_INDEX: usize = 120;
 pub fn noll(j: usize) -> (u32, u32, bool) {
     let mut n = 0u32;
     let mut first = 1usize; // first index of radial order n
-    while first + n as usize + 1 <= j {
+    while first + (n as usize) < j {
         first += n as usize + 1;
         n += 1;
     }
