@@ -21,6 +21,7 @@ pub mod codes;
 pub mod config;
 pub mod table;
 pub mod params;
+pub mod store;
 // The data path: interrupt → X / angle → coefficients → command → loop → DAC.
 pub mod handoff;
 pub mod xevent;

@@ -8,6 +8,7 @@ pub mod cut;
 pub mod faults;
 pub mod replay;
 pub mod response;
+pub mod serve;
 pub mod soak;
 pub mod trace2vcd;
 pub mod track;
