@@ -1,7 +1,7 @@
 //! `host-sim serve`: the whole simulated machine (the firmware rig: the
 //! core's firmware on the simulated chips, amplifier, slide, gauge,
 //! spindle and X slide) behind the firmware's own link
-//! (`crate::link`: tap, station and the RTT buffers of the NUCLEO), on a
+//! (`crate::fwrig::link`: tap, station and the RTT buffers of the NUCLEO), on a
 //! TCP port or a Unix socket, running in simulated real time. Every
 //! `zslide` command works on it as on a board.
 //!
@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 
 /// Machine time per step between socket transfers, ns (the host's RTT
 /// polling period of the board, `link::HOST_POLL_NS`).
-pub const STEP_NS: Nanos = crate::link::HOST_POLL_NS;
+pub const STEP_NS: Nanos = crate::fwrig::link::HOST_POLL_NS;
 
 /// Where the machine listens.
 pub enum Listener {
@@ -118,6 +118,9 @@ impl Conn for UnixStream {
     }
 }
 
+/// The host's handle on the machine's link.
+pub type SharedLink = std::rc::Rc<std::cell::RefCell<crate::fwrig::HostLink>>;
+
 /// The machine `serve` runs.
 #[derive(Clone)]
 pub struct Setup {
@@ -138,9 +141,8 @@ impl Setup {
     /// spindle speed, the built-in table, real time.
     pub fn new(scenario: Scenario) -> Self {
         let x_in = match &scenario.machine.x {
-            crate::fwrig::XInterface::LegacyBcd(c) | crate::fwrig::XInterface::Quadrature(c) => {
-                c.x0_in
-            }
+            crate::machine::XInterface::LegacyBcd(c)
+            | crate::machine::XInterface::Quadrature(c) => c.x0_in,
         };
         let rpm = scenario.machine.spindle.rpm0;
         Self {
@@ -154,14 +156,15 @@ impl Setup {
     }
 
     /// The world, disarmed as a board boots, with its link attached.
-    pub fn build(&self) -> anyhow::Result<(FirmwareWorld, Scheduler<FirmwareWorld>)> {
+    pub fn build(&self) -> anyhow::Result<(FirmwareWorld, Scheduler<FirmwareWorld>, SharedLink)> {
         if !(self.speed > 0.0 && self.speed <= 100.0) {
             bail!("--speed {}: must be in (0, 100]", self.speed);
         }
         let sc = &self.scenario;
         let mut machine = sc.machine.clone();
         match &mut machine.x {
-            crate::fwrig::XInterface::LegacyBcd(c) | crate::fwrig::XInterface::Quadrature(c) => {
+            crate::machine::XInterface::LegacyBcd(c)
+            | crate::machine::XInterface::Quadrature(c) => {
                 c.x0_in = self.x_in;
                 c.feed = vec![FeedSegment {
                     t_start_s: 0.0,
@@ -172,15 +175,15 @@ impl Setup {
         machine.spindle.rpm0 = self.rpm;
         let (mut w, mut s) =
             machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, self.table);
-        crate::link::attach(&mut w, &mut s, sc.loop_hz, sc.servo_design)?;
-        Ok((w, s))
+        let link = crate::fwrig::link::attach(&mut w, &mut s, sc.loop_hz, sc.servo_design)?;
+        Ok((w, s, link))
     }
 }
 
 /// Runs the machine behind `listener` until `stop` is set (never, from the
 /// command line). `ready` is called once the machine is built.
 pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::Result<()> {
-    let (mut w, mut s) = setup.build()?;
+    let (mut w, mut s, link) = setup.build()?;
     let mut conn: Option<Box<dyn Conn>> = None;
     let start = Instant::now();
     let mut t: Nanos = 0;
@@ -197,7 +200,7 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
                         closed = true;
                         break;
                     }
-                    Ok(n) => link_of(&mut w).send(&buf[..n]),
+                    Ok(n) => link.borrow_mut().send(&buf[..n]),
                     Err(e) if e.kind() == ErrorKind::WouldBlock => break,
                     Err(e) if e.kind() == ErrorKind::Interrupted => {}
                     Err(_) => {
@@ -218,7 +221,7 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
         }
         t += STEP_NS;
         s.run_until(&mut w, t);
-        let out = link_of(&mut w).take_received();
+        let out = link.borrow_mut().take_received();
         if let (Some(c), false) = (conn.as_mut(), out.is_empty()) {
             if write_all_nonblocking(c.as_mut(), &out).is_err() {
                 conn = None;
@@ -226,10 +229,6 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
         }
     }
     Ok(())
-}
-
-fn link_of(w: &mut FirmwareWorld) -> &mut crate::link::HostLink {
-    w.link.as_deref_mut().expect("serve attaches the link")
 }
 
 fn write_all_nonblocking(c: &mut dyn Conn, mut out: &[u8]) -> std::io::Result<()> {

@@ -1,19 +1,16 @@
-//! The QEMU table-region runs of `cargo xtask test` (`qemu_table_checks`),
-//! with other tables in the region (QEMU's `-device loader`): a second part
-//! gives other commands, each the host's own computation from that file; a
+//! The table-region runs of `cargo xtask test`: the QEMU image with other
+//! tables in its region (QEMU's `-device loader`): a second part gives
+//! other commands, each the host's own computation from that file; a
 //! corrupt table and a missing one are refused in words, slide at null.
-//! The regions themselves, and the checks of a file before it is written,
-//! are the `zslide` tool's (`zslide_host::regions`).
 
 use std::fs;
 use std::path::{Path, PathBuf};
 
 use zslide::table::CoeffTable;
-use zslide_host::regions::{check_table_file, QEMU};
 
 use crate::Result;
-
-// ------------------------------------------------------------- QEMU checks
+use zslide_host::regions::{check_table_file, QEMU};
+use zslide_host::words::CODES_PER_UIN;
 
 /// (tick, X bits, φ, table command) of the image's trace lines.
 fn traced(lines: &[String]) -> Vec<(u32, i32, u32, i32)> {
@@ -106,7 +103,7 @@ pub fn qemu_table_checks(default_log: &[String]) -> Result<u32> {
     eprintln!(
         "table swap: {} traced commands of each table as the host computes them from its file; they differ by up to {largest} codes ({:.0} µin)",
         a.len(),
-        f64::from(largest) / zslide_host::words::CODES_PER_UIN
+        f64::from(largest) / CODES_PER_UIN
     );
     passed += 3;
 
