@@ -3,7 +3,7 @@
 //! up channel 0 carries the defmt log, which `probe-rs run` decodes; the
 //! link's frames go up on channel 1 and come down on channel 1, the pair
 //! OpenOCD's `rtt server start PORT 1` bridges to a TCP port for
-//! `cargo xtask link`, `docs/BOARD.md`).
+//! `zslide`, `docs/BOARD.md`).
 
 use rtt_target::{ChannelMode, DownChannel, UpChannel};
 use zslide::link::station::LinkIo;
