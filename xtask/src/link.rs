@@ -151,7 +151,9 @@ fn wait_for(c: &mut Link, what: &str, f: impl Fn(&Status) -> bool) -> Result<Sta
 /// The end-to-end link test on the built QEMU image (`cargo xtask test`).
 /// Returns the number of checks that passed.
 pub fn end_to_end() -> Result<u32> {
-    crate::step("host link end to end: QEMU link session over UART0, driven by zslide's command lines");
+    crate::step(
+        "host link end to end: QEMU link session over UART0, driven by zslide's command lines",
+    );
     let dir = crate::root().join("target/link-e2e");
     fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     let table = crate::default_table_path();

@@ -37,7 +37,8 @@ pub fn csv(info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> String {
     t
 }
 
-fn plot(stem: &Path, info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> Result<()> {
+/// The capture as FILE.svg and FILE.png: command, position, error in µin.
+pub fn plot(stem: &Path, info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> Result<()> {
     use host_sim::plot::{write_images, Series};
     let t = |i: usize| (i as f64 - f64::from(info.before_trigger)) * 1e3 / f64::from(loop_hz);
     let series = |label: &str, f: fn(&Sample) -> i32| Series {

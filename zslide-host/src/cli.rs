@@ -59,6 +59,9 @@ pub enum Cmd {
     /// Capture consecutive loop ticks (command, position, error, output,
     /// φ, X) around a trigger, as CSV (and a plot).
     Capture(CaptureArgs),
+    /// A live scope in the terminal: chosen loop signals, trigger, time
+    /// base; `s` writes the frame as CSV and PNG.
+    Scope(crate::scope::ScopeArgs),
     /// A board's decoded defmt log with trace events (`--features trace`)
     /// as a VCD with the simulator's signal names.
     Trace2vcd(host_sim::cmd::trace2vcd::Args),
@@ -417,6 +420,10 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
             }
         }
         Cmd::Capture(a) => capture::run(link, a, out),
+        Cmd::Scope(a) => {
+            let summary = crate::scope::run(link, a)?;
+            say(format!("scope: {summary}"))
+        }
         Cmd::Trace2vcd(a) => host_sim::cmd::trace2vcd::run(a.clone()).map_err(|e| format!("{e:#}")),
     }
 }

@@ -9,6 +9,7 @@ pub mod client;
 #[cfg(feature = "probe")]
 pub mod probe;
 pub mod regions;
+pub mod scope;
 pub mod words;
 
 pub type Result<T> = std::result::Result<T, String>;
