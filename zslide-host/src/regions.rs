@@ -70,7 +70,7 @@ pub fn check_table_file(file: &Path, regions: &Regions) -> Result<TableIdentity>
     if let Some(why) = other_kind(&bytes, zslide::table::MAGIC) {
         return Err(format!("{}: table refused: {why}", file.display()));
     }
-    let table = zslide::config::check_table(&bytes)
+    let table = zslide::firmware::config::check_table(&bytes)
         .map_err(|e| format!("{}: table refused: {e}", file.display()))?;
     let id = table.identity();
     if id.len > regions.table_len {

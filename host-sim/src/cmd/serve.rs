@@ -46,7 +46,7 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
     let mut s = Setup::new(a.scenario.load()?);
     if let Some(t) = &a.table {
         let bytes = std::fs::read(t).with_context(|| format!("{}: cannot read", t.display()))?;
-        zslide::config::check_table(&bytes)
+        zslide::firmware::config::check_table(&bytes)
             .map_err(|e| anyhow::anyhow!("{}: table refused: {e}", t.display()))?;
         s.table = Box::leak(bytes.into_boxed_slice());
     }
