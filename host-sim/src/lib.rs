@@ -12,6 +12,7 @@ pub mod fastmath;
 pub mod fwrig;
 pub mod geometry;
 pub mod machine;
+pub mod part;
 pub mod plant;
 pub mod plot;
 pub mod replay;

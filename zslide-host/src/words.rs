@@ -4,7 +4,7 @@
 use zslide::link::proto::{FaultRecord, LoopPhase, Status, Trigger};
 
 /// Gauge codes per µin (20 bits over ±0.010 in: 2¹⁹ / 10 000 µin).
-pub const CODES_PER_UIN: f64 = 52.4288;
+pub const CODES_PER_UIN: f64 = zslide::codes::GAUGE_CODES_PER_INCH / 1e6;
 /// Volts per DAC code (±10 V over 20 bits).
 pub const V_PER_CODE: f64 = 10.0 / 524_288.0;
 

@@ -6,7 +6,7 @@
 //! `--out DIR` the plots (PNG, SVG, CSV) and a VCD. The model and its
 //! conventions: docs/CUT.md.
 
-use crate::cut::part::{cmm_phi_deg, CMM_X_IN};
+use crate::cut::part::cmm_phi_deg;
 use crate::cut::plot::{column, error_map_series, write_plot, Series};
 use crate::cut::{run_pass, Controller, CutOutcome, CutSpec, Extras, Holes};
 use anyhow::Context;
@@ -50,12 +50,22 @@ pub struct Args {
     /// stays off the part and leaves that much stock).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub z_offset_uin: f64,
+    /// Cut this part (a part file, docs/PARTS.md) instead of the default
+    /// table's: its table is `--table`, else the `.zsct` beside the part
+    /// file, else made from it.
+    #[arg(long)]
+    pub part: Option<PathBuf>,
+    /// The part's table image (with `--part`).
+    #[arg(long, requires = "part")]
+    pub table: Option<PathBuf>,
 }
 
 /// The JSON summary (brief §5).
 #[derive(serde::Serialize, Debug)]
 pub struct Summary {
     pub scenario: String,
+    /// The part cut (`--part`), or null for the default table's.
+    pub part: Option<String>,
     pub controller: Controller,
     pub rpm: f64,
     pub holes: Holes,
@@ -89,6 +99,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
     let band = o.grid.band();
     Summary {
         scenario: spec.scenario.file.name.clone(),
+        part: spec.part.as_ref().map(|p| p.name.clone()),
         controller: spec.controller,
         rpm: spec.rpm,
         holes: spec.holes,
@@ -105,7 +116,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         cpu_s: o.cpu_s,
         faults: o.faults.clone(),
         phi_deg: cmm_phi_deg(),
-        x_in: CMM_X_IN.to_vec(),
+        x_in: spec.cmm_x(),
         cmm_grid_uin: o.grid.err_uin.clone(),
         depth_in: spec.depth_in,
         feed_per_rev_in: spec.feed_per_rev_in,
@@ -140,12 +151,14 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.z_offset_uin
     );
     spec.z_offset_in = args.z_offset_uin * 1e-6;
+    if let Some(path) = &args.part {
+        spec.part = Some(crate::cmd::parttable::part_cut(path, args.table.as_ref())?);
+    }
     Ok(spec)
 }
 
 fn progress_bar(spec: &CutSpec) -> anyhow::Result<ProgressBar> {
-    let (surf, _) = spec.surface()?;
-    let total: f64 = crate::cut::plan(spec, surf.contact_gain())
+    let total: f64 = crate::cut::plan(spec, spec.contact_gain()?)
         .iter()
         .map(|s| s.seconds(spec))
         .sum();
@@ -174,7 +187,7 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
     };
     // The extras go to the outermost band (X = 7 in, where the slide moves
     // most), or to the full pass.
-    let outer = CMM_X_IN.len() as u64;
+    let outer = spec.cmm_x().len() as u64;
     let o = run_pass(
         spec,
         |st| {
@@ -318,7 +331,7 @@ fn write_outputs(
         &error_map_series(&o.grid),
     )?;
     // X = 7 in for both controllers (the other one run the same way).
-    let j7 = CMM_X_IN.len() - 1;
+    let j7 = spec.cmm_x().len() - 1;
     let mut x7 = vec![Series {
         label: spec.controller.name().to_string(),
         points: column(&o.grid, j7),
@@ -339,8 +352,10 @@ fn write_outputs(
         dir,
         "error_x7",
         &format!(
-            "{} {} rpm: error at X = 7 in (µin)",
-            spec.scenario.file.name, spec.rpm
+            "{} {} rpm: error at X = {} in (µin)",
+            spec.scenario.file.name,
+            spec.rpm,
+            spec.cmm_x()[j7]
         ),
         "phi_deg",
         "error_uin",
@@ -362,7 +377,10 @@ fn write_outputs(
     write_plot(
         dir,
         "following_error",
-        "following error at X = 7 in (µin) and cutting force (lbf × 100)",
+        &format!(
+            "following error at X = {} in (µin) and cutting force (lbf × 100)",
+            spec.cmm_x()[j7]
+        ),
         "t_ms",
         "uin",
         &[fe, force],
