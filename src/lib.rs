@@ -32,6 +32,9 @@ pub mod command;
 pub mod servo;
 // The servo parameters (the flash block, the link's set/get).
 pub mod params;
+// The parameters kept across power cycles (a wear-levelled, power-fail-safe
+// store of the parameter block).
+pub mod store;
 // The hand-offs between interrupt priorities (lock-free).
 pub mod handoff;
 // The firmware: its configuration, the three interrupt handlers (X/index

@@ -18,6 +18,7 @@ pub mod plot;
 pub mod replay;
 pub mod scenario;
 pub mod sched;
+pub mod serve;
 pub mod soak;
 pub mod surface;
 pub mod track;

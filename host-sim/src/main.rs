@@ -43,6 +43,9 @@ enum Command {
     Bench(cmd::bench::Args),
     /// A board's decoded defmt trace log as a VCD with the simulator's signal names.
     Trace2vcd(cmd::trace2vcd::Args),
+    /// The simulated machine behind the firmware's link, in real time, for
+    /// `zslide --connect ADDR ...`.
+    Serve(cmd::serve::Args),
     /// Record the runs the target replays bit-exact (`cargo xtask qemu`).
     ReplayRecord(cmd::replay::Args),
 }
@@ -60,6 +63,7 @@ fn main() {
 fn run(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Coeffs(a) => cmd::coeffs::run(a),
+        Command::Serve(a) => cmd::serve::run(a),
         Command::Accuracy(a) => cmd::accuracy::run(a),
         Command::Zcmd(a) => cmd::zcmd::run(a),
         Command::PartTable(a) => cmd::parttable::run(a),

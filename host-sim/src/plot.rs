@@ -122,7 +122,7 @@ pub fn write_plot(
 }
 
 /// Writes `<dir>/<name>.svg` and `.png` only (the caller writes its own
-/// data file: `cargo xtask link capture`).
+/// data file: `zslide capture`).
 pub fn write_images(
     dir: &Path,
     name: &str,

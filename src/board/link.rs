@@ -3,14 +3,13 @@
 //! up channel 0 carries the defmt log, which `probe-rs run` decodes; the
 //! link's frames go up on channel 1 and come down on channel 1, the pair
 //! OpenOCD's `rtt server start PORT 1` bridges to a TCP port for
-//! `cargo xtask link`, `docs/BOARD.md`).
+//! `zslide`, `docs/BOARD.md`).
 
 use rtt_target::{ChannelMode, DownChannel, UpChannel};
 use zslide::link::station::LinkIo;
 use zslide::link::tap::{Scope, TapShared};
 
-/// Capture ring: 1024 loop ticks (51 ms at 20 kHz), 24 KiB of DTCM.
-pub const CAPTURE: usize = 1024;
+pub use zslide::link::CAPTURE;
 
 /// The capture ring (zeros: `.bss`).
 static SCOPE: Scope<CAPTURE> = Scope::new();

@@ -82,7 +82,7 @@ pub fn load_table_region(region: &'static [u8]) -> Result<CommandGen<'static>, T
 }
 
 /// The load checks of a table image at any lifetime (the host's
-/// `cargo xtask flash-table` refuses what the firmware would refuse).
+/// `zslide table flash` refuses what the firmware would refuse).
 pub fn check_table(bytes: &[u8]) -> Result<CoeffTable<'_>, TableError> {
     let t = CoeffTable::parse(bytes)?;
     sign_checked(t)?;

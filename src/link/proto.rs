@@ -1,5 +1,5 @@
 //! The host link's wire format: messages and the frame codec, shared by the
-//! firmware and the host CLI (`cargo xtask link`).
+//! firmware and the host tool (`zslide`, `zslide-host/`).
 //!
 //! # Frame
 //!

@@ -36,7 +36,7 @@
 //! # In a flash region
 //!
 //! The boards keep the table in a flash region of its own, written without
-//! rebuilding the firmware (`cargo xtask flash-table`, `docs/BOARD.md`).
+//! rebuilding the firmware (`zslide table flash`, `docs/BOARD.md`).
 //! [`CoeffTable::parse_region`] reads such a region: the image is the
 //! prefix the header describes (what follows it is erased flash); a region
 //! whose whole header is erased (0xFF, flash) or zero (QEMU's RAM that no
@@ -138,7 +138,7 @@ impl core::fmt::Display for TableError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
             TableError::Missing => f.write_str(
-                "no coefficient table in the table region (erased, or never written): write one with `cargo xtask flash-table FILE.zsct`",
+                "no coefficient table in the table region (erased, or never written): write one with `zslide table flash FILE.zsct`",
             ),
             TableError::Truncated { needed, got } => write!(
                 f,
@@ -233,7 +233,7 @@ pub struct CoeffTable<'a> {
 
 /// What a table is, in a few numbers: the part it cuts (geometry), its
 /// grid and series, and the CRC that names the image. The firmware
-/// reports it at boot and over the host link; `cargo xtask flash-table`
+/// reports it at boot and over the host link; `zslide table flash`
 /// prints the same for the file, so the two can be compared.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]

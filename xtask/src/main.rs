@@ -31,7 +31,6 @@ mod fuzz;
 mod isr_cost;
 mod link;
 mod nopanic;
-mod regions;
 mod replay;
 mod stack;
 mod table_checks;
@@ -90,22 +89,9 @@ enum Cmd {
     NoPanic,
     /// Build and run the cargo-fuzz targets (nightly toolchain, cargo-fuzz).
     Fuzz(fuzz::Args),
-    /// A board's decoded defmt log with trace events as a VCD (the
-    /// simulator's signal names).
-    Trace2vcd(trace::Args),
-    /// Talk to the firmware's host link: status, faults, arm, disarm,
-    /// clear, set/get/params, capture (docs/BOARD.md).
-    Link(link::Args),
-    /// Run the QEMU image as a link session on a Unix socket (for `link`).
+    /// Run the QEMU image as a link session on a Unix socket (for
+    /// `zslide --connect unix:PATH ...`).
     QemuLink(link::SessionArgs),
-    /// Check a coefficient table and write it to the NUCLEO's table region
-    /// with probe-rs (no rebuild).
-    FlashTable(regions::FlashArgs),
-    /// Check a servo parameter block and write it to the NUCLEO's
-    /// parameter region with probe-rs.
-    FlashParams(regions::FlashArgs),
-    /// Write a servo parameter block file.
-    ParamBlock(regions::ParamBlockArgs),
     /// The QEMU table-region runs and the host-link end-to-end test of
     /// `cargo xtask test`, alone.
     LinkTest,
@@ -122,12 +108,7 @@ fn main() -> ExitCode {
         Cmd::IsrCost(args) => isr_cost::run(&args),
         Cmd::NoPanic => cmd_no_panic(),
         Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
-        Cmd::Trace2vcd(args) => trace::run(&args),
-        Cmd::Link(args) => link::run(&args),
         Cmd::QemuLink(args) => link::run_session(&args),
-        Cmd::FlashTable(args) => regions::flash_table(&args),
-        Cmd::FlashParams(args) => regions::flash_params(&args),
-        Cmd::ParamBlock(args) => regions::param_block(&args),
         Cmd::LinkTest => cmd_link_test(),
         Cmd::Cycles => cycles::run(),
     };
@@ -441,8 +422,8 @@ pub fn qemu_command_with(
 ) -> Command {
     let mut cmd = Command::new("qemu-system-arm");
     for (file, addr) in [
-        (regions.table, regions::QEMU.table_addr),
-        (regions.params, regions::QEMU.params_addr),
+        (regions.table, zslide_host::regions::QEMU.table_addr),
+        (regions.params, zslide_host::regions::QEMU.params_addr),
     ] {
         if let Some(f) = file {
             let mut arg = std::ffi::OsString::from("loader,file=");
@@ -943,25 +924,9 @@ mod tests {
             &["isr-cost"],
             &["no-panic"],
             &["fuzz", "--seconds", "1"],
-            &["trace2vcd", "run.log", "--out", "run.vcd"],
-            &["link", "status"],
-            &["link", "--connect", "unix:/tmp/s", "faults"],
-            &["link", "set", "bandwidth_hz", "40"],
-            &[
-                "link",
-                "capture",
-                "--samples",
-                "10",
-                "--trigger",
-                "fault",
-                "--csv",
-                "c.csv",
-            ],
             &["qemu-link"],
+            &["qemu-link", "--table", "t.zsct"],
             &["link-test"],
-            &["flash-table", "t.zsct"],
-            &["flash-params", "p.zspb", "--dry-run"],
-            &["param-block", "--set", "damping=1", "--out", "p.zspb"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();
@@ -1016,50 +981,20 @@ mod tests {
             parse(&["test", "--fuzz-seconds", "-1"]).err(),
             Some(ErrorKind::UnknownArgument)
         );
-        assert_eq!(
-            parse(&[
-                "link",
-                "capture",
-                "--samples",
-                "0",
-                "--trigger",
-                "fault",
-                "--csv",
-                "c"
-            ])
-            .err(),
-            Some(ErrorKind::ValueValidation)
-        );
-        assert_eq!(
-            parse(&[
-                "link",
-                "capture",
-                "--samples",
-                "9",
-                "--trigger",
-                "often",
-                "--csv",
-                "c"
-            ])
-            .err(),
-            Some(ErrorKind::ValueValidation)
-        );
-        assert_eq!(
-            parse(&["link", "set", "damping", "much"]).err(),
-            Some(ErrorKind::ValueValidation)
-        );
-        assert_eq!(
-            parse(&["link", "reboot"]).err(),
-            Some(ErrorKind::InvalidSubcommand)
-        );
-        assert_eq!(
-            parse(&["flash-table"]).err(),
-            Some(ErrorKind::MissingRequiredArgument)
-        );
-        assert_eq!(
-            parse(&["param-block", "--out", "p"]).err(),
-            Some(ErrorKind::MissingRequiredArgument)
-        );
+        // The user's commands are `zslide`'s (zslide-host), not xtask's.
+        for gone in [
+            "link",
+            "flash-table",
+            "flash-params",
+            "param-block",
+            "trace2vcd",
+        ] {
+            assert_eq!(
+                parse(&[gone]).err(),
+                Some(ErrorKind::InvalidSubcommand),
+                "{gone}"
+            );
+        }
     }
 
     #[test]

@@ -8,9 +8,9 @@ use std::path::{Path, PathBuf};
 
 use zslide::table::CoeffTable;
 
-use crate::link::CODES_PER_UIN;
-use crate::regions::{check_table_file, QEMU};
 use crate::Result;
+use zslide_host::regions::{check_table_file, QEMU};
+use zslide_host::words::CODES_PER_UIN;
 
 /// (tick, X bits, φ, table command) of the image's trace lines.
 fn traced(lines: &[String]) -> Vec<(u32, i32, u32, i32)> {

@@ -1,8 +1,9 @@
 //! Traces as VCD, and the viewers' check of every VCD the project writes.
 //!
-//! * `cargo xtask trace2vcd LOG --out FILE`: a board's decoded defmt log
-//!   with trace events → VCD (`host_sim::vcd::target`, the one decoder; the
-//!   signal names are `zslide::trace::Signal`'s, the simulator's own).
+//! * `zslide trace2vcd LOG --out FILE` (the user's command, host-sim's
+//!   `trace2vcd`): a board's decoded defmt log with trace events → VCD
+//!   (`host_sim::vcd::target`, the one decoder; the signal names are
+//!   `zslide::trace::Signal`'s, the simulator's own).
 //! * `cargo xtask qemu --vcd FILE`: the QEMU run built with its `trace`
 //!   feature, which must pass the image's own checks (tracking, events,
 //!   the injected fault), converted. Its numbers are not the snapshot's to
@@ -23,21 +24,6 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-#[derive(clap::Args, Debug)]
-pub struct Args {
-    /// The decoded log (`defmt-print` output).
-    pub log: PathBuf,
-    /// The VCD to write.
-    #[arg(long, short, value_name = "FILE")]
-    pub out: PathBuf,
-}
-
-pub fn run(a: &Args) -> Result<u8> {
-    let s = convert(&a.log, &a.out)?;
-    eprintln!("{}", describe(&a.out, &s));
-    Ok(0)
-}
 
 fn describe(vcd: &Path, s: &host_sim::vcd::target::TraceSummary) -> String {
     let names = ["loop tick", "X event", "index"];

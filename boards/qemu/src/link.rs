@@ -13,8 +13,7 @@ use cortex_m_semihosting::nr;
 use zslide::link::station::LinkIo;
 use zslide::link::tap::{Scope, TapShared};
 
-/// Capture ring: 1024 loop ticks (51 ms at 20 kHz), 24 KiB of RAM.
-pub const CAPTURE: usize = 1024;
+pub use zslide::link::CAPTURE;
 
 /// The capture ring (zeros: `.bss`).
 static SCOPE: Scope<CAPTURE> = Scope::new();

@@ -27,7 +27,7 @@ use zslide::table::Representation;
 /// motion exceeds it cannot be cut by this slide.
 const SLIDE_RANGE_IN: f64 = 0.020;
 
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Clone)]
 pub struct Args {
     /// CSV output (the default format; kept for the acceptance interface).
     #[arg(long)]

@@ -10,6 +10,7 @@ pub mod parttable;
 pub mod plan;
 pub mod replay;
 pub mod response;
+pub mod serve;
 pub mod soak;
 pub mod trace2vcd;
 pub mod track;

@@ -32,9 +32,8 @@ use zslide::link::tap::{Scope, TapShared, TickTap};
 use zslide::params::ParamSource;
 use zslide::servo::ServoDesign;
 
-/// Capture ring of the simulated link, samples (the board's is 1024; the
-/// simulations that attach a link do not capture).
-pub const CAPTURE: usize = 256;
+/// Capture ring of the simulated link, samples: the boards'.
+pub use zslide::link::CAPTURE;
 /// RTT down channel (host → firmware), bytes (`src/board/link.rs`).
 pub const DOWN_BYTES: usize = 128;
 /// RTT up channel (firmware → host), bytes.
@@ -127,6 +126,12 @@ impl HostLink {
     /// Everything the host has read from the firmware so far.
     pub fn received(&self) -> &[u8] {
         &self.received
+    }
+
+    /// What the host has read from the firmware since the last call
+    /// (`serve`'s socket takes it).
+    pub fn take_received(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.received)
     }
 
     /// The station's frame counters.

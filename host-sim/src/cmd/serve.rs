@@ -1,0 +1,88 @@
+//! `host-sim serve`: the simulated machine behind the firmware's link
+//! (`crate::serve`), for `zslide` without a board.
+
+use crate::scenario::ScenarioArg;
+use crate::serve::{serve, Listener, Setup};
+use anyhow::Context;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct Args {
+    #[command(flatten)]
+    pub scenario: ScenarioArg,
+    /// Where `zslide --connect` finds it: tcp:HOST:PORT or unix:PATH.
+    #[arg(long, value_name = "ADDR", default_value = "tcp:127.0.0.1:9090")]
+    pub listen: String,
+    /// The coefficient table in the table region (default: the built-in
+    /// default table, tables/default.zsct).
+    #[arg(long, value_name = "FILE")]
+    pub table: Option<PathBuf>,
+    /// Where the X slide stands, inches (default: the scenario's x0_in).
+    #[arg(long, value_name = "IN", allow_hyphen_values = true)]
+    pub x_in: Option<f64>,
+    /// X feed, in/min (default 0: X still).
+    #[arg(
+        long,
+        value_name = "IN_PER_MIN",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
+    pub feed: f64,
+    /// Spindle speed, rpm (default: the scenario's).
+    #[arg(long, value_name = "RPM", allow_hyphen_values = true)]
+    pub rpm: Option<f64>,
+    /// Machine seconds per wall-clock second (1: real time).
+    #[arg(
+        long,
+        value_name = "X",
+        default_value_t = 1.0,
+        allow_hyphen_values = true
+    )]
+    pub speed: f64,
+}
+
+pub fn setup(a: &Args) -> anyhow::Result<Setup> {
+    let mut s = Setup::new(a.scenario.load()?);
+    if let Some(t) = &a.table {
+        let bytes = std::fs::read(t).with_context(|| format!("{}: cannot read", t.display()))?;
+        zslide::firmware::config::check_table(&bytes)
+            .map_err(|e| anyhow::anyhow!("{}: table refused: {e}", t.display()))?;
+        s.table = Box::leak(bytes.into_boxed_slice());
+    }
+    if let Some(x) = a.x_in {
+        anyhow::ensure!(
+            (0.0..10.0).contains(&x),
+            "--x-in {x}: X must be in [0, 10) in"
+        );
+        s.x_in = x;
+    }
+    anyhow::ensure!(
+        a.feed.is_finite() && a.feed.abs() <= 10.0,
+        "--feed {}: must be within ±10 in/min",
+        a.feed
+    );
+    s.feed_in_per_min = a.feed;
+    if let Some(r) = a.rpm {
+        anyhow::ensure!(r > 0.0 && r <= 3000.0, "--rpm {r}: must be in (0, 3000]");
+        s.rpm = r;
+    }
+    s.speed = a.speed;
+    Ok(s)
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let s = setup(&a)?;
+    let l = Listener::bind(&a.listen)?;
+    eprintln!(
+        "{}: the simulated machine ({}, X {} in, {} rpm), disarmed, on {}; in another shell:\n  \
+         zslide --connect {} link status",
+        s.scenario.file.name,
+        s.scenario.file.description,
+        s.x_in,
+        s.rpm,
+        l.address(),
+        l.address()
+    );
+    serve(&s, &l, &AtomicBool::new(false))
+}

@@ -1,0 +1,247 @@
+//! `host-sim serve`: the whole simulated machine (the firmware rig: the
+//! core's firmware on the simulated chips, amplifier, slide, gauge,
+//! spindle and X slide) behind the firmware's own link
+//! (`crate::fwrig::link`: tap, station and the RTT buffers of the NUCLEO), on a
+//! TCP port or a Unix socket, running in simulated real time. Every
+//! `zslide` command works on it as on a board.
+//!
+//! Time: the simulation advances in steps of [`STEP_NS`] of machine time,
+//! never ahead of the wall clock × `speed`; after each step the bytes the
+//! host sent go into the link's host backlog and the bytes the firmware
+//! sent go out. A simulation that falls behind the wall clock (a slow
+//! machine) runs as fast as it can: the firmware never sees time skip.
+//!
+//! One host at a time, as on the board's RTT channel: a second connection
+//! waits until the first closes. The machine keeps running between
+//! connections.
+
+use crate::fwrig::{machine_with_table, FirmwareWorld};
+use crate::machine::xslide::FeedSegment;
+use crate::scenario::Scenario;
+use crate::sched::{Nanos, Scheduler};
+use anyhow::{bail, Context};
+use std::io::{ErrorKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Machine time per step between socket transfers, ns (the host's RTT
+/// polling period of the board, `link::HOST_POLL_NS`).
+pub const STEP_NS: Nanos = crate::fwrig::link::HOST_POLL_NS;
+
+/// Where the machine listens.
+pub enum Listener {
+    Tcp(TcpListener),
+    Unix(UnixListener, PathBuf),
+}
+
+impl Listener {
+    /// `tcp:HOST:PORT` or `unix:PATH` (port 0: any free port; see
+    /// [`Listener::address`]).
+    pub fn bind(addr: &str) -> anyhow::Result<Self> {
+        let l = if let Some(a) = addr.strip_prefix("tcp:") {
+            Listener::Tcp(TcpListener::bind(a).with_context(|| format!("listening on {addr}"))?)
+        } else if let Some(p) = addr.strip_prefix("unix:") {
+            let path = PathBuf::from(p);
+            if path.exists() {
+                // Only a socket left by an earlier run is replaced.
+                if UnixStream::connect(&path).is_ok() {
+                    bail!("listening on {addr}: another machine already serves there");
+                }
+                std::fs::remove_file(&path)
+                    .with_context(|| format!("listening on {addr}: cannot replace {p}"))?;
+            }
+            Listener::Unix(
+                UnixListener::bind(&path).with_context(|| format!("listening on {addr}"))?,
+                path,
+            )
+        } else {
+            bail!("--listen {addr:?}: expected tcp:HOST:PORT or unix:PATH");
+        };
+        match &l {
+            Listener::Tcp(t) => t.set_nonblocking(true)?,
+            Listener::Unix(u, _) => u.set_nonblocking(true)?,
+        }
+        Ok(l)
+    }
+
+    /// The address a host connects to (`zslide --connect`).
+    pub fn address(&self) -> String {
+        match self {
+            Listener::Tcp(t) => t
+                .local_addr()
+                .map_or("tcp:?".into(), |a| format!("tcp:{a}")),
+            Listener::Unix(_, p) => format!("unix:{}", p.display()),
+        }
+    }
+
+    fn accept(&self) -> std::io::Result<Option<Box<dyn Conn>>> {
+        let r = match self {
+            Listener::Tcp(t) => t.accept().map(|(s, _)| {
+                let _ = s.set_nodelay(true);
+                Box::new(s) as Box<dyn Conn>
+            }),
+            Listener::Unix(u, _) => u.accept().map(|(s, _)| Box::new(s) as Box<dyn Conn>),
+        };
+        match r {
+            Ok(c) => {
+                c.nonblocking()?;
+                Ok(Some(c))
+            }
+            Err(e) if e.kind() == ErrorKind::WouldBlock => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+impl Drop for Listener {
+    fn drop(&mut self) {
+        if let Listener::Unix(_, p) = self {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+trait Conn: Read + Write {
+    fn nonblocking(&self) -> std::io::Result<()>;
+}
+impl Conn for TcpStream {
+    fn nonblocking(&self) -> std::io::Result<()> {
+        self.set_nonblocking(true)
+    }
+}
+impl Conn for UnixStream {
+    fn nonblocking(&self) -> std::io::Result<()> {
+        self.set_nonblocking(true)
+    }
+}
+
+/// The host's handle on the machine's link.
+pub type SharedLink = std::rc::Rc<std::cell::RefCell<crate::fwrig::HostLink>>;
+
+/// The machine `serve` runs.
+#[derive(Clone)]
+pub struct Setup {
+    pub scenario: Scenario,
+    /// The table image in the table region.
+    pub table: &'static [u8],
+    /// Where the X slide stands, inches, and its feed, in/min (0: still).
+    pub x_in: f64,
+    pub feed_in_per_min: f64,
+    /// Spindle speed, rpm.
+    pub rpm: f64,
+    /// Machine seconds per wall-clock second.
+    pub speed: f64,
+}
+
+impl Setup {
+    /// The scenario's machine as it stands: its X position, still, at its
+    /// spindle speed, the built-in table, real time.
+    pub fn new(scenario: Scenario) -> Self {
+        let x_in = match &scenario.machine.x {
+            crate::machine::XInterface::LegacyBcd(c)
+            | crate::machine::XInterface::Quadrature(c) => c.x0_in,
+        };
+        let rpm = scenario.machine.spindle.rpm0;
+        Self {
+            scenario,
+            table: zslide::DEFAULT_TABLE,
+            x_in,
+            feed_in_per_min: 0.0,
+            rpm,
+            speed: 1.0,
+        }
+    }
+
+    /// The world, disarmed as a board boots, with its link attached.
+    pub fn build(&self) -> anyhow::Result<(FirmwareWorld, Scheduler<FirmwareWorld>, SharedLink)> {
+        if !(self.speed > 0.0 && self.speed <= 100.0) {
+            bail!("--speed {}: must be in (0, 100]", self.speed);
+        }
+        let sc = &self.scenario;
+        let mut machine = sc.machine.clone();
+        match &mut machine.x {
+            crate::machine::XInterface::LegacyBcd(c)
+            | crate::machine::XInterface::Quadrature(c) => {
+                c.x0_in = self.x_in;
+                c.feed = vec![FeedSegment {
+                    t_start_s: 0.0,
+                    feed_in_per_min: self.feed_in_per_min,
+                }];
+            }
+        }
+        machine.spindle.rpm0 = self.rpm;
+        let (mut w, mut s) =
+            machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, self.table);
+        let link = crate::fwrig::link::attach(&mut w, &mut s, sc.loop_hz, sc.servo_design)?;
+        Ok((w, s, link))
+    }
+}
+
+/// Runs the machine behind `listener` until `stop` is set (never, from the
+/// command line). `ready` is called once the machine is built.
+pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::Result<()> {
+    let (mut w, mut s, link) = setup.build()?;
+    let mut conn: Option<Box<dyn Conn>> = None;
+    let start = Instant::now();
+    let mut t: Nanos = 0;
+    let mut buf = [0u8; 4096];
+    while !stop.load(Ordering::Relaxed) {
+        if conn.is_none() {
+            conn = listener.accept().context("accepting a host")?;
+        }
+        if let Some(c) = conn.as_mut() {
+            let mut closed = false;
+            loop {
+                match c.read(&mut buf) {
+                    Ok(0) => {
+                        closed = true;
+                        break;
+                    }
+                    Ok(n) => link.borrow_mut().send(&buf[..n]),
+                    Err(e) if e.kind() == ErrorKind::WouldBlock => break,
+                    Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                    Err(_) => {
+                        closed = true;
+                        break;
+                    }
+                }
+            }
+            if closed {
+                conn = None;
+            }
+        }
+        // Never ahead of the wall clock.
+        let wall = (start.elapsed().as_secs_f64() * setup.speed * 1e9) as Nanos;
+        if t + STEP_NS > wall {
+            std::thread::sleep(Duration::from_nanos((t + STEP_NS - wall).min(1_000_000)));
+            continue;
+        }
+        t += STEP_NS;
+        s.run_until(&mut w, t);
+        let out = link.borrow_mut().take_received();
+        if let (Some(c), false) = (conn.as_mut(), out.is_empty()) {
+            if write_all_nonblocking(c.as_mut(), &out).is_err() {
+                conn = None;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn write_all_nonblocking(c: &mut dyn Conn, mut out: &[u8]) -> std::io::Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(2);
+    while !out.is_empty() {
+        match c.write(out) {
+            Ok(0) => return Err(ErrorKind::WriteZero.into()),
+            Ok(n) => out = &out[n..],
+            Err(e) if e.kind() == ErrorKind::WouldBlock && Instant::now() < deadline => {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}

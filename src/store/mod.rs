@@ -1,0 +1,160 @@
+//! Servo parameters kept across power cycles, saved by the firmware itself
+//! (a `save` over the link, only while the loop is disarmed).
+//!
+//! The store is a `sequential-storage` map over the board's parameter
+//! region (at least two erase pages): one item, key [`KEY`], whose value is
+//! the CRC'd parameter block of `params` (the format `params::encode_block`
+//! writes and `params::load_region` checks, unchanged). Each save appends a
+//! new item; the map erases a page only when it moves on to the next, so
+//! pages wear evenly, and an item counts only once its header and CRC are
+//! whole: a power cut anywhere in a save leaves the previous block readable
+//! (`tests`: a cut at every flash operation of many saves). The block's
+//! own CRC is checked again on load, so a value the map returns is one the
+//! firmware would accept from a region.
+//!
+//! The flash is any `embedded_storage_async` `NorFlash` (boards: the
+//! STM32H7's bank-2 sectors; QEMU and host-sim: a flash model). The map's
+//! API is async; every flash here completes at once, so [`block_on`] polls
+//! each future to completion on the calling thread.
+//!
+//! Timing (`docs/BOARD.md`): a save programs about 10 flash words and, when
+//! a page fills, erases one page (STM32H7: 128 KiB sector erase, typ. 2 s,
+//! max 4 s at x64 parallelism). That is far beyond the 5 ms watchdog and
+//! the 50 µs loop tick, so the firmware saves only while disarmed, from
+//! the background, with the watchdog fed from the flash driver's busy-wait
+//! (its `feed` hook) and the loop's amplifier off.
+
+use core::future::Future;
+use core::ops::Range;
+use core::pin::pin;
+use core::task::{Context, Poll, Waker};
+
+use embedded_storage_async::nor_flash::NorFlash;
+use sequential_storage::cache::{Cache, Uncached};
+use sequential_storage::map::{MapConfig, MapStorage};
+
+use crate::params;
+
+pub mod ram;
+
+/// The map key of the parameter block.
+pub const KEY: u8 = 1;
+
+/// The largest parameter block: every parameter once.
+pub const MAX_BLOCK: usize = params::HEADER_LEN + params::PARAMS.len() * params::ENTRY_LEN;
+
+/// The map's work buffer: key, the largest block, rounded up to a flash
+/// word of up to 32 bytes (the STM32H7's).
+pub const BUFFER: usize = (1 + MAX_BLOCK).div_ceil(32) * 32;
+
+/// Why a save or a load did not happen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StoreError {
+    /// The flash driver failed (`kind` is its `NorFlashErrorKind` as text).
+    Flash(&'static str),
+    /// The region is not a store the map recognises (needs an erase).
+    Corrupted,
+    /// The region is too small for the map (two pages) or the block.
+    Config,
+    /// The stored block fails the parameter block's own checks.
+    Block(params::ParamError),
+    /// Anything else the map reports.
+    Map,
+}
+
+impl core::fmt::Display for StoreError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            StoreError::Flash(k) => write!(f, "the flash driver failed: {k}"),
+            StoreError::Corrupted => {
+                f.write_str("the parameter store is corrupt (erase the parameter region)")
+            }
+            StoreError::Config => {
+                f.write_str("the parameter region is too small for the store (two erase pages)")
+            }
+            StoreError::Block(e) => write!(f, "the stored parameter block is refused: {e}"),
+            StoreError::Map => f.write_str("the parameter store refused the operation"),
+        }
+    }
+}
+
+fn map_error<E: embedded_storage_async::nor_flash::NorFlashError>(
+    e: sequential_storage::Error<E>,
+) -> StoreError {
+    use embedded_storage_async::nor_flash::NorFlashErrorKind as K;
+    match e {
+        sequential_storage::Error::Storage { value, .. } => StoreError::Flash(match value.kind() {
+            K::NotAligned => "not aligned",
+            K::OutOfBounds => "out of bounds",
+            _ => "other",
+        }),
+        sequential_storage::Error::Corrupted { .. } => StoreError::Corrupted,
+        sequential_storage::Error::ItemTooBig | sequential_storage::Error::BufferTooSmall(_) => {
+            StoreError::Config
+        }
+        _ => StoreError::Map,
+    }
+}
+
+/// Runs a future whose every step completes at once (a synchronous
+/// flash behind an async trait) to its end.
+pub fn block_on<F: Future>(f: F) -> F::Output {
+    let mut f = pin!(f);
+    let mut cx = Context::from_waker(Waker::noop());
+    loop {
+        if let Poll::Ready(v) = f.as_mut().poll(&mut cx) {
+            return v;
+        }
+    }
+}
+
+/// The parameter store on `flash` over `range` (whole erase pages).
+pub struct Store<F: NorFlash> {
+    map: MapStorage<u8, F, Cache<Uncached, Uncached, Uncached, u8>>,
+    buf: [u8; BUFFER],
+}
+
+impl<F: NorFlash> Store<F> {
+    pub fn new(flash: F, range: Range<u32>) -> Result<Self, StoreError> {
+        let cfg = MapConfig::try_new(range).map_err(|_| StoreError::Config)?;
+        Ok(Self {
+            map: MapStorage::new(flash, cfg, Cache::new_uncached()),
+            buf: [0; BUFFER],
+        })
+    }
+
+    /// Saves `block` (a parameter block `params::encode_block` wrote; it
+    /// is checked again here against `base`, so a refused block never
+    /// reaches the flash).
+    pub fn save(
+        &mut self,
+        block: &[u8],
+        base: &crate::servo::ServoDesign,
+    ) -> Result<(), StoreError> {
+        params::load_region(block, base).map_err(StoreError::Block)?;
+        block_on(self.map.store_item(&mut self.buf, &KEY, &block)).map_err(map_error)
+    }
+
+    /// The last saved block, whole and checked against `base`; `None` when
+    /// nothing was ever saved.
+    pub fn load(&mut self, base: &crate::servo::ServoDesign) -> Result<Option<&[u8]>, StoreError> {
+        let got: Option<&[u8]> =
+            block_on(self.map.fetch_item(&mut self.buf, &KEY)).map_err(map_error)?;
+        match got {
+            None => Ok(None),
+            Some(b) => {
+                params::load_region(b, base).map_err(StoreError::Block)?;
+                Ok(Some(b))
+            }
+        }
+    }
+
+    /// The flash back (a test's model, to "reboot" on).
+    pub fn into_flash(self) -> F {
+        self.map.destroy().0
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests;

@@ -1,0 +1,121 @@
+//! The store against the power-cut flash model: a cut at every flash
+//! operation of a long run of saves (pages filled, moved on, erased and
+//! reused several times) leaves, at the next boot, the block saved before
+//! or the one being saved, whole, and never a mix or nothing; and the
+//! next save works.
+
+extern crate std;
+use std::vec::Vec;
+
+use super::ram::RamFlash;
+use super::*;
+use crate::servo::ServoDesign;
+
+/// 4 pages of 256 bytes (two blocks each: 24 saves go round them three
+/// times), words of 32 bytes (the H7's flash word).
+type Flash = RamFlash<1024, 256, 32>;
+const REGION: u32 = 1024;
+
+fn base() -> ServoDesign {
+    ServoDesign::brief(20_000)
+}
+
+/// The k-th block: three parameters whose values all move with k, so a
+/// block mixing two saves would carry values of two k (and its CRC fail).
+fn block(k: u32) -> Vec<u8> {
+    let q = params::by_name("hum_notch_q").unwrap().id;
+    let fe = params::by_name("following_error_in").unwrap().id;
+    let ms = params::by_name("following_error_ms").unwrap().id;
+    let entries = [
+        (q, 5.0 + f64::from(k % 20)),
+        (fe, 0.001 + 0.0001 * f64::from(k % 30)),
+        (ms, f64::from(1 + k % 5)),
+    ];
+    let mut out = std::vec![0u8; MAX_BLOCK];
+    let n = params::encode_block(&entries, &base(), &mut out).unwrap();
+    out.truncate(n);
+    out
+}
+
+fn boot(flash: Flash) -> Option<Vec<u8>> {
+    let mut f = flash;
+    f.budget = None;
+    let mut s = Store::new(f, 0..REGION).unwrap();
+    s.load(&base()).unwrap().map(<[u8]>::to_vec)
+}
+
+#[test]
+fn a_power_cut_at_every_flash_operation_leaves_the_old_block_or_the_new() {
+    let saves = 24;
+    let mut flash = Flash::new();
+    let mut cuts = 0;
+    for k in 1..=saves {
+        let old = if k == 1 { None } else { Some(block(k - 1)) };
+        let new = block(k);
+        // The operations this save takes, uncut.
+        let mut whole = flash.clone();
+        whole.ops = 0;
+        let mut s = Store::new(whole, 0..REGION).unwrap();
+        s.save(&new, &base()).unwrap();
+        let needed = s.into_flash().ops;
+        assert!(needed >= 2, "save {k}: {needed} operations");
+        for n in 0..needed {
+            let mut cut = flash.clone();
+            cut.budget = Some(n + 1);
+            let mut s = Store::new(cut, 0..REGION).unwrap();
+            let r = s.save(&new, &base());
+            assert!(
+                r.is_err(),
+                "save {k} cut at operation {}: reported saved",
+                n + 1
+            );
+            let after = s.into_flash();
+            let got = boot(after.clone());
+            assert!(
+                got == old || got.as_ref() == Some(&new),
+                "save {k} cut at operation {} of {needed}: boot found {:?}, expected the block of save {} or {k}",
+                n + 1,
+                got.as_ref().map(|b| b.len()),
+                k - 1
+            );
+            if k > 1 {
+                assert!(got.is_some(), "save {k} cut at {}: nothing", n + 1);
+            }
+            // The next save after the cut works, and is what boots.
+            let mut again = after;
+            again.budget = None;
+            let mut s = Store::new(again, 0..REGION).unwrap();
+            s.save(&new, &base()).unwrap();
+            assert_eq!(boot(s.into_flash()), Some(new.clone()));
+            cuts += 1;
+        }
+        let mut s = Store::new(flash, 0..REGION).unwrap();
+        s.save(&new, &base()).unwrap();
+        flash = s.into_flash();
+        assert_eq!(boot(flash.clone()), Some(new));
+    }
+    // The run went round the pages: more erases than pages (a page move,
+    // where a cut hurts most, was cut at each of its operations).
+    assert!(flash.erases > 4, "{} erases", flash.erases);
+    assert!(cuts > 3 * saves, "{cuts} cuts");
+}
+
+/// A block the parameter checks refuse never reaches the flash.
+#[test]
+fn a_refused_block_is_not_saved() {
+    let mut s = Store::new(Flash::new(), 0..REGION).unwrap();
+    s.save(&block(1), &base()).unwrap();
+    let mut bad = block(2);
+    bad[20] ^= 1;
+    assert!(matches!(s.save(&bad, &base()), Err(StoreError::Block(_))));
+    assert_eq!(s.load(&base()).unwrap(), Some(&block(1)[..]));
+}
+
+/// One erase page is not a store: the map needs two.
+#[test]
+fn a_region_of_one_page_is_refused() {
+    assert!(matches!(
+        Store::new(Flash::new(), 0..256).err(),
+        Some(StoreError::Config)
+    ));
+}

@@ -1,0 +1,164 @@
+//! `zslide capture`: consecutive loop ticks around a trigger, as CSV in
+//! the user's units, and a plot.
+
+use std::fs;
+use std::io::Write;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use zslide::link::proto::{CaptureInfo, CaptureState, Reply, Request, Sample, Trigger};
+
+use crate::cli::{CaptureArgs, Link};
+use crate::client::unexpected;
+use crate::words::{deg, inch, uin, V_PER_CODE};
+use crate::Result;
+
+/// The capture as CSV: time from the trigger, loop tick, command,
+/// position, error (µin), output (V), φ (deg), X (in).
+pub fn csv(info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> String {
+    let mut t = String::from("t_s,tick,command_uin,position_uin,error_uin,output_v,phi_deg,x_in\n");
+    let first = info
+        .trigger_tick
+        .wrapping_sub(u32::from(info.before_trigger));
+    for (i, s) in samples.iter().enumerate() {
+        let k = i as i64 - i64::from(info.before_trigger);
+        t += &format!(
+            "{:.6},{},{:.4},{:.4},{:.4},{:.6},{:.4},{:.7}\n",
+            k as f64 / f64::from(loop_hz.max(1)),
+            first.wrapping_add(i as u32),
+            uin(s.command),
+            uin(s.position),
+            uin(s.error),
+            f64::from(s.output) * V_PER_CODE,
+            deg(s.phi),
+            inch(s.x_bits)
+        );
+    }
+    t
+}
+
+/// The capture as FILE.svg and FILE.png: command, position, error in µin.
+pub fn plot(stem: &Path, info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> Result<()> {
+    use host_sim::plot::{write_images, Series};
+    let t = |i: usize| (i as f64 - f64::from(info.before_trigger)) * 1e3 / f64::from(loop_hz);
+    let series = |label: &str, f: fn(&Sample) -> i32| Series {
+        label: label.into(),
+        points: samples
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (t(i), uin(f(s))))
+            .collect(),
+    };
+    let dir = stem
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = stem
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or("--plot needs a file name")?;
+    write_images(
+        dir,
+        name,
+        &format!(
+            "capture, trigger {} at t = 0",
+            crate::words::trigger(info.trigger)
+        ),
+        "time from the trigger (ms)",
+        "µin",
+        &[
+            series("command", |s| s.command),
+            series("position", |s| s.position),
+            series("error", |s| s.error),
+        ],
+    )
+    .map_err(|e| format!("{}: plot: {e}", stem.display()))
+}
+
+/// Refuses what the firmware would silently shorten: an immediate trigger
+/// fires on the first recorded tick, so nothing can come before it.
+pub fn check(a: &CaptureArgs) -> Result<()> {
+    if a.trigger == Trigger::Immediate && a.pre > 0 {
+        return Err(format!(
+            "--pre {} with --trigger immediate: an immediate trigger is the first tick recorded, \
+             so there is nothing before it (the capture would hold {} samples, not {}); use \
+             --pre 0, or a fault or ferr:UIN trigger",
+            a.pre,
+            a.samples.saturating_sub(a.pre),
+            a.samples
+        ));
+    }
+    if a.pre >= a.samples {
+        return Err(format!(
+            "--pre {} must be below --samples {} (the trigger tick is recorded too)",
+            a.pre, a.samples
+        ));
+    }
+    Ok(())
+}
+
+pub fn run(link: &mut Link, a: &CaptureArgs, out: &mut dyn Write) -> Result<()> {
+    let mut say = |s: String| crate::cli::say_to(out, &s);
+    check(a)?;
+    // The output is opened before the capture is armed: a bad path is
+    // refused before the machine is asked for anything.
+    let mut file =
+        fs::File::create(&a.csv).map_err(|e| format!("{}: cannot write: {e}", a.csv.display()))?;
+    let c = link.client()?;
+    let hz = c.status()?.loop_hz;
+    match c.call(&Request::CaptureStart {
+        samples: a.samples,
+        pre: a.pre,
+        trigger: a.trigger,
+    })? {
+        Reply::Capture(_) => {}
+        r => return Err(unexpected(&r)),
+    }
+    say(format!(
+        "capture armed: {} samples, {} before the trigger ({}); waiting up to {} s",
+        a.samples,
+        a.pre,
+        crate::words::trigger(a.trigger),
+        a.wait_s
+    ))?;
+    let start = Instant::now();
+    let info = loop {
+        let info = c.capture_info()?;
+        if info.state == CaptureState::Done {
+            break info;
+        }
+        if start.elapsed() > Duration::from_secs(a.wait_s) {
+            return Err(format!(
+                "no trigger within {} s (capture {:?})",
+                a.wait_s, info.state
+            ));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let samples = c.capture_read(info.recorded)?;
+    file.write_all(csv(&info, &samples, hz).as_bytes())
+        .map_err(|e| format!("{}: {e}", a.csv.display()))?;
+    say(format!(
+        "captured {} samples ({} before the trigger at tick {}) -> {}",
+        samples.len(),
+        info.before_trigger,
+        info.trigger_tick,
+        a.csv.display()
+    ))?;
+    if info.before_trigger < a.pre {
+        say(format!(
+            "note: {} ticks before the trigger were asked, {} were recorded: the trigger came {} \
+             ticks after the capture was armed",
+            a.pre, info.before_trigger, info.before_trigger
+        ))?;
+    }
+    if let Some(stem) = &a.plot {
+        plot(stem, &info, &samples, hz)?;
+        say(format!(
+            "plot -> {}.svg, {}.png",
+            stem.display(),
+            stem.display()
+        ))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,440 @@
+//! `zslide`'s command line and what each command does. The commands that
+//! talk to a machine open the link only when they run, so `table` and
+//! offline `params` commands need no machine.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use zslide::link::proto::{Reply, Request, Trigger};
+use zslide::params;
+
+use crate::client::{unexpected, Client, DEFAULT_ADDR};
+use crate::regions::{self, NUCLEO, QEMU};
+use crate::{capture, words, Result};
+
+#[derive(clap::Parser, Debug)]
+#[command(
+    name = "zslide",
+    version,
+    about = "Commission and run a Z-slide machine: coefficient tables, servo parameters, the \
+             firmware's link (status, faults, arm, disarm, clear), captures and traces",
+    after_help = "The link is reached with --connect (or ZSLIDE_CONNECT): tcp:HOST:PORT (an RTT \
+                  bridge to a NUCLEO, or `host-sim serve`), unix:PATH (`cargo xtask qemu-link`, \
+                  `host-sim serve --listen unix:PATH`), or probe:[SELECTOR] when built with \
+                  `--features probe`."
+)]
+pub struct Cli {
+    /// Where the firmware's link is: tcp:HOST:PORT, unix:PATH or
+    /// probe:[SELECTOR].
+    #[arg(long, global = true, value_name = "ADDR", env = "ZSLIDE_CONNECT", default_value = DEFAULT_ADDR)]
+    pub connect: String,
+    /// How long to wait for each reply, ms.
+    #[arg(long, global = true, value_name = "MS", default_value_t = 3000)]
+    pub timeout_ms: u64,
+    #[command(subcommand)]
+    pub cmd: Cmd,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum Cmd {
+    /// Coefficient tables: build one from a part's configuration, check a
+    /// file as the firmware will, write it to the board's table region.
+    Table {
+        #[command(subcommand)]
+        cmd: TableCmd,
+    },
+    /// Servo parameters: read and set them on the machine, load a block
+    /// file into it, write block files, write a block to the board's
+    /// parameter region.
+    Params {
+        #[command(subcommand)]
+        cmd: ParamsCmd,
+    },
+    /// The loop's state, fault log, arming and clearing.
+    Link {
+        #[command(subcommand)]
+        cmd: LinkCmd,
+    },
+    /// Capture consecutive loop ticks (command, position, error, output,
+    /// φ, X) around a trigger, as CSV (and a plot).
+    Capture(CaptureArgs),
+    /// A live scope in the terminal: chosen loop signals, trigger, time
+    /// base; `s` writes the frame as CSV and PNG.
+    Scope(crate::scope::ScopeArgs),
+    /// A board's decoded defmt log with trace events (`--features trace`)
+    /// as a VCD with the simulator's signal names.
+    Trace2vcd(host_sim::cmd::trace2vcd::Args),
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum TableCmd {
+    /// Generate a table (`host-sim coeffs`'s generator): `--config
+    /// PART.toml --out PART.zsct`.
+    Build(host_sim::cmd::coeffs::Args),
+    /// Check a table file as the firmware checks it (parser, CRC, sign
+    /// check, region size) and print its identity.
+    Check { file: PathBuf },
+    /// Check a table file, then write it to the NUCLEO's table region.
+    Flash(FlashArgs),
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum ParamsCmd {
+    /// Every servo parameter on the machine with its value, unit and limits.
+    Show,
+    /// One servo parameter's value on the machine.
+    Get { name: String },
+    /// Set a servo parameter on the machine (only while disarmed; in force
+    /// at once, lost at power-off unless saved).
+    Set {
+        name: String,
+        #[arg(allow_hyphen_values = true)]
+        value: f64,
+    },
+    /// Set every parameter of a block file on the machine (only while
+    /// disarmed).
+    Load { file: PathBuf },
+    /// Check a block file as the firmware checks it and list its entries.
+    Check { file: PathBuf },
+    /// Write a parameter block file.
+    Block {
+        /// A parameter and its value (`zslide params show` lists them);
+        /// repeat for several.
+        #[arg(
+            long = "set",
+            value_name = "NAME=VALUE",
+            required = true,
+            allow_hyphen_values = true
+        )]
+        set: Vec<String>,
+        /// The block file to write.
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+    },
+    /// Check a block file, then write it to the NUCLEO's parameter region.
+    Flash(FlashArgs),
+}
+
+#[derive(clap::Subcommand, Debug, Clone)]
+pub enum LinkCmd {
+    /// Mode, phase, fault, X, φ, speed, command, table identity, counters.
+    Status,
+    /// The fault log, oldest first, with times and reasons.
+    Faults,
+    /// Arm: sign check, then bumpless engagement.
+    Arm,
+    /// Disarm: ramp to null, amplifier off.
+    Disarm,
+    /// Clear the latched fault (refused while its cause is present).
+    Clear,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct FlashArgs {
+    /// The file to write.
+    pub file: PathBuf,
+    /// Print what would be written, and how, instead of writing.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// The probe (`VID:PID[:SERIAL]`) when several are connected.
+    #[arg(long, value_name = "SEL")]
+    pub probe: Option<String>,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct CaptureArgs {
+    /// Loop ticks to record.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub samples: u16,
+    /// Of them, before the trigger (not with `--trigger immediate`).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub pre: u16,
+    /// `immediate`, `fault`, or `ferr:UIN` (|command − position| ≥ UIN µin).
+    #[arg(long, value_name = "T", value_parser = parse_trigger)]
+    pub trigger: Trigger,
+    /// The CSV file to write.
+    #[arg(long, value_name = "FILE")]
+    pub csv: PathBuf,
+    /// Also plot it: FILE.svg and FILE.png.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    /// Seconds to wait for the trigger.
+    #[arg(long, value_name = "S", default_value_t = 30)]
+    pub wait_s: u64,
+}
+
+pub fn parse_trigger(s: &str) -> std::result::Result<Trigger, String> {
+    match s {
+        "immediate" => Ok(Trigger::Immediate),
+        "fault" => Ok(Trigger::Fault),
+        _ => {
+            let uin = s
+                .strip_prefix("ferr:")
+                .ok_or_else(|| format!("{s:?}: expected immediate, fault or ferr:UIN"))?;
+            let v: f64 = uin
+                .parse()
+                .map_err(|_| format!("{uin:?} is not a number of µin"))?;
+            if !(v > 0.0 && v <= 10_000.0) {
+                return Err(format!("ferr:{v}: the level must be in (0, 10000] µin"));
+            }
+            Ok(Trigger::FollowingError {
+                level: (v * words::CODES_PER_UIN).round().max(1.0) as u32,
+            })
+        }
+    }
+}
+
+/// The link, opened on first use.
+pub struct Link {
+    addr: String,
+    timeout: Duration,
+    client: Option<Client>,
+}
+
+impl Link {
+    pub fn new(addr: &str, timeout: Duration) -> Self {
+        Self {
+            addr: addr.into(),
+            timeout,
+            client: None,
+        }
+    }
+
+    /// An open connection (tests drive a session they opened).
+    pub fn from_client(c: Client) -> Self {
+        Self {
+            addr: String::new(),
+            timeout: Duration::ZERO,
+            client: Some(c),
+        }
+    }
+
+    pub fn client(&mut self) -> Result<&mut Client> {
+        match &mut self.client {
+            Some(c) => Ok(c),
+            slot => Ok(slot.insert(Client::connect(&self.addr, self.timeout)?)),
+        }
+    }
+}
+
+fn param(name: &str) -> Result<&'static params::Param> {
+    params::by_name(name).ok_or_else(|| {
+        let names: Vec<&str> = params::PARAMS.iter().map(|p| p.name).collect();
+        format!(
+            "no servo parameter {name:?}; the parameters are: {}",
+            names.join(", ")
+        )
+    })
+}
+
+fn set(c: &mut Client, id: u16, value: f64) -> Result<f64> {
+    match c.call(&Request::Set { id, value })? {
+        Reply::Param { value, .. } => Ok(value),
+        r => Err(unexpected(&r)),
+    }
+}
+
+fn get(c: &mut Client, id: u16) -> Result<f64> {
+    match c.call(&Request::Get { id })? {
+        Reply::Param { value, .. } => Ok(value),
+        r => Err(unexpected(&r)),
+    }
+}
+
+/// What `say` returns when the reader of the output went away (`zslide
+/// params show | head -3`): not an error of the command.
+pub const CLOSED_OUTPUT: &str = "the output was closed";
+
+/// Writes one line of a command's report.
+pub fn say_to(out: &mut dyn Write, s: &str) -> Result<()> {
+    writeln!(out, "{}", s.trim_end()).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            CLOSED_OUTPUT.to_string()
+        } else {
+            format!("writing the report: {e}")
+        }
+    })
+}
+
+/// Runs one command; its report goes to `out`.
+pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
+    let mut say = |s: String| say_to(out, &s);
+    match cmd {
+        Cmd::Table { cmd } => match cmd {
+            TableCmd::Build(a) => {
+                host_sim::cmd::coeffs::run(a.clone()).map_err(|e| format!("{e:#}"))
+            }
+            TableCmd::Check { file } => {
+                let id = regions::check_table_file(file, &NUCLEO)?;
+                say(format!("{}: {id}", file.display()))?;
+                say(format!(
+                    "fits the NUCLEO's table region ({} KiB){}",
+                    NUCLEO.table_len / 1024,
+                    if regions::check_table_file(file, &QEMU).is_ok() {
+                        " and the QEMU image's"
+                    } else {
+                        ""
+                    }
+                ))
+            }
+            TableCmd::Flash(a) => {
+                let id = regions::check_table_file(&a.file, &NUCLEO)?;
+                say(format!("{}: {id}", a.file.display()))?;
+                say(format!(
+                    "table region of the NUCLEO-H743ZI2: {:#010x} ({} KiB)",
+                    NUCLEO.table_addr,
+                    NUCLEO.table_len / 1024
+                ))?;
+                regions::download(&a.file, NUCLEO.table_addr, a.probe.as_deref(), a.dry_run)
+            }
+        },
+        Cmd::Params { cmd } => match cmd {
+            ParamsCmd::Show => {
+                let c = link.client()?;
+                for p in params::PARAMS.iter() {
+                    let v = get(c, p.id)?;
+                    say(format!(
+                        "{:<26} = {:>12} {:<18} limits {} .. {}",
+                        p.name,
+                        words::value(v),
+                        p.unit,
+                        words::value(p.min),
+                        words::value(p.max)
+                    ))?;
+                }
+                Ok(())
+            }
+            ParamsCmd::Get { name } => {
+                let p = param(name)?;
+                let v = get(link.client()?, p.id)?;
+                say(format!("{} = {} {}", p.name, words::value(v), p.unit))
+            }
+            ParamsCmd::Set { name, value } => {
+                let p = param(name)?;
+                let v = set(link.client()?, p.id, *value)?;
+                say(format!(
+                    "{} = {} {} (in force)",
+                    p.name,
+                    words::value(v),
+                    p.unit
+                ))
+            }
+            ParamsCmd::Load { file } => {
+                let (src, entries) = regions::check_params_file(file, &NUCLEO)?;
+                say(format!("{}: {src}", file.display()))?;
+                let c = link.client()?;
+                for (k, &(id, value)) in entries.iter().enumerate() {
+                    let p = params::by_id(id).ok_or("checked block with an unknown id")?;
+                    match set(c, id, value) {
+                        Ok(v) => say(format!(
+                            "{} = {} {} (in force)",
+                            p.name,
+                            words::value(v),
+                            p.unit
+                        ))?,
+                        Err(e) => {
+                            let rest: Vec<&str> = entries[k..]
+                                .iter()
+                                .filter_map(|&(id, _)| params::by_id(id).map(|p| p.name))
+                                .collect();
+                            return Err(format!(
+                                "{}: {} refused: {e}; not set: {} ({k} of {} set before it)",
+                                file.display(),
+                                p.name,
+                                rest.join(", "),
+                                entries.len()
+                            ));
+                        }
+                    }
+                }
+                Ok(())
+            }
+            ParamsCmd::Check { file } => {
+                let (src, entries) = regions::check_params_file(file, &NUCLEO)?;
+                say(format!("{}: {src}", file.display()))?;
+                for (id, v) in entries {
+                    if let Some(p) = params::by_id(id) {
+                        say(format!("  {} = {} {}", p.name, words::value(v), p.unit))?;
+                    }
+                }
+                Ok(())
+            }
+            ParamsCmd::Block { set, out: file } => {
+                let entries = set
+                    .iter()
+                    .map(|s| regions::parse_setting(s))
+                    .collect::<Result<Vec<_>>>()?;
+                let bytes = regions::param_block(&entries)?;
+                std::fs::write(file, &bytes)
+                    .map_err(|e| format!("{}: cannot write: {e}", file.display()))?;
+                say(format!(
+                    "{}: {} bytes, {} parameters",
+                    file.display(),
+                    bytes.len(),
+                    entries.len()
+                ))
+            }
+            ParamsCmd::Flash(a) => {
+                let (src, _) = regions::check_params_file(&a.file, &NUCLEO)?;
+                say(format!("{}: {src}", a.file.display()))?;
+                say(format!(
+                    "parameter region of the NUCLEO-H743ZI2: {:#010x} ({} KiB)",
+                    NUCLEO.params_addr,
+                    NUCLEO.params_len / 1024
+                ))?;
+                regions::download(&a.file, NUCLEO.params_addr, a.probe.as_deref(), a.dry_run)
+            }
+        },
+        Cmd::Link { cmd } => {
+            let c = link.client()?;
+            match cmd {
+                LinkCmd::Status => say(words::status_text(&c.status()?)),
+                LinkCmd::Faults => {
+                    let hz = c.status()?.loop_hz;
+                    let (total, log) = c.fault_log()?;
+                    say(format!(
+                        "fault log: {} records kept of {total} logged",
+                        log.len()
+                    ))?;
+                    for r in &log {
+                        say(words::record_text(r, hz))?;
+                    }
+                    Ok(())
+                }
+                LinkCmd::Arm | LinkCmd::Disarm => {
+                    let req = if matches!(cmd, LinkCmd::Arm) {
+                        Request::Arm
+                    } else {
+                        Request::Disarm
+                    };
+                    match c.call(&req)? {
+                        Reply::Phase(p) => say(format!("loop {}", words::phase(p))),
+                        r => Err(unexpected(&r)),
+                    }
+                }
+                LinkCmd::Clear => match c.call(&Request::Clear)? {
+                    Reply::Cleared(f) => say(format!("cleared: {f}")),
+                    r => Err(unexpected(&r)),
+                },
+            }
+        }
+        Cmd::Capture(a) => capture::run(link, a, out),
+        Cmd::Scope(a) => {
+            let summary = crate::scope::run(link, a)?;
+            say(format!("scope: {summary}"))
+        }
+        Cmd::Trace2vcd(a) => host_sim::cmd::trace2vcd::run(a.clone()).map_err(|e| format!("{e:#}")),
+    }
+}
+
+/// Parses `line` as the words after `zslide` and runs it on `link`: the
+/// end-to-end tests drive the tool exactly as a user types it.
+pub fn run_line(link: &mut Link, line: &str) -> Result<String> {
+    use clap::Parser;
+    let cli = Cli::try_parse_from(std::iter::once("zslide").chain(line.split_whitespace()))
+        .map_err(|e| format!("`zslide {line}`: {e}"))?;
+    let mut out = Vec::new();
+    execute(&cli.cmd, link, &mut out).map_err(|e| format!("`zslide {line}`: {e}"))?;
+    Ok(String::from_utf8_lossy(&out).into_owned())
+}

@@ -1,0 +1,15 @@
+//! `zslide`, the machine's host tool: what a user does with a Z-slide
+//! machine, on a board (probe or RTT bridge), the QEMU image, or a
+//! simulated machine (`host-sim serve`). `xtask` keeps only the project's
+//! own automation and drives this crate in its tests.
+
+pub mod capture;
+pub mod cli;
+pub mod client;
+#[cfg(feature = "probe")]
+pub mod probe;
+pub mod regions;
+pub mod scope;
+pub mod words;
+
+pub type Result<T> = std::result::Result<T, String>;

@@ -1,0 +1,212 @@
+//! The flash regions a machinist writes without rebuilding the firmware:
+//! the coefficient table (`ZSCT`) and the servo parameter block (`ZSPB`)
+//! of both boards' `memory.x`. Every file is checked with the firmware's
+//! own code (parser, sign check, parameter limits) before it is written,
+//! and every refusal names the file.
+
+use std::fs;
+use std::path::Path;
+use std::process::Command;
+
+use zslide::params::{self, ParamSource};
+use zslide::servo::ServoDesign;
+use zslide::table::TableIdentity;
+
+use crate::Result;
+
+/// One board's regions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Regions {
+    pub table_addr: u32,
+    pub table_len: u32,
+    pub params_addr: u32,
+    pub params_len: u32,
+}
+
+/// NUCLEO-H743ZI2 (`memory.x` at the root): bank 2 sectors 7 and 6.
+pub const NUCLEO: Regions = Regions {
+    table_addr: 0x081E_0000,
+    table_len: 128 * 1024,
+    params_addr: 0x081C_0000,
+    params_len: 128 * 1024,
+};
+/// probe-rs's name for the NUCLEO's chip.
+pub const NUCLEO_CHIP: &str = "STM32H743ZITx";
+
+/// QEMU mps2-an386 (`boards/qemu/memory.x`).
+pub const QEMU: Regions = Regions {
+    table_addr: 0x0030_0000,
+    table_len: 512 * 1024,
+    params_addr: 0x0038_0000,
+    params_len: 4 * 1024,
+};
+
+/// The loop rate both boards run (their parameter blocks are checked at it).
+pub const LOOP_HZ: u32 = 20_000;
+
+fn read(file: &Path) -> Result<Vec<u8>> {
+    fs::read(file).map_err(|e| format!("{}: cannot read: {e}", file.display()))
+}
+
+/// What a file that is the other kind is, in words (a `.zspb` handed to
+/// the table command is not "cut short").
+fn other_kind(bytes: &[u8], want: [u8; 4]) -> Option<&'static str> {
+    let magic = bytes.get(0..4)?;
+    if magic == want {
+        None
+    } else if magic == params::MAGIC {
+        Some("this is a servo parameter block (ZSPB), not a coefficient table: write it with `zslide params flash`")
+    } else if magic == zslide::table::MAGIC {
+        Some("this is a coefficient table (ZSCT), not a servo parameter block: write it with `zslide table flash`")
+    } else {
+        None
+    }
+}
+
+/// The table in `file`, checked as the firmware checks it, and that it
+/// fits `regions`.
+pub fn check_table_file(file: &Path, regions: &Regions) -> Result<TableIdentity> {
+    let bytes = read(file)?;
+    if let Some(why) = other_kind(&bytes, zslide::table::MAGIC) {
+        return Err(format!("{}: table refused: {why}", file.display()));
+    }
+    let table = zslide::firmware::config::check_table(&bytes)
+        .map_err(|e| format!("{}: table refused: {e}", file.display()))?;
+    let id = table.identity();
+    if id.len > regions.table_len {
+        return Err(format!(
+            "{}: table refused: {} bytes do not fit the {} KiB table region",
+            file.display(),
+            id.len,
+            regions.table_len / 1024
+        ));
+    }
+    Ok(id)
+}
+
+/// The parameter block in `file`, checked as the firmware checks it:
+/// where it comes from, and its entries.
+pub fn check_params_file(file: &Path, regions: &Regions) -> Result<(ParamSource, Vec<(u16, f64)>)> {
+    let bytes = read(file)?;
+    if let Some(why) = other_kind(&bytes, params::MAGIC) {
+        return Err(format!(
+            "{}: parameter block refused: {why}",
+            file.display()
+        ));
+    }
+    if bytes.len() as u32 > regions.params_len {
+        return Err(format!(
+            "{}: parameter block refused: {} bytes do not fit the {} KiB parameter region",
+            file.display(),
+            bytes.len(),
+            regions.params_len / 1024
+        ));
+    }
+    match params::load_region(&bytes, &ServoDesign::brief(LOOP_HZ)) {
+        Ok((_, _, ParamSource::BuiltIn)) => Err(format!(
+            "{}: parameter block refused: the file is erased (all 0xFF or zero), not a block",
+            file.display()
+        )),
+        Ok((_, _, src)) => Ok((src, block_entries(&bytes))),
+        Err(e) => Err(format!("{}: parameter block refused: {e}", file.display())),
+    }
+}
+
+/// The (id, value) entries of a block `params::load_region` accepted.
+fn block_entries(bytes: &[u8]) -> Vec<(u16, f64)> {
+    let n = usize::from(u16::from_le_bytes([bytes[6], bytes[7]]));
+    bytes[params::HEADER_LEN..params::HEADER_LEN + n * params::ENTRY_LEN]
+        .chunks_exact(params::ENTRY_LEN)
+        .filter_map(|e| {
+            let id = u16::from_le_bytes([e[0], e[1]]);
+            let v = f64::from_le_bytes(e[4..12].try_into().ok()?);
+            params::by_id(id).map(|_| (id, v))
+        })
+        .collect()
+}
+
+/// `NAME=VALUE` → (parameter id, value), or why not.
+pub fn parse_setting(s: &str) -> Result<(u16, f64)> {
+    let (name, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("{s:?}: expected NAME=VALUE"))?;
+    let p = params::by_name(name.trim()).ok_or_else(|| {
+        format!("{name:?}: no such servo parameter (`zslide params show` lists them)")
+    })?;
+    let v: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?}: {value:?} is not a number"))?;
+    Ok((p.id, v))
+}
+
+/// A parameter block of `entries`, checked against the brief's design at
+/// the boards' loop rate.
+pub fn param_block(entries: &[(u16, f64)]) -> Result<Vec<u8>> {
+    let mut out = vec![0u8; params::HEADER_LEN + entries.len() * params::ENTRY_LEN];
+    let n = params::encode_block(entries, &ServoDesign::brief(LOOP_HZ), &mut out)
+        .map_err(|e| format!("parameter block refused: {e}"))?;
+    out.truncate(n);
+    Ok(out)
+}
+
+/// The `probe-rs` command-line tool's command that writes `file` at
+/// `addr` on the NUCLEO (the build without the `probe` feature).
+pub fn probe_rs_download(file: &Path, addr: u32, probe: Option<&str>) -> Command {
+    let mut cmd = Command::new("probe-rs");
+    cmd.args(["download", "--chip", NUCLEO_CHIP]);
+    if let Some(p) = probe {
+        cmd.args(["--probe", p]);
+    }
+    cmd.args(["--binary-format", "bin", "--base-address"])
+        .arg(format!("{addr:#010x}"))
+        .arg(file);
+    cmd
+}
+
+pub fn show(cmd: &Command) -> String {
+    std::iter::once(cmd.get_program())
+        .chain(cmd.get_args())
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Writes `file` (already checked) at `addr` on the NUCLEO: with the
+/// probe-rs library when built with `probe`, else with its command-line
+/// tool. `dry_run` prints what would be done.
+pub fn download(file: &Path, addr: u32, probe: Option<&str>, dry_run: bool) -> Result<()> {
+    #[cfg(feature = "probe")]
+    {
+        if dry_run {
+            println!(
+                "probe-rs library: attach {NUCLEO_CHIP}{}, write {} at {addr:#010x}",
+                probe.map(|p| format!(" (probe {p})")).unwrap_or_default(),
+                file.display()
+            );
+            return Ok(());
+        }
+        crate::probe::flash(file, addr, probe)
+    }
+    #[cfg(not(feature = "probe"))]
+    {
+        let mut cmd = probe_rs_download(file, addr, probe);
+        if dry_run {
+            println!("{}", show(&cmd));
+            return Ok(());
+        }
+        eprintln!("==> {}", show(&cmd));
+        let status = cmd.status().map_err(|e| {
+            format!(
+                "cannot start probe-rs ({e}): install it with `cargo install probe-rs-tools \
+                 --locked`, or build zslide with the probe-rs library (`--features probe`)"
+            )
+        })?;
+        if status.success() {
+            eprintln!("written; reset the board (the firmware reads the region at boot)");
+            Ok(())
+        } else {
+            Err(format!("probe-rs download failed ({status})"))
+        }
+    }
+}

@@ -1,0 +1,180 @@
+//! The regions `zslide` writes, and the checks of a file before it is
+//! written (moved from `cargo xtask flash-table/flash-params/param-block`).
+
+use std::fs;
+use std::path::PathBuf;
+
+use zslide::params::ParamSource;
+use zslide::table::CoeffTable;
+use zslide_host::regions::*;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+fn scratch() -> PathBuf {
+    let d = root().join("target/zslide-host-test");
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn region_of(memory_x: &str, name: &str) -> (u32, u32) {
+    let line = memory_x
+        .lines()
+        .find(|l| l.trim_start().starts_with(name) && l.contains("ORIGIN"))
+        .unwrap_or_else(|| panic!("{name} not in memory.x"));
+    let origin = line
+        .split("ORIGIN = ")
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap();
+    let len = line.split("LENGTH = ").nth(1).unwrap().trim();
+    let origin = u32::from_str_radix(origin.trim().trim_start_matches("0x"), 16).unwrap();
+    let len = match len.strip_suffix('K') {
+        Some(k) => k.parse::<u32>().unwrap() * 1024,
+        None => len.trim_end_matches('M').parse::<u32>().unwrap() * 1024 * 1024,
+    };
+    (origin, len)
+}
+
+/// The addresses this tool writes are the linker's regions.
+#[test]
+fn the_regions_are_those_of_both_memory_x() {
+    for (file, r) in [("memory.x", NUCLEO), ("boards/qemu/memory.x", QEMU)] {
+        let text = fs::read_to_string(root().join(file)).unwrap();
+        assert_eq!(
+            region_of(&text, "ZSCT"),
+            (r.table_addr, r.table_len),
+            "{file}"
+        );
+        assert_eq!(
+            region_of(&text, "ZSPB"),
+            (r.params_addr, r.params_len),
+            "{file}"
+        );
+        let flash = region_of(&text, "FLASH");
+        assert!(
+            flash.0 + flash.1 <= r.table_addr.min(r.params_addr),
+            "{file}"
+        );
+    }
+    // Each NUCLEO region is one whole 128 KiB sector of bank 2.
+    for a in [NUCLEO.table_addr, NUCLEO.params_addr] {
+        assert_eq!((a - 0x0810_0000) % (128 * 1024), 0);
+    }
+}
+
+#[test]
+fn table_files_are_checked_and_the_probe_rs_command_built() {
+    let good = root().join("tables/default.zsct");
+    let id = check_table_file(&good, &NUCLEO).unwrap();
+    assert_eq!(id.len, 5204);
+    let cmd = probe_rs_download(&good, NUCLEO.table_addr, None);
+    assert_eq!(
+        show(&cmd),
+        format!(
+            "probe-rs download --chip STM32H743ZITx --binary-format bin --base-address 0x081e0000 {}",
+            good.display()
+        )
+    );
+    let with_probe = probe_rs_download(&good, NUCLEO.params_addr, Some("0483:374e"));
+    assert!(show(&with_probe)
+        .contains("--probe 0483:374e --binary-format bin --base-address 0x081c0000"));
+
+    let dir = scratch();
+    let e = check_table_file(&dir.join("absent.zsct"), &NUCLEO).unwrap_err();
+    assert!(e.contains("absent.zsct: cannot read"), "{e}");
+    let mut bytes = fs::read(&good).unwrap();
+    bytes[10] = 33;
+    let p = dir.join("bad-header.zsct");
+    fs::write(&p, &bytes).unwrap();
+    let e = check_table_file(&p, &NUCLEO).unwrap_err();
+    assert!(
+        e.contains("bad-header.zsct: table refused: the header is corrupt"),
+        "{e}"
+    );
+    // A valid image whose command has the wrong sign: the sign check.
+    let t = CoeffTable::parse(zslide::DEFAULT_TABLE).unwrap();
+    let mut h = *t.header();
+    let payload: Vec<i32> = (0..t.node_count())
+        .flat_map(|n| (0..t.terms()).map(move |c| (n, c)))
+        .map(|(n, c)| -t.coeff_raw(n, c))
+        .collect();
+    let mut img = vec![0u8; h.image_len()];
+    h.encode(&payload, &mut img).unwrap();
+    let p = dir.join("negated.zsct");
+    fs::write(&p, &img).unwrap();
+    let e = check_table_file(&p, &NUCLEO).unwrap_err();
+    assert!(
+        e.contains("negated.zsct: table refused: the command is positive somewhere"),
+        "{e}"
+    );
+    // Too large for the region.
+    h.node_count = 8192;
+    h.dx_raw = 1 << 14; // 0.001 in: 8.19 in of grid
+    let big: Vec<i32> = vec![0; 8192 * usize::from(h.terms)];
+    let mut img = vec![0u8; h.image_len()];
+    h.encode(&big, &mut img).unwrap();
+    let p = dir.join("big.zsct");
+    fs::write(&p, &img).unwrap();
+    let e = check_table_file(&p, &NUCLEO).unwrap_err();
+    assert!(e.contains("do not fit the 128 KiB table region"), "{e}");
+}
+
+/// A parameter block handed to the table command (and the reverse) is
+/// named for what it is, not "cut short".
+#[test]
+fn a_file_of_the_other_kind_is_named_for_what_it_is() {
+    let dir = scratch();
+    let block = dir.join("kind.zspb");
+    fs::write(&block, param_block(&[(1, 40.0)]).unwrap()).unwrap();
+    let e = check_table_file(&block, &NUCLEO).unwrap_err();
+    assert!(
+        e.contains("kind.zspb: table refused: this is a servo parameter block (ZSPB), not a coefficient table: write it with `zslide params flash`"),
+        "{e}"
+    );
+    let table = root().join("tables/default.zsct");
+    let e = check_params_file(&table, &NUCLEO).unwrap_err();
+    assert!(
+        e.contains("default.zsct: parameter block refused: this is a coefficient table (ZSCT)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn param_blocks_are_written_checked_and_refused_in_words() {
+    let dir = scratch();
+    let out = dir.join("p.zspb");
+    let entries: Vec<(u16, f64)> = ["following_error_in=0.002", "hum_notch_q = 0"]
+        .iter()
+        .map(|s| parse_setting(s).unwrap())
+        .collect();
+    fs::write(&out, param_block(&entries).unwrap()).unwrap();
+    let (src, got) = check_params_file(&out, &NUCLEO).unwrap();
+    assert!(matches!(src, ParamSource::Block { entries: 2, .. }));
+    assert_eq!(got, entries);
+    let e = param_block(&[parse_setting("current_limit_a=9").unwrap()]).unwrap_err();
+    assert!(
+        e.contains("current_limit_a = 9 A is outside its limits 0.1 .. 8 A"),
+        "{e}"
+    );
+    assert!(parse_setting("bandwith_hz=3")
+        .unwrap_err()
+        .contains("no such servo parameter"));
+    assert!(parse_setting("bandwidth_hz")
+        .unwrap_err()
+        .contains("NAME=VALUE"));
+    let mut bytes = fs::read(&out).unwrap();
+    bytes[20] ^= 1;
+    fs::write(dir.join("r.zspb"), &bytes).unwrap();
+    let e = check_params_file(&dir.join("r.zspb"), &NUCLEO).unwrap_err();
+    assert!(
+        e.contains("r.zspb: parameter block refused: the parameter block is corrupt"),
+        "{e}"
+    );
+}
