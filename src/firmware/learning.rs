@@ -53,15 +53,15 @@ impl LearnState {
     /// Never inlined, so `cargo xtask isr-cost` can find and count it.
     #[inline(never)]
     pub fn run(&mut self, sh: &Shared) {
-        let lost = sh.learn.lost();
+        let lost = sh.learn_queue().lost();
         if lost != self.lost_seen {
             // The tick dropped samples while this handler could not run: the
             // ring holds what came after the gap.
             self.lost_seen = lost;
             self.learner.lost_samples();
         }
-        while let Some(s) = sh.learn.pop() {
-            self.learner.apply(&s, &sh.learned);
+        while let Some(s) = sh.learn_queue().pop() {
+            self.learner.apply(&s, sh.learned());
         }
         // After the samples: the learned correction it expands is the
         // table the next tick would have read itself.
@@ -117,14 +117,15 @@ impl AheadState {
             // newer set complete unless X events come microseconds apart.
             for _ in 0..3 {
                 if sh
-                    .take_coefficients(&mut self.coeff_seen, &mut self.coeffs)
+                    .coefficients()
+                    .take(&mut self.coeff_seen, &mut self.coeffs)
                     .is_ok()
                 {
                     break;
                 }
             }
         }
-        let Some((tick, phi, dphi, alpha_q4)) = sh.ahead.request() else {
+        let Some((tick, phi, dphi, alpha_q4)) = sh.ahead().request() else {
             return;
         };
         if tick == self.request_seen {
@@ -144,9 +145,9 @@ impl AheadState {
             )),
             _ => None,
         };
-        let correction = sh.learned.ahead(at, dphi);
+        let correction = sh.learned().ahead(at, dphi);
         self.published = self.published.wrapping_add(1);
-        sh.ahead.publish(
+        sh.ahead().publish(
             self.published,
             &Ahead {
                 tick: tick.wrapping_add(1),

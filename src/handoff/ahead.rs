@@ -29,11 +29,12 @@
 //! arrives (one or two ticks): no jump, the slew profile joins it.
 
 use super::coeffs::NULL_META;
+use super::seqlock::Seqlock;
 use crate::command::expansion::Expansion;
 use crate::servo::fixed::ssat;
 use crate::servo::repetitive::CorrectionAhead;
 use crate::units::SpindleAngle;
-use core::sync::atomic::{fence, Ordering};
+use core::sync::atomic::{AtomicU32, Ordering};
 
 /// Oldest expansion the tick uses, in ticks after the one it was made for.
 pub const MAX_AGE: u32 = 4;
@@ -51,33 +52,30 @@ pub struct Ahead {
     pub correction: CorrectionAhead,
 }
 
-/// Words of one published expansion: sequence, tick, φ₀, Z, p1, p2, the
+/// Words of one published expansion: tick, φ₀, Z, p1, p2, the
 /// acceleration, null flag, and the correction's position, bin slope,
 /// slope, slope change and acceleration. (The X and the generation of the
 /// coefficients it was made from were published too until nothing read
 /// them: two loads a tick.)
-const WORDS: usize = 13;
+const WORDS: usize = 12;
 
 /// The hand-off of [`crate::handoff::Shared`] between the tick (angle
-/// requests in, expansions out) and `crate::firmware::learning::AheadState`: the tick's request is
-/// four words (a torn one only moves φ₀, which the tick checks, or the
-/// acceleration by a tick's change of Δφ or Δ²φ), the expansion two slots
-/// under the coefficients' seqlock rule.
+/// requests in, expansions out) and `crate::firmware::learning::AheadState`:
+/// the tick's request is four words (a torn one only moves φ₀, which the
+/// tick checks, or the acceleration by a tick's change of Δφ or Δ²φ), the
+/// expansion a [`Seqlock`].
 pub(crate) struct AheadHandoff {
     /// [φ, Δφ, Δ²φ (Q4), tick]: the tick's angle, step and smoothed
     /// step's change; tick 0 = none yet.
-    request: [core::sync::atomic::AtomicU32; 4],
-    gen: core::sync::atomic::AtomicU32,
-    slots: [[core::sync::atomic::AtomicU32; WORDS]; 2],
+    request: [AtomicU32; 4],
+    expansion: Seqlock<WORDS>,
 }
 
 impl AheadHandoff {
     pub(crate) const fn new() -> Self {
-        use core::sync::atomic::AtomicU32;
         Self {
             request: [const { AtomicU32::new(0) }; 4],
-            gen: AtomicU32::new(0),
-            slots: [const { [const { AtomicU32::new(0) }; WORDS] }; 2],
+            expansion: Seqlock::new([0; WORDS]),
         }
     }
 
@@ -103,9 +101,7 @@ impl AheadHandoff {
     }
 
     pub(crate) fn publish(&self, g: u32, a: &Ahead) {
-        let slot = &self.slots[(g & 1) as usize];
-        slot[0].store(g, Ordering::Relaxed);
-        fence(Ordering::Release);
+        let slot = self.expansion.begin(g);
         let e = a.expansion.unwrap_or_default();
         let c = &a.correction;
         let words = [
@@ -122,26 +118,26 @@ impl AheadHandoff {
             c.slope2_per_bin_q8 as u32,
             c.accel_q16 as u32,
         ];
-        for (w, v) in slot[1..].iter().zip(words) {
+        for (w, v) in slot.iter().zip(words) {
             w.store(v, Ordering::Relaxed);
         }
-        self.gen.store(g, Ordering::Release);
+        self.expansion.publish(g);
     }
 
     /// The latest expansion (the tick; `None` before the first or when
     /// overwritten while read).
     #[inline(always)]
     pub(crate) fn latest(&self) -> Option<Ahead> {
-        let g = self.gen.load(Ordering::Acquire);
+        let g = self.expansion.latest();
         if g == 0 {
             return None;
         }
-        let slot = &self.slots[(g & 1) as usize];
-        let w: [u32; WORDS - 1] = core::array::from_fn(|k| slot[k + 1].load(Ordering::Relaxed));
-        fence(Ordering::Acquire);
-        if slot[0].load(Ordering::Relaxed) != g {
-            return None;
-        }
+        let w: [u32; WORDS] = self
+            .expansion
+            .read(g, |slot| {
+                core::array::from_fn(|k| slot[k].load(Ordering::Relaxed))
+            })
+            .ok()?;
         let phi = SpindleAngle(w[1]);
         Some(Ahead {
             tick: w[0],

@@ -49,6 +49,7 @@ pub use repetitive::{
     Correction, CorrectionAhead, Freeze, LearnRequests, LearnSample, LearnedTable, Learner,
 };
 
+use crate::codes::CODE_MAX;
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
 use engage::{SignCheck, SignStep};
@@ -56,9 +57,6 @@ use filters::Notch;
 use fixed::{mul_hi, qadd_mul, round_q8, ssat};
 use limits::{CurrentLimit, FollowingError, SlewProfile};
 use observer::{Estimate, Observer};
-
-/// Largest 20-bit code.
-const CODE_MAX: i32 = (1 << 19) - 1;
 
 /// The reference the command path gives the loop.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

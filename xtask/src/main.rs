@@ -796,10 +796,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
 
     step("import cycles between modules (every crate)");
     let modules = cycles::check_crates(&root(), cycles::CRATES)?;
-    for c in &modules.cycles {
-        eprintln!("{c}");
-    }
-    eprintln!("{}", modules.summary());
+    modules.print();
 
     step("host tests: cargo test --workspace");
     let results = host_tests()?;

@@ -347,7 +347,7 @@ pub fn build_stretch(
     )));
     let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
     spec.controller.attach(&mut w, &mut s);
-    w.fw.set_target_code((spec.z_offset_in * run::CODES_PER_IN).round() as i32);
+    w.fw.set_target_code((spec.z_offset_in * zslide::codes::GAUGE_CODES_PER_INCH).round() as i32);
     w.hooks.push(Box::new(cutter.clone()));
     Ok(StretchRig {
         w,

@@ -11,9 +11,6 @@ use crate::fwrig::{Machine, TickHook};
 use crate::plant::Rig;
 use zslide::firmware::Firmware;
 
-/// Gauge codes per inch (2¹⁹ codes = 0.010 in).
-pub const CODES_PER_IN: f64 = (1u32 << 19) as f64 / 0.010;
-
 /// Cutting force that counts as full spindle load (a 0.010 in roughing cut
 /// at the outer edge, 3–4 A on the slide: 10 lbf at 7.25 in).
 const FULL_LOAD_LBF_IN: f64 = 10.0 * 7.25;
