@@ -50,7 +50,7 @@ pub fn noll(j: usize) -> (u32, u32, bool) {
     loop {
         let count = if m == 0 { 1 } else { 2 };
         if j < idx + count {
-            return (n, m, m == 0 || j % 2 == 0);
+            return (n, m, m == 0 || j.is_multiple_of(2));
         }
         idx += count;
         m += 2;
