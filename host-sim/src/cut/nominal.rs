@@ -98,7 +98,8 @@ impl Nominal {
 /// The command the cutter compares the slide with: the default table's
 /// part, or a part of one's own (`super::partcut`).
 pub enum Command {
-    Default(Nominal),
+    /// Boxed: the paraboloid's expansion arrays make it ten times the size.
+    Default(Box<Nominal>),
     Part(super::partcut::PartNominal),
 }
 
@@ -120,7 +121,7 @@ impl Command {
 
 impl From<Nominal> for Command {
     fn from(n: Nominal) -> Self {
-        Self::Default(n)
+        Self::Default(Box::new(n))
     }
 }
 

@@ -238,13 +238,12 @@ fn sinusoidal_grid_harmonics_are_bessel_coefficients() {
             }
         }
         let h = p.section(x).unwrap().harmonics(15);
-        for k in 1..=15 {
+        for (k, bessel) in s_k.iter().enumerate().take(16).skip(1) {
             assert!(h.c[k].abs() < 1e-15, "X={x} C{k} = {}", h.c[k]);
             assert!(
-                (h.s[k] - s_k[k]).abs() < 1e-15,
-                "X={x} S{k}: {} vs Bessel {}",
-                h.s[k],
-                s_k[k]
+                (h.s[k] - bessel).abs() < 1e-15,
+                "X={x} S{k}: {} vs Bessel {bessel}",
+                h.s[k]
             );
         }
     }
@@ -264,6 +263,7 @@ fn zernike_terms_at_known_points_in_both_orderings() {
     assert_eq!(fringe(9), (4, 0, true));
     assert_eq!(fringe(10), (3, 3, true));
     assert_eq!(fringe(16), (6, 0, true));
+    assert_eq!(fringe(36), (10, 0, true));
     assert_eq!(fringe(37), (12, 0, true));
     let rn = 2.0;
     let one = |ord: Ordering, j: usize| {
@@ -395,12 +395,13 @@ fn toric_and_biconic_sections_are_their_circles() {
     let bk = Biconic::new(30.0, -45.0, -0.5, 2.0).unwrap();
     check_gradient(&bk, &PTS, 1e-8);
     // A toric on the axis moves the Z slide twice a revolution, amplitude
-    // X²/4 (1/Rx − 1/Ry) to second order.
+    // X²/4 (1/Rx − 1/Ry) to second order (the next order is X²/R² ≈ 6e-4
+    // of it).
     let p = part(t, 0.0, Compensation::ProfileNormal);
     let h = p.section(1.0).unwrap().harmonics(4);
     let expect = 0.25 * (1.0 / rx - 1.0 / ry);
     assert!(
-        (h.c[2] - expect).abs() < 1e-6 * expect.abs(),
+        (h.c[2] - expect).abs() < 2e-3 * expect.abs(),
         "{} vs {expect}",
         h.c[2]
     );
@@ -580,7 +581,7 @@ mod plan_checks {
 
     #[test]
     fn plan_refuses_a_stroke_beyond_the_slide_range() {
-        // Toric, Rx 20 in × Ry 40 in to 2 in: X²/2·(1/Rx − 1/Ry) = 0.025 in
+        // Toric, Rx 20 in × Ry 40 in to 2 in: X²/2·(1/Rx − 1/Ry) = 0.05 in
         // of Z stroke, against the ±0.0095 in command range.
         let p = plan_of(
             "[surface]\nkind = \"toric\"\nradius_x_in = 20.0\nradius_y_in = 40.0\n\
@@ -593,7 +594,7 @@ mod plan_checks {
             failed(&p)
         );
         let c = p.checks.iter().find(|c| c.name == "z_stroke").unwrap();
-        assert!((c.value - 0.025).abs() < 0.001, "{}", c.value);
+        assert!((c.value - 0.05).abs() < 0.002, "{}", c.value);
         assert!(c
             .reason
             .as_ref()
@@ -609,7 +610,7 @@ mod plan_checks {
         // with a stroke of only 0.0005 in.
         let p = plan_of(
             "[surface]\nkind = \"xy-polynomial\"\nterms = [{ x_power = 1, y_power = 1, coefficient = 0.2 }]\n\
-             [tool]\nnose_radius_in = 0.0\nclearance_deg = 0.5\n[table]\nx_max_in = 0.05\nbound_uin = 0.5\n",
+             [tool]\nnose_radius_in = 0.0\nclearance_deg = 0.5\n[table]\nx_max_in = 0.05\nbound_uin = 0.5\n[plan]\nerror_bound_uin = 1000.0\n",
         );
         assert_eq!(failed(&p), vec!["slope_along_cut".to_string()]);
         let c = p
@@ -626,7 +627,7 @@ mod plan_checks {
         // The same part with a 7° clearance passes.
         let ok = plan_of(
             "[surface]\nkind = \"xy-polynomial\"\nterms = [{ x_power = 1, y_power = 1, coefficient = 0.2 }]\n\
-             [tool]\nnose_radius_in = 0.0\nclearance_deg = 7.0\n[table]\nx_max_in = 0.05\nbound_uin = 0.5\n",
+             [tool]\nnose_radius_in = 0.0\nclearance_deg = 7.0\n[table]\nx_max_in = 0.05\nbound_uin = 0.5\n[plan]\nerror_bound_uin = 1000.0\n",
         );
         assert!(ok.feasible, "{:?}", failed(&ok));
     }

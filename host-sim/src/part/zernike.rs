@@ -32,8 +32,9 @@ pub struct Term {
     pub radial: Vec<(i32, f64)>,
 }
 
-/// Highest index accepted (Fringe's usual 37; Noll to radial order 14).
+/// Highest index accepted: Noll to radial order 14; Fringe's set of 37.
 pub const MAX_INDEX: usize = 120;
+pub const FRINGE_MAX: usize = 37;
 
 /// `(n, m, cos)` of Noll index `j ≥ 1`.
 pub fn noll(j: usize) -> (u32, u32, bool) {
@@ -49,15 +50,19 @@ pub fn noll(j: usize) -> (u32, u32, bool) {
     loop {
         let count = if m == 0 { 1 } else { 2 };
         if j < idx + count {
-            return (n, m, m == 0 || j % 2 == 0);
+            return (n, m, m == 0 || j.is_multiple_of(2));
         }
         idx += count;
         m += 2;
     }
 }
 
-/// `(n, m, cos)` of Fringe index `j ≥ 1`.
+/// `(n, m, cos)` of Fringe index `1 ≤ j ≤ 37` (Z37 is the set's last,
+/// (12, 0), not the next group's first).
 pub fn fringe(j: usize) -> (u32, u32, bool) {
+    if j == FRINGE_MAX {
+        return (12, 0, true);
+    }
     let mut idx = 1usize;
     let mut d = 0u32;
     loop {
@@ -122,6 +127,12 @@ impl Zernike {
         if coefficients.is_empty() || coefficients.len() > MAX_INDEX {
             return Err(format!(
                 "surface.coefficients_in: {} coefficients; 1..={MAX_INDEX} expected",
+                coefficients.len()
+            ));
+        }
+        if ordering == Ordering::Fringe && coefficients.len() > FRINGE_MAX {
+            return Err(format!(
+                "surface.coefficients_in: {} coefficients; the Fringe set has {FRINGE_MAX}",
                 coefficients.len()
             ));
         }
