@@ -836,12 +836,16 @@ mod tests {
             /// payload, writes back the very image that was parsed.
             #[test]
             fn plausible_headers_parse_to_exactly_their_fields_or_fail(
-                fields in proptest::collection::vec(any::<u8>(), 48),
+                fields in proptest::collection::vec((8usize..56, any::<u8>()), 1..4),
                 nodes in 0u32..20, terms in 0u8..8,
             ) {
+                // One to three header bytes (fields 8..56) set to anything:
+                // a good part of these still parse, so the check below runs.
                 let h = header(nodes.max(2), terms.max(1));
                 let mut m = image(&h);
-                patch(&mut m, 8, &fields);
+                for (at, b) in fields {
+                    patch(&mut m, at, &[b]);
+                }
                 if let Ok(t) = CoeffTable::parse(&m) {
                     for n in 0..t.node_count() { let _ = t.node_x(n); }
                     let _ = t.x_null();

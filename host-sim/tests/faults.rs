@@ -145,9 +145,15 @@ fn check_row(
             // boot there is no cut before: the slide is held at null, above
             // the part, never into it.
             let own = r.excursion_before_uin.unwrap_or(0.0);
+            let worst = o
+                .trace
+                .iter()
+                .filter(|x| x.t_ns >= t_inj)
+                .max_by(|a, b| b.err_in.total_cmp(&a.err_in))
+                .unwrap();
             assert!(
                 e <= own,
-                "{}: {e} µin into the part, beyond the cut's own following error ({own} µin over the revolution before)",
+                "{}: {e} µin into the part, beyond the cut's own following error ({own} µin over the revolution before); deepest at {worst:?}",
                 r.fault
             );
             format!("{}: {e:.1} ≤ {own:.1} µin (own FE), null {:.1} ≤ {allowed_ms:.1} ms after the latch", r.fault, t_safe_ms - ms(from.t_ns))

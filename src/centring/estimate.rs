@@ -286,7 +286,8 @@ mod tests {
         let mut q = Quadrant::new();
         let (x, y) = (0.01, 0.02);
         let mut out = None;
-        for i in 0..3000u32 {
+        // A quarter turn to the first 0°, then one turn: 5120 ticks.
+        for i in 0..6000u32 {
             let a = SpindleAngle((i << 20).wrapping_add(0xC000_0000));
             if let Progress::Done(o) = q.sample(a, reading(x, y, a.to_radians())).unwrap() {
                 out = Some(o);

@@ -342,7 +342,8 @@ mod tests {
                 let ct = g.step(3.25, t, 0.0);
                 min = min.min(ct.force_lbf);
                 max = max.max(ct.force_lbf);
-                if k >= BINS && (t.fract() - hole_centre_turns).abs() < 1e-3 {
+                // The sample nearest the hole centre (within half a step).
+                if k >= BINS && (t.fract() - hole_centre_turns).abs() < 0.5 / BINS as f64 {
                     over.push(ct.force_lbf);
                 }
             }
