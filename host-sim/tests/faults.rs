@@ -144,7 +144,24 @@ fn check_row(
             // the revolution before the injection on the same seeds. At
             // boot there is no cut before: the slide is held at null, above
             // the part, never into it.
-            let own = r.excursion_before_uin.unwrap_or(0.0);
+            // At boot (a refused table, no cut before): the slide is held
+            // at null once armed; before that the arm's sign-check doublet
+            // drives it open loop, at most 2·z(T) (a double integrator
+            // pushed +a for T then −a for T moves a·T² = 2·z(T); damping
+            // only shortens it). So the tool is at most that below null,
+            // and null is at most the exact surface's largest height
+            // above Z = 0 over the run above the part.
+            let own = r.excursion_before_uin.unwrap_or_else(|| {
+                let d = &spec.scenario.servo_design;
+                let doublet_in = 2.0 * f64::from(spec.scenario.servo.sign_check_expected_code).abs()
+                    / d.slide.codes_per_in();
+                let above_null = o
+                    .trace
+                    .iter()
+                    .map(|x| (x.z_in - x.err_in).max(0.0))
+                    .fold(0.0f64, f64::max);
+                (doublet_in + above_null) * 1e6
+            });
             let worst = o
                 .trace
                 .iter()

@@ -30,7 +30,7 @@ pub fn check() -> Result<String> {
         table: Some(&table),
         params: None,
     };
-    for (word, what) in [("hardfault", "hard fault at pc"), ("panic", "panic: injected")] {
+    for (word, what) in [("hardfault", "hard fault at pc"), ("panic", "injected in the background")] {
         step(&format!("QEMU fault path: {word} injected, the enable output"));
         let (code, lines) = run_qemu_elf_with(&qemu_elf(), &regions, &semihosting(word), &[], false)?;
         let line = lines.iter().find(|l| l.contains(what));
@@ -82,7 +82,7 @@ pub fn params_check() -> Result<u32> {
     )?;
     let said = lines.iter().any(|l| {
         l.contains("servo parameter block refused, amplifier kept off")
-            && l.contains("the parameter block is corrupt")
+            && l.contains("BlockCrc")
     });
     let off = lines.iter().find(|l| l.contains("refused parameters:"));
     if code != 0 || !said || off.is_none() {

@@ -275,6 +275,8 @@ static HANDOFF: Mutex<Cell<Option<Run>>> = Mutex::new(Cell::new(None));
 static HANDOFF_EVENTS: Mutex<Cell<Option<Events>>> = Mutex::new(Cell::new(None));
 static RESULT: Mutex<Cell<Option<Summary>>> = Mutex::new(Cell::new(None));
 static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
+/// DAC writes of the boot (`Ad5791::init`), before any loop tick.
+static BOOT_DAC_WRITES: AtomicU32 = AtomicU32::new(0);
 static DONE: AtomicBool = AtomicBool::new(false);
 /// A link session (`link::session_requested`): no scripted injection, no
 /// end; the host drives the loop.
@@ -544,6 +546,9 @@ fn main() -> ! {
     if dac.init().is_err() {
         lp.trip(Fault::Bus(Device::AmplifierDac));
     }
+    // The boot's own writes (the init's): the refused-parameters check
+    // counts the loop's writes after them.
+    BOOT_DAC_WRITES.store(Dac::writes(), Ordering::Relaxed);
     let plant = Plant::new(f64::from(START_CODE) / plant::CODES_PER_IN, LOOP_HZ);
     defmt::info!(
         "plant: slide at {=i32} codes (0.001 in = 52429), zslide-plant Model 15 with the 3150 Hz mode, modern gauge; spindle {=u32} rpm, {=u32} counts/turn; X from {=u32} half-mils, one every {=u32} ticks",
@@ -681,11 +686,12 @@ fn main() -> ! {
             .map(|t| t.position.abs_diff(START_CODE))
             .max()
             .unwrap_or(u32::MAX);
-        let off = Dac::writes() == 0 && s.dac_clamped && !s.amplifier_enable && moved <= AT_REST;
+        let loop_writes = Dac::writes().wrapping_sub(BOOT_DAC_WRITES.load(Ordering::Relaxed));
+        let off = loop_writes == 0 && s.dac_clamped && !s.amplifier_enable && moved <= AT_REST;
         defmt::info!(
-            "refused parameters: fault {}, DAC writes {=u32}, DAC clamped {=bool}, amplifier enable {=bool}, slide moved at most {=u32} codes from rest",
+            "refused parameters: fault {}, DAC writes by the loop {=u32}, DAC clamped {=bool}, amplifier enable {=bool}, slide moved at most {=u32} codes from rest",
             s.fault_before,
-            Dac::writes(),
+            loop_writes,
             s.dac_clamped,
             s.amplifier_enable,
             moved
