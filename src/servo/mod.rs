@@ -86,7 +86,7 @@ pub struct ServoInput {
     /// The amplifier's fault line (it tripped).
     pub amplifier_tripped: bool,
     /// The learned correction expanded below the tick near this angle
-    /// (`crate::ahead`), stepped to it when the correction applies;
+    /// (`crate::handoff::ahead`), stepped to it when the correction applies;
     /// `None` (or too far from the angle): read from the table here.
     pub correction_ahead: Option<CorrectionAhead>,
 }

@@ -2,7 +2,8 @@
 //!
 //! * `test`    – everything: host tests, the board firmware, the QEMU image
 //!   built, run and its log checked; image sizes; a short fuzz run of every
-//!   target. Installs what is missing when it can (Rust target, flip-link,
+//!   target; no import cycle between modules (`cycles`). Installs what is
+//!   missing when it can (Rust target, flip-link,
 //!   defmt-print, QEMU, cargo-fuzz) and otherwise says exactly what is
 //!   missing.
 //! * `qemu [--bless]` – builds and runs the QEMU image, decodes its defmt
@@ -16,12 +17,15 @@
 //!   instructions per interrupt handler under QEMU.
 //! * `no-panic` – builds both images and proves that no panic path is
 //!   reachable from their interrupt handlers (`nopanic.rs`); part of `test`.
+//! * `cycles` – no import cycle between the modules of any crate, and the
+//!   biggest source file (`cycles.rs`); part of `test`.
 //! * `fuzz --seconds N [--target T]` – builds and runs the cargo-fuzz
 //!   targets of `fuzz/` (`fuzz.rs`).
 //!
 //! Arguments are parsed strictly (clap): an unknown or mistyped flag is an
 //! error with exit status 2, never ignored.
 
+mod cycles;
 mod elf;
 mod faultpath;
 mod fuzz;
@@ -32,6 +36,7 @@ mod nopanic;
 mod regions;
 mod replay;
 mod stack;
+mod table_checks;
 mod trace;
 mod watchdog;
 
@@ -106,6 +111,8 @@ enum Cmd {
     /// The QEMU table-region runs and the host-link end-to-end test of
     /// `cargo xtask test`, alone.
     LinkTest,
+    /// Import cycles between the modules of every crate (part of `test`).
+    Cycles,
     /// Mutation testing of the core's safety-relevant modules
     /// (cargo-mutants, installed on demand; not part of `test`).
     Mutants(mutants::Args),
@@ -127,6 +134,7 @@ fn main() -> ExitCode {
         Cmd::FlashParams(args) => regions::flash_params(&args),
         Cmd::ParamBlock(args) => regions::param_block(&args),
         Cmd::LinkTest => cmd_link_test(),
+        Cmd::Cycles => cycles::run(),
         Cmd::Mutants(args) => mutants::run(&args),
     };
     match result {
@@ -653,7 +661,7 @@ fn cmd_link_test() -> Result<u8> {
     if code != 0 {
         return Err(format!("the QEMU image exited with status {code}"));
     }
-    let n = regions::qemu_table_checks(&lines)?
+    let n = table_checks::qemu_table_checks(&lines)?
         + faultpath::params_check()?
         + link::end_to_end()?;
     eprintln!("{n} passed, 0 failed");
@@ -808,6 +816,13 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             .iter()
             .any(|m| m.starts_with("qemu") || m.starts_with("defmt-print"));
 
+    step("import cycles between modules (every crate)");
+    let modules = cycles::check_crates(&root(), cycles::CRATES)?;
+    for c in &modules.cycles {
+        eprintln!("{c}");
+    }
+    eprintln!("{}", modules.summary());
+
     step("host tests: cargo test --workspace");
     let results = host_tests()?;
 
@@ -829,7 +844,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
-        board_checks += u64::from(regions::qemu_table_checks(&lines)?);
+        board_checks += u64::from(table_checks::qemu_table_checks(&lines)?);
         board_checks += u64::from(faultpath::params_check()?);
         board_checks += u64::from(link::end_to_end()?);
         replay_line = Some(replay::check()?);
@@ -910,7 +925,11 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         vcd_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
-    let code = if fuzz_failed > 0 {
+    eprintln!("{}", modules.summary());
+    eprintln!("{}", modules.biggest_line());
+    // The cycle check is one test of the tally.
+    let cycle_failed = u64::from(!modules.cycles.is_empty());
+    let code = if fuzz_failed > 0 || cycle_failed > 0 {
         1
     } else if missing.is_empty() {
         0
@@ -925,8 +944,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     // last libtest line above is a doc-test run that may count zero.
     eprintln!(
         "tests: {} passed, {} failed, {ignored} skipped",
-        passed + fuzz_passed + board_checks,
-        failed + fuzz_failed
+        passed + fuzz_passed + board_checks + (1 - cycle_failed),
+        failed + fuzz_failed + cycle_failed
     );
     Ok(code)
 }

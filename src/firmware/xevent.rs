@@ -5,13 +5,14 @@
 //! X mode the X count, taken periodically at this priority, re-interpolated
 //! and published the same way; index pulses published as they come.
 
-use crate::coeffcache::{fast_and_terms, fast_columns, general_columns, IntervalCache};
-use crate::command::{CommandGen, LegacyOutput};
-use crate::config::{FirmwareConfig, XMode};
+use crate::command::CommandGen;
+use crate::firmware::config::{FirmwareConfig, XMode};
 use crate::handoff::{Shared, NULL_META};
 use crate::hw::{BusError, CoefficientDac, XLatchWord};
 use crate::safety::{Device, Fault};
 use crate::units::XInches;
+use crate::xpos::columns::{fast_and_terms, fast_columns, general_columns, IntervalCache};
+use crate::xpos::legacy_output::LegacyOutput;
 use crate::xpos::{CountX, LegacyConfig, LegacyX, XEvent};
 use core::sync::atomic::{fence, Ordering};
 

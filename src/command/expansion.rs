@@ -1,7 +1,8 @@
 //! The command ahead of the loop tick: Z, ∂Z/∂φ, ∂²Z/∂φ², the command's
 //! acceleration and the learned correction by spindle angle, evaluated by
-//! the handler below the tick (the learning's, `crate::learning`) at the
-//! angle the next tick is predicted to read, and stepped in the tick to
+//! the handler below the tick (the learning's, `crate::firmware::learning`)
+//! at the angle the next tick is predicted to read, handed over in
+//! `crate::handoff::ahead`, and stepped in the tick to
 //! the angle it does read (a few multiplies instead of the sine, the
 //! Horner series, the acceleration's products and the learned table's
 //! reads: `docs/BOARD.md`, interrupt cost).
@@ -61,46 +62,13 @@
 //! step's change per tick; a 1 % step change at 1200 rpm, 0.32 codes per
 //! tick². (This module's docs used to put the first term below 1e-5
 //! codes per tick²: the gauge's codes per inch were missing.)
-//!
-//! # The learned correction
-//! [`Ahead::correction`] is the learned correction by spindle angle at the
-//! same φ₀ (`servo::repetitive::CorrectionAhead`: the table's value, its
-//! slopes and its acceleration there), made after the handler applied the
-//! samples of the ticks before (the table the next tick would have read:
-//! the updates touch bins a lead behind the angle, never the four it
-//! reads). The loop steps it to its angle when it applies it
-//! (`Servo::update`: when is unchanged) and reads the table itself when
-//! none is at hand. Inside φ₀'s bin the step is the direct evaluation up to
-//! the rounding; across a bin boundary it is off by the table's second
-//! (position) and third (rates) differences times the part of δ past the
-//! node: for a learned 100 codes at harmonic 8, a quarter bin past it
-//! (one tick at 1200 rpm), 0.96 codes of position and 0.05 codes per
-//! tick of velocity (`CorrectionAhead`'s docs; tested against the direct
-//! evaluation).
-//!
-//! # Freshness
-//! The tick uses an expansion only if it was made for a tick at most
-//! [`MAX_AGE`] ticks ago and |δ| ≤ [`DELTA_LIMIT`]; otherwise (the handler
-//! starved by higher priorities) the tick evaluates the command itself
-//! (`Expansion::direct`, the same arithmetic at δ = 0), so a late handler
-//! costs instructions, never accuracy. While the command was null (no
-//! angle yet, no coefficients), it stays null until the first expansion
-//! arrives (one or two ticks): no jump, the slew profile joins it.
 
+use super::{Coefficients, CommandGen};
 use crate::codes::{CODE_MAX, CODE_MIN};
-use crate::command::{Coefficients, CommandGen};
-use crate::handoff::{Shared, NULL_META};
-use crate::servo::fixed::{mul_hi, ssat};
-use crate::servo::CorrectionAhead;
-use crate::setpoint::{acceleration, rate_step};
+use crate::servo::fixed::{mul_hi, sat_i32, ssat};
+use crate::servo::repetitive::DELTA_LIMIT;
 use crate::units::SpindleAngle;
-use core::sync::atomic::{fence, Ordering};
 
-/// Largest |φ − φ₀| an expansion is stepped over: 3·2²², 1/341 turn
-/// (two ticks at 1800 rpm and 20 kHz).
-pub const DELTA_LIMIT: i32 = 3 << 22;
-/// Oldest expansion the tick uses, in ticks after the one it was made for.
-pub const MAX_AGE: u32 = 4;
 /// Q8 codes kept for Z: −2²⁹ ≤ Z < 2²⁹ (4× the gauge's range, clamped to
 /// it later; one `SSAT`).
 const Z_Q8_LIMIT: i32 = 1 << 29;
@@ -116,6 +84,29 @@ pub(crate) const FF_K: i32 = 1_317_679_463;
 /// with K2 = 100π² · 2²¹ = 2 069 806 061, applied as
 /// `(((d2 · K2) >> 32) · Δφ >> 23) · Δφ >> 23`.
 pub(crate) const FF_K2: i32 = 2_069_806_061;
+
+/// The angle step the rates use: −2²⁶ ≤ Δφ < 2²⁶, 1/64 turn per tick
+/// (18 750 rpm at 20 kHz), far beyond any real spindle (one `SSAT`).
+#[inline(always)]
+pub(crate) fn rate_step(dphi: i32) -> i32 {
+    ssat::<27>(dphi)
+}
+
+/// The command's acceleration ∂²Z/∂φ²·Δφ² + ∂Z/∂φ·Δ²φ, Q16 codes per
+/// tick², from the scaled derivatives `p1`, `p2` of an [`Expansion`]
+/// (|p1| < 2²⁷, |p2| < 2²⁷), the step `dphi` (`rate_step`) and Δ²φ
+/// (Q4, |Δ²φ| ≤ 2²⁴). Formed below the tick at the predicted angle and
+/// step (`crate::firmware::learning`), or in the tick at its own when it evaluates the
+/// command itself.
+#[inline(always)]
+pub(crate) fn acceleration(p1: i32, p2: i32, dphi: i32, alpha_q4: i32) -> i32 {
+    // ∂²Z/∂φ²·Δφ²: < 2²⁷, then < 2³⁰, then < 2³³ before saturation.
+    let q2 = i64::from(p2) * i64::from(dphi);
+    let a2 = (((q2 >> 23) as i32 as i64) * i64::from(dphi)) >> 23;
+    // ∂Z/∂φ·Δ²φ: < 2²⁷ · 2²⁴ >> 20 = 2³¹ before saturation.
+    let a1 = (i64::from(p1) * i64::from(alpha_q4)) >> 20;
+    ssat::<25>(sat_i32(a2 + a1))
+}
 
 /// Z and its scaled φ-derivatives at one angle (see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -187,215 +178,6 @@ impl Expansion {
     #[inline(always)]
     pub fn code(&self) -> i32 {
         ((self.z_q8 + (1 << 7)) >> 8).clamp(CODE_MIN, CODE_MAX)
-    }
-}
-
-/// What the tick takes from the hand-off: the expansion and the learned
-/// correction, for which tick.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Ahead {
-    /// The tick it was predicted for ([`crate::looptick::LoopState::ticks`]).
-    pub tick: u32,
-    /// `None`: the command is null (null zone, no table).
-    pub expansion: Option<Expansion>,
-    /// The learned correction at the same φ₀ (whether or not the command
-    /// is null: the loop decides whether it applies).
-    pub correction: CorrectionAhead,
-}
-
-/// State of the evaluation ahead of the tick (runs in the learning
-/// handler, below the tick and, on the NUCLEO, below the X handlers).
-#[derive(Clone, Debug)]
-pub struct AheadState {
-    gen: Option<CommandGen<'static>>,
-    /// An X source publishes coefficients.
-    x_published: bool,
-    coeffs: Coefficients,
-    coeff_seen: u32,
-    /// The tick's angle request last evaluated.
-    request_seen: u32,
-    /// Expansions published (the hand-off's generation).
-    published: u32,
-}
-
-impl AheadState {
-    pub(crate) fn new(gen: Option<CommandGen<'static>>, x_published: bool) -> Self {
-        Self {
-            gen,
-            x_published,
-            coeffs: Coefficients::NULL,
-            coeff_seen: 0,
-            request_seen: 0,
-            published: 0,
-        }
-    }
-
-    /// Takes a new coefficient set, evaluates the command at the angle the
-    /// next tick is predicted to read (this tick's angle plus its step) and
-    /// publishes it; nothing when the tick posted no new angle.
-    #[inline(never)]
-    pub fn run(&mut self, sh: &Shared) {
-        if self.x_published {
-            // A set overwritten while copied (an X handler preempting this
-            // one, on the NUCLEO) is taken again: the next read finds the
-            // newer set complete unless X events come microseconds apart.
-            for _ in 0..3 {
-                if sh
-                    .take_coefficients(&mut self.coeff_seen, &mut self.coeffs)
-                    .is_ok()
-                {
-                    break;
-                }
-            }
-        }
-        let Some((tick, phi, dphi, alpha_q4)) = sh.ahead.request() else {
-            return;
-        };
-        if tick == self.request_seen {
-            return;
-        }
-        self.request_seen = tick;
-        // The next tick predicted: this one's angle plus its step, the
-        // same step and Δ²φ.
-        let at = SpindleAngle(phi.wrapping_add(dphi as u32));
-        let expansion = match &self.gen {
-            Some(g) if !self.coeffs.null => Some(Expansion::direct(
-                g,
-                &self.coeffs,
-                at,
-                rate_step(dphi),
-                alpha_q4,
-            )),
-            _ => None,
-        };
-        let correction = sh.learned.ahead(at, dphi);
-        self.published = self.published.wrapping_add(1);
-        sh.ahead.publish(
-            self.published,
-            &Ahead {
-                tick: tick.wrapping_add(1),
-                expansion,
-                correction,
-            },
-        );
-    }
-
-    /// The coefficients this handler evaluates (the last set taken).
-    pub fn coefficients(&self) -> &Coefficients {
-        &self.coeffs
-    }
-}
-
-/// Words of one published expansion: sequence, tick, φ₀, Z, p1, p2, the
-/// acceleration, null flag, and the correction's position, bin slope,
-/// slope, slope change and acceleration. (The X and the generation of the
-/// coefficients it was made from were published too until nothing read
-/// them: two loads a tick.)
-const WORDS: usize = 13;
-
-/// The hand-off of [`crate::handoff::Shared`] between the tick (angle
-/// requests in, expansions out) and [`AheadState`]: the tick's request is
-/// four words (a torn one only moves φ₀, which the tick checks, or the
-/// acceleration by a tick's change of Δφ or Δ²φ), the expansion two slots
-/// under the coefficients' seqlock rule.
-pub(crate) struct AheadHandoff {
-    /// [φ, Δφ, Δ²φ (Q4), tick]: the tick's angle, step and smoothed
-    /// step's change; tick 0 = none yet.
-    request: [core::sync::atomic::AtomicU32; 4],
-    gen: core::sync::atomic::AtomicU32,
-    slots: [[core::sync::atomic::AtomicU32; WORDS]; 2],
-}
-
-impl AheadHandoff {
-    pub(crate) const fn new() -> Self {
-        use core::sync::atomic::AtomicU32;
-        Self {
-            request: [const { AtomicU32::new(0) }; 4],
-            gen: AtomicU32::new(0),
-            slots: [const { [const { AtomicU32::new(0) }; WORDS] }; 2],
-        }
-    }
-
-    /// The tick's angle, step and Δ²φ (the tick; `tick` ≠ 0).
-    #[inline(always)]
-    pub(crate) fn post(&self, tick: u32, phi: SpindleAngle, dphi: i32, alpha_q4: i32) {
-        self.request[0].store(phi.0, Ordering::Relaxed);
-        self.request[1].store(dphi as u32, Ordering::Relaxed);
-        self.request[2].store(alpha_q4 as u32, Ordering::Relaxed);
-        self.request[3].store(tick, Ordering::Release);
-    }
-
-    fn request(&self) -> Option<(u32, u32, i32, i32)> {
-        let tick = self.request[3].load(Ordering::Acquire);
-        if tick == 0 {
-            return None;
-        }
-        let phi = self.request[0].load(Ordering::Relaxed);
-        let dphi = self.request[1].load(Ordering::Relaxed) as i32;
-        // Within the bounds the tick gives it, whatever a torn read holds.
-        let alpha = ssat::<25>(self.request[2].load(Ordering::Relaxed) as i32);
-        Some((tick, phi, dphi, alpha))
-    }
-
-    fn publish(&self, g: u32, a: &Ahead) {
-        let slot = &self.slots[(g & 1) as usize];
-        slot[0].store(g, Ordering::Relaxed);
-        fence(Ordering::Release);
-        let e = a.expansion.unwrap_or_default();
-        let c = &a.correction;
-        let words = [
-            a.tick,
-            c.phi.0,
-            e.z_q8 as u32,
-            e.p1 as u32,
-            e.p2 as u32,
-            e.accel_q16 as u32,
-            if a.expansion.is_some() { 0 } else { NULL_META },
-            c.position_q8 as u32,
-            c.bin_slope_q8 as u32,
-            c.slope2_q8 as u32,
-            c.slope2_per_bin_q8 as u32,
-            c.accel_q16 as u32,
-        ];
-        for (w, v) in slot[1..].iter().zip(words) {
-            w.store(v, Ordering::Relaxed);
-        }
-        self.gen.store(g, Ordering::Release);
-    }
-
-    /// The latest expansion (the tick; `None` before the first or when
-    /// overwritten while read).
-    #[inline(always)]
-    pub(crate) fn latest(&self) -> Option<Ahead> {
-        let g = self.gen.load(Ordering::Acquire);
-        if g == 0 {
-            return None;
-        }
-        let slot = &self.slots[(g & 1) as usize];
-        let w: [u32; WORDS - 1] = core::array::from_fn(|k| slot[k + 1].load(Ordering::Relaxed));
-        fence(Ordering::Acquire);
-        if slot[0].load(Ordering::Relaxed) != g {
-            return None;
-        }
-        let phi = SpindleAngle(w[1]);
-        Some(Ahead {
-            tick: w[0],
-            expansion: (w[6] & NULL_META == 0).then_some(Expansion {
-                phi,
-                z_q8: w[2] as i32,
-                p1: w[3] as i32,
-                p2: w[4] as i32,
-                accel_q16: w[5] as i32,
-            }),
-            correction: CorrectionAhead {
-                phi,
-                position_q8: w[7] as i32,
-                bin_slope_q8: w[8] as i32,
-                slope2_q8: w[9] as i32,
-                slope2_per_bin_q8: w[10] as i32,
-                accel_q16: w[11] as i32,
-            },
-        })
     }
 }
 

@@ -1,17 +1,19 @@
 //! The Z command: Z(X, φ) from the interpolated coefficients and the spindle
 //! angle, its analytic derivatives for feedforward, the null zone, and the
-//! legacy coefficient output (C00..C03 for the 1983 analog electronics).
+//! legacy coefficients C00..C03 (the 1983 analog electronics' columns; their
+//! DAC output per X event is `crate::xpos::legacy_output`). Its expansion
+//! ahead of the tick is [`expansion`]; the loop's setpoint, [`setpoint`].
 //!
 //! # Split by rate
 //! [`CommandGen::coefficients_into`] depends on X only (the X event, or
 //! every loop tick in modern mode); [`CommandGen::evaluate_phi`] (Z, ∂Z/∂φ,
 //! ∂²Z/∂φ²) or [`CommandGen::evaluate`] (also ∂Z/∂X) depends on φ and runs
-//! every loop tick. [`LegacyOutput::frame`] serves the legacy X event in the
+//! every loop tick. `crate::xpos::legacy_output` serves the legacy X event in the
 //! coefficient-output mode. All are integer-only, allocation-free, total.
 //!
 //! # Formats and error budget
 //! Coefficients at X arrive in Q30 inches (`I2F30`, LSB 9.3e-10 in), each
-//! rounded once by [`crate::interp`]. Sines are Q30 with < 3 LSB error
+//! rounded once by [`crate::table::interp`]. Sines are Q30 with < 3 LSB error
 //! ([`crate::trig`]).
 //! * Harmonic tables: every product `C_k cos kφ` is formed exactly in Q60
 //!   and summed exactly; Z is rounded once. Error ≤ Σ|C_k|·3·2⁻³⁰ +
@@ -27,15 +29,18 @@
 //! ∂Z/∂φ in in/rad, ∂²Z/∂φ² in in/rad², ∂Z/∂X in in/in; all `I2F30`,
 //! saturating.
 
-use crate::interp::{Interpolator, Located, Locus};
+pub mod expansion;
+pub mod setpoint;
+
 use crate::safety::Fault;
+use crate::table::interp::{Interpolator, Located, Locus};
 use crate::table::{CoeffTable, Representation, MAX_TERMS};
 use crate::trig::{sin_cos, SinCos};
 use crate::units::{SpindleAngle, XInches, ZInches};
-use crate::xpos::XUpdate;
 use fixed::types::I2F30;
 
-const COLS: usize = MAX_TERMS as usize;
+/// Columns a coefficient set can hold: one per table term.
+pub(crate) const COLS: usize = MAX_TERMS as usize;
 /// Coefficients saturate at ±1/8 in (Q30), twelve times the slide's whole
 /// travel: no real table comes near it, and it bounds every sum in
 /// the harmonic series without per-step saturation.
@@ -89,108 +94,6 @@ impl Coefficients {
     }
 }
 
-/// What one legacy X event sends to the quad coefficient DAC: the codes of
-/// C00..C03 (Table 3-1) and which of them to write before the one strobe.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct LegacyFrame {
-    pub codes: [u16; 4],
-    /// Bit j = channel C0j is written.
-    pub update: u8,
-}
-
-/// The legacy coefficient output with the 8080's economy: the table values
-/// at the two ends of the grid interval are fetched only when X enters
-/// another interval (the 8080 recomputed its rates only when the two high
-/// digits changed); each X event then costs one multiply-add and one code
-/// conversion per scheduled coefficient. Results are bit-identical to
-/// [`CommandGen::legacy_frame`] (tested). Use one per [`CommandGen`].
-#[derive(Clone, Copy, Debug, Default)]
-pub struct LegacyOutput {
-    interval: Option<u32>,
-    lo: [i64; 4],
-    hi: [i64; 4],
-}
-
-impl LegacyOutput {
-    pub const fn new() -> Self {
-        Self {
-            interval: None,
-            lo: [0; 4],
-            hi: [0; 4],
-        }
-    }
-
-    /// Forgets the cached interval (after a table change).
-    pub fn reset(&mut self) {
-        self.interval = None;
-    }
-
-    /// The quad-DAC frame of one accepted legacy X event.
-    pub fn frame(&mut self, gen: &CommandGen, u: &XUpdate) -> Result<LegacyFrame, Fault> {
-        let mut codes = [LEGACY_DAC_ZERO; 4];
-        let at = if u.null { None } else { gen.locate(u.x)? };
-        let Some(at) = at else {
-            return Ok(LegacyFrame {
-                codes,
-                update: 0b1111,
-            });
-        };
-        let it = &gen.interp;
-        let (n, f) = it.interval(at);
-        let cols = gen.legacy_columns();
-        if self.interval != Some(n) {
-            for ((lo, hi), c) in self.lo.iter_mut().zip(self.hi.iter_mut()).zip(cols) {
-                *lo = it.raw(n, c);
-                *hi = it.raw(n + 1, c);
-            }
-            self.interval = Some(n);
-        }
-        let m = u.update;
-        // Source columns the scheduled coefficients need (harmonic: C00 ←
-        // C0, C2; C01 ← S1, S3; C02 ← C2; C03 ← S3, in source order C0, C2,
-        // S1, S3).
-        let need = match gen.repr {
-            Representation::SinPower => m,
-            Representation::Harmonic => {
-                let mut n = 0;
-                if m & 1 != 0 {
-                    n |= 0b0011;
-                }
-                if m & 2 != 0 {
-                    n |= 0b1100;
-                }
-                if m & 4 != 0 {
-                    n |= 0b0010;
-                }
-                if m & 8 != 0 {
-                    n |= 0b1000;
-                }
-                n
-            }
-        };
-        let mut v = [0i64; 4];
-        for (j, ((vj, lo), hi)) in v.iter_mut().zip(&self.lo).zip(&self.hi).enumerate() {
-            if need & (1 << j) != 0 {
-                *vj = i64::from(it.lerp(*lo, *hi, f));
-            }
-        }
-        let [a, b, c, d] = v;
-        let out = match gen.repr {
-            Representation::SinPower => v,
-            Representation::Harmonic => [a + b, c + 3 * d, -2 * b, -4 * d],
-        };
-        for (j, (code, x)) in codes.iter_mut().zip(out).enumerate() {
-            if m & (1 << j) != 0 {
-                *code = legacy_dac_code(sat_i32(x));
-            }
-        }
-        Ok(LegacyFrame {
-            codes,
-            update: m & 0b1111,
-        })
-    }
-}
-
 /// Z and its derivatives at (X, φ).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Command {
@@ -215,8 +118,8 @@ pub enum Legacy {
 /// The command generator for one table.
 #[derive(Clone, Copy, Debug)]
 pub struct CommandGen<'a> {
-    interp: Interpolator<'a>,
-    repr: Representation,
+    pub(crate) interp: Interpolator<'a>,
+    pub(crate) repr: Representation,
     terms: u8,
     x_null: XInches,
     /// Every Horner state of a sin-power evaluation stays below 2²⁹ (proved
@@ -227,7 +130,7 @@ pub struct CommandGen<'a> {
 }
 
 #[inline(always)]
-fn sat_i32(v: i64) -> i32 {
+pub(crate) fn sat_i32(v: i64) -> i32 {
     v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
@@ -406,7 +309,7 @@ impl<'a> CommandGen<'a> {
 
     /// Table columns the four legacy coefficients are made of: sin-power
     /// C00..C03 directly; harmonic C0, C2, S1, S3 (eq 2-20..2-23).
-    fn legacy_columns(&self) -> [u8; 4] {
+    pub(crate) fn legacy_columns(&self) -> [u8; 4] {
         match self.repr {
             Representation::SinPower => [0, 1, 2, 3],
             // Harmonic columns: 0 C0, 1 C1, 2 S1, 3 C2, 4 S2, 5 C3, 6 S3.
@@ -426,40 +329,6 @@ impl<'a> CommandGen<'a> {
                 [c0 + c2, s1 + 3 * s3, -2 * c2, -4 * s3].map(sat_i32)
             }
         }
-    }
-
-    /// The quad-DAC frame of one accepted legacy X event: only the
-    /// coefficients in its update set are computed; the null zone writes
-    /// zero to all four. Below the table: [`Fault::XOutsideTable`].
-    pub fn legacy_frame(&self, u: &XUpdate) -> Result<LegacyFrame, Fault> {
-        let mut codes = [LEGACY_DAC_ZERO; 4];
-        let at = if u.null { None } else { self.locate(u.x)? };
-        let Some(at) = at else {
-            return Ok(LegacyFrame {
-                codes,
-                update: 0b1111,
-            });
-        };
-        if self.repr == Representation::SinPower {
-            // Only the scheduled columns: at most half-mils only C02 (the
-            // common event) costs one column.
-            for (j, code) in codes.iter_mut().enumerate() {
-                if u.update & (1 << j) != 0 {
-                    *code = legacy_dac_code(self.interp.value(at, j as u8));
-                }
-            }
-        } else {
-            let v = self.legacy_coefficients(at);
-            for (j, (code, c)) in codes.iter_mut().zip(v).enumerate() {
-                if u.update & (1 << j) != 0 {
-                    *code = legacy_dac_code(c);
-                }
-            }
-        }
-        Ok(LegacyFrame {
-            codes,
-            update: u.update & 0b1111,
-        })
     }
 }
 
@@ -554,20 +423,6 @@ fn sin_power<const DX: bool, const SMALL: bool>(v: &[i32], d: &[i32], sc: SinCos
 fn mul_small(a: i32, b: i32) -> i32 {
     ((i64::from(a << 2) * i64::from(b) + (1 << 31)) >> 32) as i32
 }
-
-/// Table 3-1 scaling of the coefficient DACs: ±10 V ↔ ±0.010 in, 16 bits over
-/// 0.020 in (3.2768 LSB/µin), straight binary with 32768 = 0:
-/// `code = 32768 + round(C · 65536 / 0.020 in)`, saturated to 0..=65535.
-/// `c_q30` is in Q30 inches. Ties round up.
-pub fn legacy_dac_code(c_q30: i32) -> u16 {
-    // 65536 / 0.020 = 3_276_800 LSB per inch; |c|·3276800 < 2^53.
-    let v = i64::from(c_q30) * 3_276_800;
-    let code = 32768 + ((v + (1 << 29)) >> 30);
-    code.clamp(0, 65535) as u16
-}
-
-/// The code of a zero coefficient (0 V).
-pub const LEGACY_DAC_ZERO: u16 = 32768;
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::panic)]
@@ -785,6 +640,7 @@ mod tests {
     /// stateless one, across interval changes in both directions.
     #[test]
     fn legacy_output_cache_is_exact() {
+        use crate::xpos::legacy_output::LegacyOutput;
         use crate::xpos::{half_mils_to_x, XUpdate};
         let nodes = 6u32;
         let mut harm = Vec::new();
@@ -827,6 +683,7 @@ mod tests {
 
     #[test]
     fn legacy_codes_follow_table_3_1() {
+        use crate::xpos::legacy_output::legacy_dac_code;
         assert_eq!(legacy_dac_code(0), 32768);
         // +0.010 in is full scale (one LSB past the top code), -0.010 in is code 0.
         assert_eq!(legacy_dac_code(q30(0.010)), 65535);

@@ -36,7 +36,7 @@ pub(crate) struct IntervalCache {
     pub(crate) x0: i32,
     pub(crate) dx: i32,
     /// A binary grid's fraction as a shift of the remainder
-    /// ([`crate::interp::Interpolator::frac_shift`]).
+    /// ([`crate::table::interp::Interpolator::frac_shift`]).
     pub(crate) frac_shift: Option<u32>,
     /// Columns per node row.
     pub(crate) terms: usize,
@@ -133,7 +133,7 @@ impl IntervalCache {
     }
 
     /// Moves to the interval holding `x` and gives the position in it, bit
-    /// for bit what [`crate::interp::Interpolator::locate`] gives: the
+    /// for bit what [`crate::table::interp::Interpolator::locate`] gives: the
     /// cached interval while X stays in it (X moves by half-mils, ~60
     /// events per 1/32 in); otherwise the node from the offset (a shift on
     /// a binary grid, exactly `locate`'s node) or, off the grid's interior,

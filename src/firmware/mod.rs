@@ -5,11 +5,11 @@
 //! which live by concept along the data path:
 //!
 //! ```text
-//! X event (legacy half-mil) ── xevent: xpos::LegacyX → coeffcache ──┐ publish (handoff::Shared)
-//! X count (modern, periodic) ─ xevent: xpos::CountX → coeffcache ───┤ publish (when it moved)
-//! index event ─────────────── xevent: (count, edge) ────────────────┤ publish
-//! loop tick (looptick): gauge ─┐                                     │
-//!   spindle sample ─┴ spindle estimator → φ, Δφ ; takes X / index ──┘
+//! X event (legacy half-mil) ── xevent: xpos::LegacyX → xpos::columns ─┐ publish (handoff::Shared)
+//! X count (modern, periodic) ─ xevent: xpos::CountX → xpos::columns ──┤ publish (when it moved)
+//! index event ─────────────── xevent: (count, edge) ──────────────────┤ publish
+//! loop tick (looptick): gauge ─┐                                      │
+//!   spindle sample ─┴ spindle estimator → φ, Δφ ; takes X / index ────┘
 //!   setpoint: Z, ∂Z/∂φ·Δφ, ∂²Z/∂φ²·Δφ² + ∂Z/∂φ·Δ²φ (gauge codes)
 //!   → servo (observer, notches, feedforward, learning, limits, arming)
 //!   → amplifier DAC
@@ -37,18 +37,23 @@
 //! Only a more severe fault replaces a latched one; [`Request::ClearFault`]
 //! clears it when the loop is disarmed and the cause is gone.
 
+pub mod config;
+pub mod learning;
+pub mod looptick;
+pub mod xevent;
+
 pub use crate::codes::{gauge_code_from_z, CODE_MAX, CODE_MIN};
-pub use crate::config::{
+pub use crate::firmware::config::{
     load_table, load_table_region, ConfigError, FirmwareConfig, SpindleMode, XMode,
 };
+pub use crate::firmware::learning::LearnState;
+pub use crate::firmware::looptick::{LoopState, SpindleReading, TickInput};
+pub use crate::firmware::xevent::{EventState, NoCoefficientDac};
 pub use crate::handoff::{Request, Shared};
-pub use crate::learning::LearnState;
-pub use crate::looptick::{LoopState, SpindleReading, TickInput};
-pub use crate::xevent::{EventState, NoCoefficientDac};
 
 use crate::command::CommandGen;
+use crate::firmware::looptick::Estimator;
 use crate::hw::{AmplifierDac, CoefficientDac, GaugeAdc, XLatchWord};
-use crate::looptick::Estimator;
 use crate::safety::Fault;
 use crate::servo::{Servo, ServoConfig};
 use crate::spindle::{EncoderAngle, TachAngle};
@@ -499,8 +504,8 @@ mod tests {
     // -------------------------------------------------------------------
     // The integrated command path.
 
-    use crate::command::LegacyFrame;
     use crate::table::TableHeader;
+    use crate::xpos::legacy_output::LegacyFrame;
     use crate::xpos::{half_mils_to_x, latch_word, XUpdate};
     use crate::{DEFAULT_TABLE, LEGACY4_TABLE};
     use std::boxed::Box;
@@ -716,7 +721,7 @@ mod tests {
             let phi = phi_of(n);
             if n == 1 {
                 // The first tick with an angle: the handler below the tick
-                // evaluates the command after it (`crate::ahead`), the
+                // evaluates the command after it (`crate::handoff::ahead`), the
                 // command starts on the next.
                 assert_eq!(fw.table_code(), 0);
                 continue;
@@ -769,7 +774,7 @@ mod tests {
     /// the angle it reads, not the previous set's.
     #[test]
     fn starved_handler_below_the_tick_leaves_the_tick_evaluating_the_newest_set() {
-        use crate::ahead::MAX_AGE;
+        use crate::handoff::ahead::MAX_AGE;
         let mut fw = legacy(DEFAULT_TABLE, false);
         let gen = *fw.command_gen().unwrap();
         let (mut g, mut d) = (Gauge::at(0), Dac::default());

@@ -4,14 +4,15 @@
 //! the servo and writes its DAC code. It only orchestrates: the loop
 //! itself is `servo`, the command `command`/`setpoint`.
 
-use crate::ahead::{Ahead, Expansion, MAX_AGE};
 use crate::codes::{CODE_MAX, CODE_MIN};
+use crate::command::expansion::Expansion;
+use crate::command::setpoint::{setpoint, SetpointState};
 use crate::command::{Coefficients, CommandGen};
+use crate::handoff::ahead::{Ahead, MAX_AGE};
 use crate::handoff::{Request, Shared, X_FAULTS};
 use crate::hw::{AmplifierDac, EncoderSample, GaugeAdc};
 use crate::safety::{Device, Fault, Reaction};
 use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
-use crate::setpoint::{setpoint, SetpointState};
 use crate::spindle::{EncoderAngle, TachAngle};
 use crate::units::{SpindleAngle, XInches};
 use core::sync::atomic::{fence, Ordering};
@@ -37,7 +38,7 @@ pub struct TickInput {
     /// Modern X mode: the X encoder's count at the tick
     /// ([`crate::hw::Encoder`]). The loop tick itself does not use it: the
     /// coefficients at the count's X are the X handler's work, at its
-    /// lower priority ([`crate::xevent::EventState::x_count_event`]), and
+    /// lower priority ([`crate::firmware::xevent::EventState::x_count_event`]), and
     /// reach the tick through the same hand-off as a legacy X event. The
     /// `Firmware` bundle hands this count to that handler after the tick,
     /// as a board's lower-priority handler would take it.
@@ -306,7 +307,7 @@ impl LoopState {
         };
 
         // The command and its analytic rates: the expansion made below the
-        // tick, stepped to this angle (`crate::ahead`).
+        // tick, stepped to this angle (`crate::handoff::ahead`).
         let dphi = self.sp.dphi(phi);
         let (rate_dphi, alpha_q4) = self.sp.advance(phi, dphi);
         let fresh = sh
@@ -371,7 +372,7 @@ impl LoopState {
             &sh.learned,
         );
         if let Some(s) = &out.learn {
-            // The learner runs below this priority (`crate::learning`).
+            // The learner runs below this priority (`crate::firmware::learning`).
             sh.learn.push(s);
         }
         if let Some(f) = out.fault {
@@ -593,7 +594,7 @@ impl LoopState {
     }
     /// Whether the last coefficient set is the null command (X in the
     /// null zone), or none has arrived. The values are the handler's below
-    /// the tick ([`crate::ahead::AheadState::coefficients`]).
+    /// the tick ([`crate::firmware::learning::AheadState::coefficients`]).
     pub fn command_null(&self) -> bool {
         self.coeff_null
     }

@@ -18,7 +18,7 @@
 //!   sequence word still equals the generation (the seqlock rule), else it
 //!   takes the next one. The loop tick reads only X and the null flag this
 //!   way on every set, and copies the values only when it evaluates the
-//!   command itself (a stale expansion, `crate::ahead`); the handler below
+//!   command itself (a stale expansion, `crate::handoff::ahead`); the handler below
 //!   it copies every set. On a single core where the tick preempts the X
 //!   handler, the slot being written is never the published one and the
 //!   tick runs to completion before the handler resumes, so the check never
@@ -45,7 +45,7 @@
 //! * Operator requests (arm, disarm, clear a fault; [`Request`]) are bits of
 //!   one atomic word any priority may set; the loop tick takes them all at
 //!   its next tick.
-//! * Learning (loop tick → learner, `crate::learning`): each tick's
+//! * Learning (loop tick → learner, `crate::firmware::learning`): each tick's
 //!   [`LearnSample`] goes into a single-producer single-consumer ring of
 //!   [`LEARN_QUEUE`] slots (the tick writes a slot, then publishes it with
 //!   one `Release` store of its head index; the learner reads the slots up
@@ -55,40 +55,17 @@
 //!   ([`LearnedTable`]) is atomic words: the tick reads bins the learner
 //!   is not writing (see `servo::repetitive`).
 
-use crate::ahead::AheadHandoff;
-use crate::command::Coefficients;
-use crate::config::COLS;
+pub mod ahead;
+pub(crate) mod coeffs;
+
+pub(crate) use coeffs::{CoeffSlot, NULL_META};
+
+use crate::command::{Coefficients, COLS};
 use crate::safety::{Device, Fault};
 use crate::servo::{LearnSample, LearnedTable};
 use crate::units::XInches;
-use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
-
-/// One published coefficient set: the column values at X, all the loop
-/// tick evaluates (Z and its φ-derivatives; the changes across the grid
-/// interval, for ∂Z/∂X, are not needed there and are not carried).
-pub(crate) struct CoeffSlot {
-    pub(crate) value: [AtomicI32; COLS],
-    pub(crate) x: AtomicI32,
-    /// Live columns, or [`NULL_META`] for the null command.
-    pub(crate) meta: AtomicU32,
-    /// Generation being written into / held by this slot; stored before the
-    /// data, so a reader that finds it unchanged after copying has a
-    /// complete set (the seqlock rule).
-    pub(crate) seq: AtomicU32,
-}
-
-pub(crate) const NULL_META: u32 = 1 << 31;
-
-impl CoeffSlot {
-    pub(crate) const fn new() -> Self {
-        Self {
-            value: [const { AtomicI32::new(0) }; COLS],
-            x: AtomicI32::new(0),
-            meta: AtomicU32::new(NULL_META),
-            seq: AtomicU32::new(0),
-        }
-    }
-}
+use ahead::AheadHandoff;
+use core::sync::atomic::{fence, AtomicU32, Ordering};
 
 /// Fault bits of the X handler ([`Shared::x_faults`]).
 pub(crate) const XF_OUTSIDE: u32 = 1 << 0;
@@ -130,7 +107,7 @@ pub struct Shared {
     /// The learned correction table (written by the learner).
     pub(crate) learned: LearnedTable,
     pub(crate) learn: LearnQueue,
-    /// The command evaluated ahead of the tick (`crate::ahead`).
+    /// The command evaluated ahead of the tick (`crate::handoff::ahead`).
     pub(crate) ahead: AheadHandoff,
 }
 
@@ -370,7 +347,7 @@ mod preemption_tests {
     extern crate std;
 
     use super::*;
-    use crate::looptick::{Estimator, LoopState};
+    use crate::firmware::looptick::{Estimator, LoopState};
     use crate::servo::ServoDesign;
     use crate::spindle::{EdgeStamps, EncoderAngle, EncoderConfig};
     use crate::units::{SpindleAngle, XInches};
@@ -623,9 +600,9 @@ mod preemption_tests {
     /// slots as the steps above.
     #[test]
     fn the_step_writer_leaves_the_words_the_real_writers_leave() {
-        use crate::config::{FirmwareConfig, SpindleMode, XMode};
-        use crate::xevent::EventState;
-        let gen = crate::config::load_table(crate::DEFAULT_TABLE).ok();
+        use crate::firmware::config::{FirmwareConfig, SpindleMode, XMode};
+        use crate::firmware::xevent::EventState;
+        let gen = crate::firmware::config::load_table(crate::DEFAULT_TABLE).ok();
         let fc = FirmwareConfig {
             loop_cfg: ServoDesign::brief(20_000).config().unwrap(),
             spindle: SpindleMode::None,
