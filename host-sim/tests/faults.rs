@@ -141,7 +141,11 @@ fn check_row(
             // The loop stays closed and the command leaves the part (from
             // Z ≤ 0 toward 0): the tool departs from the exact command by
             // no more than the cut's own following error, measured over
-            // the revolution before the injection on the same seeds. At
+            // the revolution before the injection on the same seeds, plus
+            // the learned correction the latch takes out of the loop (it
+            // joins the command, so the loop's error is again the
+            // unlearned one until the command has left: at most the
+            // correction's size more). At
             // boot there is no cut before: the slide is held at null, above
             // the part, never into it.
             // At boot (a refused table, no cut before): the slide is held
@@ -151,7 +155,13 @@ fn check_row(
             // only shortens it). So the tool is at most that below null,
             // and null is at most the exact surface's largest height
             // above Z = 0 over the run above the part.
-            let own = r.excursion_before_uin.unwrap_or_else(|| {
+            let correction_uin = o
+                .trace
+                .iter()
+                .take_while(|x| !x.fault)
+                .map(|x| (x.reference_in - x.command_in).abs() * 1e6)
+                .fold(0.0f64, f64::max);
+            let own = correction_uin + r.excursion_before_uin.unwrap_or_else(|| {
                 let d = &spec.scenario.servo_design;
                 let doublet_in = 2.0 * f64::from(spec.scenario.servo.sign_check_expected_code).abs()
                     / d.slide.codes_per_in();
@@ -170,7 +180,7 @@ fn check_row(
                 .unwrap();
             assert!(
                 e <= own,
-                "{}: {e} µin into the part, beyond the cut's own following error ({own} µin over the revolution before); deepest at {worst:?}",
+                "{}: {e} µin into the part, beyond the cut's own following error and the correction taken out ({own} µin: {correction_uin} of correction); deepest at {worst:?}",
                 r.fault
             );
             format!("{}: {e:.1} ≤ {own:.1} µin (own FE), null {:.1} ≤ {allowed_ms:.1} ms after the latch", r.fault, t_safe_ms - ms(from.t_ns))
@@ -423,7 +433,8 @@ fn the_campaign_runs_on_every_machine_and_each_row_holds_its_mechanisms_bound() 
             assert!(e < DEPTH_OF_CUT_IN * 1e6, "{name} X {x_in}: {held}");
         }
         let na = out.iter().filter(|o| o.row.detected.is_none()).count();
-        let expect_na = usize::from(spec.scenario.file.name == "modern-hw");
+        // modern-hw: x-bad-bcd and x-glitch-storm (no legacy X line).
+        let expect_na = if spec.scenario.file.name == "modern-hw" { 2 } else { 0 };
         assert_eq!(na, expect_na, "not applicable on {}", spec.scenario.file.name);
     }
 }

@@ -826,6 +826,7 @@ mod tests {
         use proptest::prelude::*;
 
         proptest! {
+            #![proptest_config(ProptestConfig::with_cases(1024))]
             /// Arbitrary bytes never panic the parser.
             #[test]
             fn never_panics_on_garbage(bytes in proptest::collection::vec(any::<u8>(), 0..600)) {
@@ -838,11 +839,13 @@ mod tests {
             /// payload, writes back the very image that was parsed.
             #[test]
             fn plausible_headers_parse_to_exactly_their_fields_or_fail(
-                fields in proptest::collection::vec((8usize..56, any::<u8>()), 1..4),
+                fields in proptest::collection::vec((8usize..56, 0u8..40), 1..4),
                 nodes in 0u32..20, terms in 0u8..8,
             ) {
-                // One to three header bytes (fields 8..56) set to anything:
-                // a good part of these still parse, so the check below runs.
+                // One to three header bytes (fields 8..56) set to small
+                // values (plausible for the byte fields and the low bytes
+                // of the integers): a good part of these still parse, so
+                // the round-trip check below runs.
                 let h = header(nodes.max(2), terms.max(1));
                 let mut m = image(&h);
                 for (at, b) in fields {

@@ -190,6 +190,12 @@ impl Case {
             (Case::XBadBcd, XInterface::Quadrature(_)) => Some(
                 "needs the legacy BCD X interface (a latched digit); this machine's X is a count",
             ),
+            // The storm is interrupts on the legacy half-mil line; a count
+            // read every tick has no such line (a count that jumps is
+            // `XGlitchStorm` there too, not what this case injects).
+            (Case::XGlitchStorm, XInterface::Quadrature(_)) => Some(
+                "the storm is interrupts on the legacy half-mil X line; this machine's X is a count read every loop tick",
+            ),
             _ => None,
         }
     }
