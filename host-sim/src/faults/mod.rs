@@ -185,7 +185,7 @@ impl Case {
 
     /// Why the case cannot be injected on this machine (`None`: it can).
     pub fn not_applicable(self, spec: &CutSpec) -> Option<&'static str> {
-        use crate::fwrig::XInterface;
+        use crate::machine::XInterface;
         match (self, &spec.scenario.machine.x) {
             (Case::XBadBcd, XInterface::Quadrature(_)) => Some(
                 "needs the legacy BCD X interface (a latched digit); this machine's X is a count",
