@@ -89,7 +89,10 @@ fn a_refused_parameter_block_keeps_the_amplifier_off_and_is_never_cleared() {
     block.truncate(n);
     // The good block is taken...
     let (_, _, src) = params::at_boot(&block, &base).unwrap();
-    assert!(matches!(src, ParamSource::Block { entries: 1, .. }), "{src:?}");
+    assert!(
+        matches!(src, ParamSource::Block { entries: 1, .. }),
+        "{src:?}"
+    );
     // ... one flipped bit in its value is not.
     block[n - 1] ^= 0x01;
     let (_, loop_cfg, src) = params::at_boot(&block, &base).unwrap();
@@ -133,11 +136,12 @@ fn a_clear_while_armed_is_refused_and_taken_after_a_disarm() {
         tick(&mut fw, &mut g, &mut d, false);
     }
     request(&mut fw, Request::ClearFault, &mut g, &mut d, false);
-    assert_eq!(fw.fault(), Some(Fault::FollowingError), "cleared while armed");
     assert_eq!(
-        fw.loop_state().clear_refused(),
-        Some(Fault::FollowingError)
+        fw.fault(),
+        Some(Fault::FollowingError),
+        "cleared while armed"
     );
+    assert_eq!(fw.loop_state().clear_refused(), Some(Fault::FollowingError));
     assert!(fw.amplifier_enable());
     request(&mut fw, Request::Disarm, &mut g, &mut d, false);
     // Disarming ramps the command to null first (here it is there).
@@ -165,13 +169,20 @@ fn an_amplifier_trip_is_not_cleared_while_its_line_is_high() {
     assert_eq!(fw.servo().phase(), Phase::Disarmed);
     for _ in 0..3 {
         request(&mut fw, Request::ClearFault, &mut g, &mut d, true);
-        assert_eq!(fw.fault(), Some(Fault::AmplifierTrip), "cleared with the line high");
+        assert_eq!(
+            fw.fault(),
+            Some(Fault::AmplifierTrip),
+            "cleared with the line high"
+        );
         assert_eq!(fw.loop_state().clear_refused(), Some(Fault::AmplifierTrip));
         assert!(d.clamped);
     }
     request(&mut fw, Request::ClearFault, &mut g, &mut d, false);
     assert_eq!(fw.fault(), None);
-    assert!(!d.clamped, "the clamp is released once the fault is cleared");
+    assert!(
+        !d.clamped,
+        "the clamp is released once the fault is cleared"
+    );
     assert_eq!(d.last, 0);
     assert!(!fw.amplifier_enable(), "a clear re-armed the loop");
     request(&mut fw, Request::Arm, &mut g, &mut d, false);

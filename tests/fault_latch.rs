@@ -84,7 +84,8 @@ impl Cut {
         if angle && self.n.is_multiple_of(CPR) {
             self.fw.index_event(self.n * TICK, self.n);
         }
-        self.fw.loop_tick(&input(self.n, angle), &mut self.g, &mut self.d);
+        self.fw
+            .loop_tick(&input(self.n, angle), &mut self.g, &mut self.d);
         let turns = f64::from(self.n % CPR) / f64::from(CPR);
         let dist = DISTURBANCE_CODES * (2.0 * std::f64::consts::TAU * turns).sin();
         let reference = f64::from(self.fw.servo().reference_q8()) / 256.0;

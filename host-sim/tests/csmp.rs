@@ -401,7 +401,10 @@ fn lead_lag_gain_7_75_gives_the_texts_kv_of_20000() {
     assert!((text / ran - 7.75 / 7.5).abs() < 1e-6, "{ran} {text}");
     // 7.75 gives the text's 20 000 within the 0.1 % its "20000" states;
     // the 7.5 that ran gives 19 365 (3 % short).
-    assert!((text - 20_000.0).abs() < 0.001 * 20_000.0, "Kv at 7.75: {text}");
+    assert!(
+        (text - 20_000.0).abs() < 0.001 * 20_000.0,
+        "Kv at 7.75: {text}"
+    );
     assert!((ran - 20_000.0).abs() > 0.03 * 20_000.0, "Kv at 7.5: {ran}");
 }
 

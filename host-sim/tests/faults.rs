@@ -39,11 +39,7 @@ fn ramp_to_null_s(spec: &host_sim::cut::CutSpec, command_in: f64) -> f64 {
 }
 
 /// Checks one row against its mechanism (returns what it held it to).
-fn check_row(
-    spec: &host_sim::cut::CutSpec,
-    case: Case,
-    o: &host_sim::faults::Outcome,
-) -> String {
+fn check_row(spec: &host_sim::cut::CutSpec, case: Case, o: &host_sim::faults::Outcome) -> String {
     let r = &o.row;
     assert_eq!(r.fault, case.name());
     assert_eq!(r.detected, Some(true), "{r:?}");
@@ -115,7 +111,10 @@ fn check_row(
                 "{}: {e} µin into the part, beyond {at_release:e} in at the release + the carry of {v} in/s",
                 r.fault
             );
-            format!("{}: {e:.1} ≤ {bound:.1} µin (release + v·√(m/k)), safe in the latching tick", r.fault)
+            format!(
+                "{}: {e:.1} ≤ {bound:.1} µin (release + v·√(m/k)), safe in the latching tick",
+                r.fault
+            )
         }
         Reaction::RampToNull => {
             assert!(last.amp_enabled && last.command_in == 0.0, "{r:?}");
@@ -161,17 +160,19 @@ fn check_row(
                 .take_while(|x| !x.fault)
                 .map(|x| (x.reference_in - x.command_in).abs() * 1e6)
                 .fold(0.0f64, f64::max);
-            let own = correction_uin + r.excursion_before_uin.unwrap_or_else(|| {
-                let d = &spec.scenario.servo_design;
-                let doublet_in = 2.0 * f64::from(spec.scenario.servo.sign_check_expected_code).abs()
-                    / d.slide.codes_per_in();
-                let above_null = o
-                    .trace
-                    .iter()
-                    .map(|x| (x.z_in - x.err_in).max(0.0))
-                    .fold(0.0f64, f64::max);
-                (doublet_in + above_null) * 1e6
-            });
+            let own = correction_uin
+                + r.excursion_before_uin.unwrap_or_else(|| {
+                    let d = &spec.scenario.servo_design;
+                    let doublet_in = 2.0
+                        * f64::from(spec.scenario.servo.sign_check_expected_code).abs()
+                        / d.slide.codes_per_in();
+                    let above_null = o
+                        .trace
+                        .iter()
+                        .map(|x| (x.z_in - x.err_in).max(0.0))
+                        .fold(0.0f64, f64::max);
+                    (doublet_in + above_null) * 1e6
+                });
             let worst = o
                 .trace
                 .iter()
@@ -412,8 +413,9 @@ fn a_campaign_row_is_reproducible_from_its_seed_stream() {
 #[test]
 fn the_campaign_runs_on_every_machine_and_each_row_holds_its_mechanisms_bound() {
     let modern = spec(host_sim::scenario::load("modern-hw").unwrap()).unwrap();
-    let fast = host_sim::faults::spec_at(host_sim::scenario::load("legacy-hw").unwrap(), Some(360.0))
-        .unwrap();
+    let fast =
+        host_sim::faults::spec_at(host_sim::scenario::load("legacy-hw").unwrap(), Some(360.0))
+            .unwrap();
     for (spec, x_in) in [(&modern, 1.0), (&modern, 7.0), (&fast, 3.0)] {
         let at = Inject {
             after_turns: 0.0,
@@ -434,7 +436,15 @@ fn the_campaign_runs_on_every_machine_and_each_row_holds_its_mechanisms_bound() 
         }
         let na = out.iter().filter(|o| o.row.detected.is_none()).count();
         // modern-hw: x-bad-bcd and x-glitch-storm (no legacy X line).
-        let expect_na = if spec.scenario.file.name == "modern-hw" { 2 } else { 0 };
-        assert_eq!(na, expect_na, "not applicable on {}", spec.scenario.file.name);
+        let expect_na = if spec.scenario.file.name == "modern-hw" {
+            2
+        } else {
+            0
+        };
+        assert_eq!(
+            na, expect_na,
+            "not applicable on {}",
+            spec.scenario.file.name
+        );
     }
 }

@@ -27,7 +27,10 @@ fn a_short_soak_raises_no_false_fault_and_keeps_phase_and_tool_bounded() {
     let h = &h[0];
     assert!(h.faults.is_empty(), "{:?}", h.faults);
     assert!(h.x_glitched_latches > 0, "no latch glitched: {h:?}");
-    assert!(h.x_min_in < 6.975 && h.x_max_in > 6.995, "X went out and in: {h:?}");
+    assert!(
+        h.x_min_in < 6.975 && h.x_max_in > 6.995,
+        "X went out and in: {h:?}"
+    );
     assert!(h.phase_error_mean_deg.abs() < 0.01, "{h:?}");
     assert!(h.phase_error_max_deg < 0.5, "{h:?}");
     // The following error is the force and gauge noise through the loop,

@@ -832,9 +832,13 @@ mod tests {
         assert!(t.peak_code() >= (ENTRY_LIMIT - 2) >> 8);
         let s = t.snapshot();
         assert!(
-            s.iter().all(|&v| (ENTRY_LIMIT - 2..=ENTRY_LIMIT).contains(&v)),
+            s.iter()
+                .all(|&v| (ENTRY_LIMIT - 2..=ENTRY_LIMIT).contains(&v)),
             "entries off the clamp: {:?}",
-            s.iter().filter(|&&v| !(ENTRY_LIMIT - 2..=ENTRY_LIMIT).contains(&v)).take(4).collect::<std::vec::Vec<_>>()
+            s.iter()
+                .filter(|&&v| !(ENTRY_LIMIT - 2..=ENTRY_LIMIT).contains(&v))
+                .take(4)
+                .collect::<std::vec::Vec<_>>()
         );
     }
 

@@ -30,9 +30,15 @@ pub fn check() -> Result<String> {
         table: Some(&table),
         params: None,
     };
-    for (word, what) in [("hardfault", "hard fault at pc"), ("panic", "injected in the background")] {
-        step(&format!("QEMU fault path: {word} injected, the enable output"));
-        let (code, lines) = run_qemu_elf_with(&qemu_elf(), &regions, &semihosting(word), &[], false)?;
+    for (word, what) in [
+        ("hardfault", "hard fault at pc"),
+        ("panic", "injected in the background"),
+    ] {
+        step(&format!(
+            "QEMU fault path: {word} injected, the enable output"
+        ));
+        let (code, lines) =
+            run_qemu_elf_with(&qemu_elf(), &regions, &semihosting(word), &[], false)?;
         let line = lines.iter().find(|l| l.contains(what));
         let dropped = line.is_some_and(|l| {
             l.contains("amplifier enable output was high true, now high false (read back)")
@@ -73,16 +79,10 @@ pub fn params_check() -> Result<u32> {
         table: Some(&table),
         params: Some(&file),
     };
-    let (code, lines) = run_qemu_elf_with(
-        &qemu_elf(),
-        &regions,
-        "enable=on,target=native",
-        &[],
-        false,
-    )?;
+    let (code, lines) =
+        run_qemu_elf_with(&qemu_elf(), &regions, "enable=on,target=native", &[], false)?;
     let said = lines.iter().any(|l| {
-        l.contains("servo parameter block refused, amplifier kept off")
-            && l.contains("BlockCrc")
+        l.contains("servo parameter block refused, amplifier kept off") && l.contains("BlockCrc")
     });
     let off = lines.iter().find(|l| l.contains("refused parameters:"));
     if code != 0 || !said || off.is_none() {

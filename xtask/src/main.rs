@@ -661,9 +661,8 @@ fn cmd_link_test() -> Result<u8> {
     if code != 0 {
         return Err(format!("the QEMU image exited with status {code}"));
     }
-    let n = table_checks::qemu_table_checks(&lines)?
-        + faultpath::params_check()?
-        + link::end_to_end()?;
+    let n =
+        table_checks::qemu_table_checks(&lines)? + faultpath::params_check()? + link::end_to_end()?;
     eprintln!("{n} passed, 0 failed");
     Ok(0)
 }

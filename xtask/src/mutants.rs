@@ -92,7 +92,9 @@ fn install() -> Result<()> {
         .map_err(|e| format!("cannot run cargo install: {e}"))?
         .success();
     if !ok || !installed() {
-        return Err("cargo-mutants could not be installed (cargo install cargo-mutants --locked)".into());
+        return Err(
+            "cargo-mutants could not be installed (cargo install cargo-mutants --locked)".into(),
+        );
     }
     Ok(())
 }

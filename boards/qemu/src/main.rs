@@ -56,8 +56,8 @@ use defmt_semihosting as _;
 use plant::{Dac, DacSpi, GaugeSpi, Plant};
 use zslide::drivers::{ad4020::Ad4020, ad5791::Ad5791};
 use zslide::firmware::{
-    EventState, Firmware, FirmwareConfig, LearnState, LoopState, NoCoefficientDac, Request,
-    Shared, SpindleMode, SpindleReading, TickInput, XMode,
+    EventState, Firmware, FirmwareConfig, LearnState, LoopState, NoCoefficientDac, Request, Shared,
+    SpindleMode, SpindleReading, TickInput, XMode,
 };
 use zslide::hw::EncoderSample;
 use zslide::link::proto::{

@@ -80,8 +80,9 @@ fn run_matrix(args: &Args) -> anyhow::Result<()> {
     println!("| fault | runs | n/a | all detected, safe | worst into the part, µin | where | slowest to safe, ms | where |");
     println!("|---|---|---|---|---|---|---|---|");
     let at = |p: &Option<crate::faults::matrix::Point>| {
-        p.as_ref()
-            .map_or("-".into(), |p| format!("{}, X {} in, {} rpm", p.scenario, p.x_in, p.rpm))
+        p.as_ref().map_or("-".into(), |p| {
+            format!("{}, X {} in, {} rpm", p.scenario, p.x_in, p.rpm)
+        })
     };
     for w in &worst {
         println!(

@@ -82,7 +82,8 @@ pub fn run(
                         continue;
                     }
                     w.runs += 1;
-                    let expected = !case.expects_fault() || o.latched.is_some_and(|f| case.expects(f));
+                    let expected =
+                        !case.expects_fault() || o.latched.is_some_and(|f| case.expects(f));
                     w.all_detected_and_safe &=
                         r.detected == Some(true) && r.safe_state == Some(true) && expected;
                     let e = r.max_excursion_uin.unwrap_or(f64::INFINITY);
