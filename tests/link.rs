@@ -477,17 +477,39 @@ mod prop {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// Any byte stream: the station never panics, answers every
         /// delimited frame, and a valid request after it is answered.
+        /// Zeros (the delimiter) are drawn often, so a stream holds many
+        /// frames; each non-empty frame gets exactly one reply frame (a
+        /// refusal or an answer, decodable), an empty one none (it is
+        /// only counted).
         #[test]
-        fn any_bytes_then_a_request_is_answered(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
+        fn any_bytes_then_a_request_is_answered(
+            bytes in proptest::collection::vec(prop_oneof![1 => Just(0u8), 7 => any::<u8>()], 0..400),
+        ) {
             let mut r = Rig::new();
             r.send_raw(&bytes);
             r.send_raw(&[0]);
-            for _ in 0..(bytes.len() * 2 + 200) {
+            let mut stream = bytes.clone();
+            stream.push(0);
+            let frames = stream.split(|&b| b == 0).filter(|f| !f.is_empty()).count();
+            for _ in 0..(bytes.len() * 8 + 200) {
                 r.step();
+            }
+            let replies: Vec<Vec<u8>> = r
+                .pipe
+                .from_fw
+                .split(|&b| b == 0)
+                .map(<[u8]>::to_vec)
+                .collect();
+            // The stream ends on a delimiter: the last piece is empty.
+            prop_assert_eq!(replies.last().map(Vec::len), Some(0));
+            prop_assert_eq!(replies.len() - 1, frames, "{} frames sent", frames);
+            for mut f in replies.into_iter().take(frames) {
+                prop_assert!(proto::decode::<Reply>(&mut f, u32::MAX).is_ok());
             }
             r.pipe.from_fw.clear();
             let s = r.status();
             prop_assert_eq!(s.state.phase, LoopPhase::Disarmed);
+            prop_assert_eq!(u64::from(s.frames.empty) + frames as u64, stream.split(|&b| b == 0).count() as u64 - 1);
         }
     }
 }

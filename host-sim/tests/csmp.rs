@@ -378,11 +378,34 @@ fn final_system_has_the_closed_loop_of_eq_4_47_with_ko_one_half() {
 
 #[test]
 fn lead_lag_gain_7_75_gives_the_texts_kv_of_20000() {
-    // The text's KO = 7.75 gives Kv = 7.75 * 2582 ≈ 20000 1/s; the program ran 7.5.
-    assert!((7.75f64 * 2582.0 - 20000.0).abs() < 0.001 * 20000.0);
-    let d = study("C-4").unwrap().diagram;
-    let s = d.simulate(&[30.0]).unwrap()[0];
-    assert!((s.err * 7.5 * 2582.0 - 1.0).abs() < 1e-8);
+    // The text: "a gain of 7.75 yielded a velocity error constant of
+    // 20000"; the program ran KO = 7.5. The velocity error constant is the
+    // inverse of the settled ramp error of the study's own loop (C-4 is
+    // the unit ramp), so run that loop with each gain and read Kv off it.
+    let kv = |ko: f64| {
+        let mut d = study("C-4").unwrap().diagram;
+        let mut gains = d
+            .forward
+            .iter_mut()
+            .filter_map(|b| match b {
+                host_sim::csmp::Block::Gain(k) if *k == 7.5 => Some(k),
+                _ => None,
+            })
+            .collect::<Vec<_>>();
+        assert_eq!(gains.len(), 1, "C-4 has one KO gain block");
+        *gains[0] = ko;
+        1.0 / d.simulate(&[30.0]).unwrap()[0].err
+    };
+    let (ran, text) = (kv(7.5), kv(7.75));
+    // Kv is proportional to KO (a type-1 loop's ramp error is 1/Kv).
+    assert!((text / ran - 7.75 / 7.5).abs() < 1e-6, "{ran} {text}");
+    // 7.75 gives the text's 20 000 within the 0.1 % its "20000" states;
+    // the 7.5 that ran gives 19 365 (3 % short).
+    assert!(
+        (text - 20_000.0).abs() < 0.001 * 20_000.0,
+        "Kv at 7.75: {text}"
+    );
+    assert!((ran - 20_000.0).abs() > 0.03 * 20_000.0, "Kv at 7.5: {ran}");
 }
 
 #[test]

@@ -174,7 +174,7 @@ fn every_servo_field_reaches_the_design() {
     use host_sim::scenario::parse;
     let text = include_str!("../../scenarios/legacy-hw.toml");
     let head = &text[..text.find("[servo]").unwrap()];
-    let fields: [(&str, f64); 22] = [
+    let fields: [(&str, f64); 23] = [
         ("bandwidth_hz", 17.0),
         ("damping", 0.85),
         ("bandwidth_fast_hz", 90.0),
@@ -197,6 +197,7 @@ fn every_servo_field_reaches_the_design() {
         ("following_error_in", 0.003),
         ("following_error_ms", 2.5),
         ("sign_check_v", 0.3),
+        ("sign_check_ms", 1.5),
     ];
     let mut servo = String::from("[servo]\n");
     for (k, v) in &fields {
@@ -231,6 +232,7 @@ fn every_servo_field_reaches_the_design() {
         d.following_error_in,
         d.following_error_ms,
         d.sign_check_v,
+        d.sign_check_ms,
     ];
     for ((k, want), got) in fields.iter().zip(got) {
         assert_eq!(*want, got, "{k}");

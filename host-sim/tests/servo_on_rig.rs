@@ -241,8 +241,9 @@ fn tracking_holds_within_twice_nominal_over_plant_variations() {
 /// 0.004 in); the spike stays below 3000 µin (measured 2030 µin; 1983:
 /// several hundred, from an analog loop that passed 20 µin of gauge noise
 /// to the amplifier). The limit is the gauge-only sensing: the loop keeps
-/// its 40 Hz observer for the 1 µin noise goal and switches to 400 Hz only
-/// once the innovation exceeds 150 µin; in a cut the holes repeat every
+/// its 250 Hz observer (`ServoDesign::brief`: `observer_hz`) and switches to
+/// the 800 Hz one (`observer_fast_hz`) only once the innovation exceeds
+/// 150 µin (`observer_switch_uin`); in a cut the holes repeat every
 /// revolution and the learning takes them out.
 #[test]
 fn sudden_loss_of_cutting_force_does_not_trip_and_the_spike_is_bounded() {

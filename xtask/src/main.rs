@@ -27,9 +27,11 @@
 
 mod cycles;
 mod elf;
+mod faultpath;
 mod fuzz;
 mod isr_cost;
 mod link;
+mod mutants;
 mod nopanic;
 mod replay;
 mod stack;
@@ -97,6 +99,9 @@ enum Cmd {
     LinkTest,
     /// Import cycles between the modules of every crate (part of `test`).
     Cycles,
+    /// Mutation testing of the core's safety-relevant modules
+    /// (cargo-mutants, installed on demand; not part of `test`).
+    Mutants(mutants::Args),
 }
 
 fn main() -> ExitCode {
@@ -111,6 +116,7 @@ fn main() -> ExitCode {
         Cmd::QemuLink(args) => link::run_session(&args),
         Cmd::LinkTest => cmd_link_test(),
         Cmd::Cycles => cycles::run(),
+        Cmd::Mutants(args) => mutants::run(&args),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -511,8 +517,20 @@ pub fn run_qemu_elf_echo(
     extra: &[&str],
     echo: bool,
 ) -> Result<(u8, Vec<String>)> {
+    run_qemu_elf_with(elf, regions, "enable=on,target=native", extra, echo)
+}
+
+/// [`run_qemu_elf_echo`] with another semihosting configuration (its
+/// command-line arguments select an image's injected faults).
+pub fn run_qemu_elf_with(
+    elf: &Path,
+    regions: &QemuRegions,
+    semihosting: &str,
+    extra: &[&str],
+    echo: bool,
+) -> Result<(u8, Vec<String>)> {
     let elf = elf.to_path_buf();
-    let mut qemu = qemu_command_with(&elf, regions, "null", "enable=on,target=native")
+    let mut qemu = qemu_command_with(&elf, regions, "null", semihosting)
         .args(extra)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -607,6 +625,8 @@ fn cmd_qemu(bless: bool, vcd: Option<&Path>) -> Result<u8> {
         eprintln!("QEMU replay: {summary}");
         let summary = watchdog::check()?;
         eprintln!("QEMU watchdog: {summary}");
+        let summary = faultpath::check()?;
+        eprintln!("QEMU fault paths: {summary}");
         if let Some(vcd) = vcd {
             let (summary, _) = trace::qemu_vcd(vcd)?;
             eprintln!("QEMU trace: {summary}");
@@ -622,7 +642,8 @@ fn cmd_link_test() -> Result<u8> {
     if code != 0 {
         return Err(format!("the QEMU image exited with status {code}"));
     }
-    let n = table_checks::qemu_table_checks(&lines)? + link::end_to_end()?;
+    let n =
+        table_checks::qemu_table_checks(&lines)? + faultpath::params_check()? + link::end_to_end()?;
     eprintln!("{n} passed, 0 failed");
     Ok(0)
 }
@@ -801,9 +822,12 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
         board_checks += u64::from(table_checks::qemu_table_checks(&lines)?);
+        board_checks += u64::from(faultpath::params_check()?);
         board_checks += u64::from(link::end_to_end()?);
         replay_line = Some(replay::check()?);
         watchdog_line = Some(watchdog::check()?);
+        eprintln!("QEMU fault paths: {}", faultpath::check()?);
+        board_checks += 2;
         if viewers {
             let vcd = target_dir().join("qemu-trace/run.vcd");
             let (summary, t) = trace::qemu_vcd(&vcd)?;

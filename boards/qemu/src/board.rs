@@ -10,6 +10,7 @@
 //! | CMSDK APB timer 1 | `0x4000_1000` | 9 | machine events (X, index), lower priority |
 //! | CMSDK dual timer | `0x4000_2000` | 10 | `zslide-qemu-watchdog`: index events (timer 1), a free-running clock (timer 2) |
 //! | CMSDK APB watchdog | `0x4000_8000` | NMI | `zslide-qemu-watchdog`: the watchdog |
+//! | FPGAIO LED0 | `0x4002_8000` | - | bit 0: the amplifier-enable output (the NUCLEO's PG4) |
 //!
 //! All count PCLK = 25 MHz (`SYSCLK_FRQ`) down; the timers raise their
 //! interrupt when they reach 0.
@@ -205,5 +206,22 @@ pub mod watchdog {
         write(CONTROL, 0);
         write(INTCLR, 1);
         write(LOCK, 0);
+    }
+}
+
+/// The amplifier-enable output: bit 0 of the FPGAIO's LED0 register
+/// (QEMU `hw/misc/mps2-fpgaio.c`: a register that reads back what was
+/// written), the emulated board's stand-in for the NUCLEO's PG4. The loop
+/// tick drives it, the plant's amplifier follows it, and the fault paths
+/// (HardFault, panic) drop it before anything else.
+pub mod enable {
+    const LED0: usize = 0x4002_8000;
+
+    pub fn set(high: bool) {
+        super::reg_write(LED0, u32::from(high));
+    }
+    /// What the output holds (read back from the device).
+    pub fn is_high() -> bool {
+        super::reg_read(LED0) & 1 != 0
     }
 }

@@ -10,6 +10,16 @@ pub mod trace;
 
 use cortex_m_semihosting::debug;
 
+/// The first step of every fault path (HardFault, panic), as on the
+/// NUCLEO: interrupts masked, then the amplifier-enable output dropped;
+/// returns whether it was high (read before the store, for the log).
+pub fn outputs_safe() -> bool {
+    cortex_m::interrupt::disable();
+    let was = board::enable::is_high();
+    board::enable::set(false);
+    was
+}
+
 /// Ends the run: semihosting exit with status 0 when `ok`, 1 otherwise.
 pub fn exit(ok: bool) -> ! {
     debug::exit(if ok {

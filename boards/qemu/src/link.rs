@@ -58,6 +58,11 @@ pub fn params_region() -> &'static [u8] {
 /// Whether QEMU was started with the semihosting argument `link` (a link
 /// session instead of the checked run).
 pub fn session_requested() -> bool {
+    argument(b"link")
+}
+
+/// Whether the semihosting command line holds the word `word`.
+pub fn argument(word: &[u8]) -> bool {
     let mut buf = [0u8; 64];
     // SYS_GET_CMDLINE: a two-word block (buffer, length), the length
     // replaced by the command line's.
@@ -70,7 +75,7 @@ pub fn session_requested() -> bool {
         return false;
     }
     let len = block[1].min(buf.len());
-    buf[..len].split(|&b| b == b' ').any(|w| w == b"link")
+    buf[..len].split(|&b| b == b' ').any(|w| w == word)
 }
 
 /// CMSDK APB UART0 (ARM DDI0479C §4.3; QEMU `hw/char/cmsdk-apb-uart.c`):

@@ -2,7 +2,7 @@
 //! per fault; `--out DIR` a trace plot (PNG, SVG, CSV) per fault and the
 //! table as CSV. Bound and rows: docs/SAFETY.md ("Fault campaign").
 
-use crate::faults::{campaign_at, spec, Case, Inject, Outcome, Row};
+use crate::faults::{campaign_at, spec_at, Case, Inject, Outcome, Row};
 use crate::plot::{write_plot, Series};
 use anyhow::Context;
 use std::io::Write;
@@ -29,11 +29,75 @@ pub struct Args {
     /// the campaign's instant; refused for the faults injected at boot).
     #[arg(long, value_name = "TURNS", default_value_t = 0.0)]
     pub after_turns: f64,
+    /// Inject with the tool centre at this radius, in (0 < X ≤ 7.2).
+    #[arg(long, value_name = "IN", default_value_t = crate::faults::X_INJECT_IN)]
+    pub x_in: f64,
+    /// Spindle speed, rpm (default: the scenario's; within its band).
+    #[arg(long)]
+    pub rpm: Option<f64>,
     /// Instead of the campaign: the stalled loop injected at N instants
     /// evenly spread over one revolution after the pre-roll, one row per
     /// instant, what drove the tool until the reset, and the worst.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000), conflicts_with_all = ["fault", "out", "after_turns"])]
     pub stall_sweep: Option<u32>,
+    /// Instead of one campaign: every fault on legacy-hw and modern-hw at
+    /// X = 1, 3, 5, 7 in, at each scenario's speed and at 360 rpm, with a
+    /// stall sweep of `--phases` instants at each point; prints the worst
+    /// excursion per fault (docs/SAFETY.md).
+    #[arg(long, conflicts_with_all = ["fault", "out", "after_turns", "stall_sweep", "x_in", "rpm"])]
+    pub matrix: bool,
+    /// Stall instants a revolution at each point of `--matrix`.
+    #[arg(long, default_value_t = 16, requires = "matrix")]
+    pub phases: usize,
+}
+
+/// The matrix of `--matrix`.
+pub const MATRIX_SCENARIOS: [&str; 2] = ["legacy-hw", "modern-hw"];
+pub const MATRIX_X_IN: [f64; 4] = [1.0, 3.0, 5.0, 7.0];
+pub const MATRIX_RPM: [Option<f64>; 2] = [None, Some(360.0)];
+
+fn run_matrix(args: &Args) -> anyhow::Result<()> {
+    let wall0 = std::time::Instant::now();
+    let worst = crate::faults::matrix::run(
+        &MATRIX_SCENARIOS,
+        &MATRIX_X_IN,
+        &MATRIX_RPM,
+        args.phases,
+        args.seed,
+    )?;
+    let wall_s = wall0.elapsed().as_secs_f64();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&worst)?);
+        return Ok(());
+    }
+    println!(
+        "fault matrix: {} × X {:?} in × rpm (scenario's, 360), stall sweep {} instants a point, seed stream {}: {wall_s:.1} s wall",
+        MATRIX_SCENARIOS.join(", "),
+        MATRIX_X_IN,
+        args.phases,
+        args.seed
+    );
+    println!("| fault | runs | n/a | all detected, safe | worst into the part, µin | where | slowest to safe, ms | where |");
+    println!("|---|---|---|---|---|---|---|---|");
+    let at = |p: &Option<crate::faults::matrix::Point>| {
+        p.as_ref().map_or("-".into(), |p| {
+            format!("{}, X {} in, {} rpm", p.scenario, p.x_in, p.rpm)
+        })
+    };
+    for w in &worst {
+        println!(
+            "| {} | {} | {} | {} | {:.1} | {} | {:.2} | {} |",
+            w.fault,
+            w.runs,
+            w.not_applicable,
+            w.all_detected_and_safe,
+            w.worst_excursion_uin,
+            at(&w.worst_at),
+            w.slowest_safe_ms,
+            at(&w.slowest_at)
+        );
+    }
+    Ok(())
 }
 
 /// The JSON document.
@@ -42,16 +106,20 @@ pub struct Summary<'a> {
     pub scenario: String,
     pub seed: u64,
     pub x_in: f64,
+    pub rpm: f64,
     pub wall_s: f64,
     pub rows: Vec<&'a Row>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.matrix {
+        return run_matrix(&args);
+    }
     let sc = args.scenario.load()?;
     let name = sc.file.name.clone();
-    let spec = spec(sc)?;
+    let spec = spec_at(sc, args.rpm)?;
     if let Some(n) = args.stall_sweep {
-        return run_sweep(&spec, &name, n as usize, args.seed, args.json);
+        return run_sweep(&spec, &name, n as usize, args.seed, args.x_in, args.json);
     }
     let cases: Vec<Case> = if args.fault.is_empty() {
         Case::ALL.to_vec()
@@ -61,6 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let wall0 = std::time::Instant::now();
     let at = Inject {
         after_turns: args.after_turns,
+        x_in: args.x_in,
     };
     let out = campaign_at(&spec, &cases, args.seed, at)?;
     let wall_s = wall0.elapsed().as_secs_f64();
@@ -75,7 +144,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let s = Summary {
             scenario: name,
             seed: args.seed,
-            x_in: crate::faults::X_INJECT_IN,
+            x_in: args.x_in,
+            rpm: spec.rpm,
             wall_s,
             rows: out.iter().map(|o| &o.row).collect(),
         };
@@ -83,10 +153,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "fault campaign on {name}, digital loop, cut at X = {} in (seed stream {}): {:.1} s wall",
-        crate::faults::X_INJECT_IN,
-        args.seed,
-        wall_s
+        "fault campaign on {name}, digital loop, cut at X = {} in, {} rpm (seed stream {}): {:.1} s wall",
+        args.x_in, spec.rpm, args.seed, wall_s
     );
     println!(
         "{:<21} {:>8} {:<17} {:<24} {:>10} {:>6} {:>10}  reason",
@@ -126,6 +194,7 @@ pub struct SweepSummary<'a> {
     pub scenario: String,
     pub seed: u64,
     pub x_in: f64,
+    pub rpm: f64,
     pub phases: usize,
     pub wall_s: f64,
     pub worst_excursion_uin: f64,
@@ -138,10 +207,11 @@ fn run_sweep(
     name: &str,
     phases: usize,
     seed: u64,
+    x_in: f64,
     json: bool,
 ) -> anyhow::Result<()> {
     let wall0 = std::time::Instant::now();
-    let out = crate::faults::sweep(spec, Case::StalledLoop, phases, seed)?;
+    let out = crate::faults::sweep_at(spec, Case::StalledLoop, phases, seed, x_in)?;
     let wall_s = wall0.elapsed().as_secs_f64();
     let rows: Vec<SweepRow> = out
         .iter()
@@ -162,7 +232,8 @@ fn run_sweep(
         let s = SweepSummary {
             scenario: name.to_string(),
             seed,
-            x_in: crate::faults::X_INJECT_IN,
+            x_in,
+            rpm: spec.rpm,
             phases,
             wall_s,
             worst_excursion_uin,
@@ -173,8 +244,8 @@ fn run_sweep(
         return Ok(());
     }
     println!(
-        "stalled loop swept over one revolution on {name}, {phases} instants, cut at X = {} in (seed stream {seed}): {wall_s:.1} s wall",
-        crate::faults::X_INJECT_IN
+        "stalled loop swept over one revolution on {name}, {phases} instants, cut at X = {x_in} in, {} rpm (seed stream {seed}): {wall_s:.1} s wall",
+        spec.rpm
     );
     println!(
         "{:>6} {:>9} {:>8} {:>6} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8}",

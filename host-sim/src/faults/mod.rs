@@ -14,6 +14,7 @@
 
 pub mod board;
 pub mod link;
+pub mod matrix;
 
 use crate::chips::BusFault;
 use crate::cut::{build_stretch, CutSpec, Stretch};
@@ -31,6 +32,9 @@ const MS: Nanos = 1_000_000;
 
 /// Radius of the cut where faults are injected, in (tool-centre X).
 pub const X_INJECT_IN: f64 = 5.0;
+/// The largest injection radius, in: the default table's contour ends at
+/// 7.2 in (its null zone beyond); the matrix's outermost radius is 7 in.
+pub const X_MAX_IN: f64 = 7.2;
 /// Revolutions of cut before the injection (sign check, engagement,
 /// settling, learning and the stock memory: the cut's own pre-roll).
 pub const PREROLL_REVS: f64 = 60.0;
@@ -179,6 +183,23 @@ impl Case {
         matches!(self, Case::CorruptTable | Case::ReversedGauge)
     }
 
+    /// Why the case cannot be injected on this machine (`None`: it can).
+    pub fn not_applicable(self, spec: &CutSpec) -> Option<&'static str> {
+        use crate::machine::XInterface;
+        match (self, &spec.scenario.machine.x) {
+            (Case::XBadBcd, XInterface::Quadrature(_)) => Some(
+                "needs the legacy BCD X interface (a latched digit); this machine's X is a count",
+            ),
+            // The storm is interrupts on the legacy half-mil line; a count
+            // read every tick has no such line (a count that jumps is
+            // `XGlitchStorm` there too, not what this case injects).
+            (Case::XGlitchStorm, XInterface::Quadrature(_)) => Some(
+                "the storm is interrupts on the legacy half-mil X line; this machine's X is a count read every loop tick",
+            ),
+            _ => None,
+        }
+    }
+
     /// Modelled on the board, not in the core.
     pub fn board_model(self) -> bool {
         matches!(self, Case::StalledLoop | Case::Panic)
@@ -209,8 +230,8 @@ pub struct Row {
     /// The tool's largest departure into the part (below the exact command)
     /// after the injection, µin (0 when it never went below).
     pub max_excursion_uin: Option<f64>,
-    /// The same over the 20 ms before the injection (the cut's own
-    /// following error), µin.
+    /// The same over the revolution before the injection (the cut's own
+    /// following error at this radius and speed, same seeds), µin.
     pub excursion_before_uin: Option<f64>,
     /// The same run without the injection, over the same time (the
     /// malformed-frame row: the flood must leave the cut as it was), µin.
@@ -262,23 +283,42 @@ pub struct Outcome {
 /// The cut every fault is injected into: chapter 5's pass on the scenario,
 /// the digital loop.
 pub fn spec(scenario: crate::scenario::Scenario) -> anyhow::Result<CutSpec> {
-    let mut spec = CutSpec::chapter5(scenario, Controller::Digital, None, None, false)?;
+    spec_at(scenario, None)
+}
+
+/// [`spec`] at another spindle speed (`None`: the scenario's).
+pub fn spec_at(scenario: crate::scenario::Scenario, rpm: Option<f64>) -> anyhow::Result<CutSpec> {
+    let mut spec = CutSpec::chapter5(scenario, Controller::Digital, rpm, None, false)?;
     spec.preroll_revs = PREROLL_REVS;
     Ok(spec)
 }
 
-/// When a fault is injected into the cut: `after_turns` revolutions after
-/// the pre-roll (0: the campaign's instant, `PREROLL_REVS` revolutions
-/// in). The spindle angle at the injection is the fraction of a turn; the
-/// X feed is started so that the tool centre is at `X_INJECT_IN` whatever
-/// the instant.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// When and where a fault is injected into the cut: `after_turns`
+/// revolutions after the pre-roll (0: the campaign's instant,
+/// `PREROLL_REVS` revolutions in), with the tool centre at `x_in` (the
+/// X feed is started so that it is there whatever the instant). The
+/// spindle angle at the injection is the fraction of a turn.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Inject {
     pub after_turns: f64,
+    pub x_in: f64,
+}
+
+impl Default for Inject {
+    /// The campaign's instant and radius.
+    fn default() -> Self {
+        Self {
+            after_turns: 0.0,
+            x_in: X_INJECT_IN,
+        }
+    }
 }
 
 /// What one simulated run left.
 struct Run {
+    /// The tool's largest departure into the part over the revolution
+    /// before the injection, in (0: never below).
+    before_rev_in: f64,
     latched: Option<Fault>,
     trace: Vec<Sample>,
     t_inj: Nanos,
@@ -346,13 +386,20 @@ fn simulate(
         }
         ((PREROLL_REVS + at.after_turns) * rev_s * 1e9).round() as Nanos
     };
+    if !(at.x_in > 0.0 && at.x_in <= X_MAX_IN) {
+        bail!(
+            "{}: the injection radius must lie in the contoured part, 0 < X ≤ {X_MAX_IN} in ({} in asked)",
+            case.name(),
+            at.x_in
+        );
+    }
     let feed_in_per_s = f / rev_s;
     // The tool centre reaches X_INJECT_IN (or, for the X fault, the first
     // half-mil below the table's first node) at the injection instant.
     let x_at_inj = if case == Case::XOutsideTable {
         0.2e-6
     } else {
-        X_INJECT_IN
+        at.x_in
     };
     let x_start = x_at_inj + feed_in_per_s * t_inj as f64 * 1e-9;
     let st = Stretch {
@@ -398,12 +445,21 @@ fn simulate(
 
     // One sample per loop-tick instant from BEFORE_NS before the injection.
     let samples: Rc<RefCell<Vec<Sample>>> = Rc::new(RefCell::new(Vec::new()));
+    let before_rev = Rc::new(Cell::new(0.0f64));
     {
         let samples = samples.clone();
+        let before_rev = before_rev.clone();
         let cutter = rig.cutter.clone();
         let t0 = t_inj.saturating_sub(BEFORE_NS);
+        let t_rev = t_inj.saturating_sub((rev_s * 1e9).round() as Nanos);
         rig.s.on_event = Some(Box::new(move |t, k, w| {
-            if k != src::LOOP_TICK || t < t0 {
+            if k != src::LOOP_TICK || t < t_rev.min(t0) {
+                return;
+            }
+            if t >= t_rev && t < t_inj {
+                before_rev.set(before_rev.get().max(-cutter.borrow().last_error_in));
+            }
+            if t < t0 {
                 return;
             }
             let sv = w.fw.servo();
@@ -542,11 +598,15 @@ fn simulate(
     // What the firmware (or the board model) latched.
     let latched = match case {
         Case::StalledLoop => reset_at.get().map(|_| Fault::Watchdog),
-        Case::Panic => Some(Fault::Panic),
+        // Seen, not assumed: the board model's handler must have halted
+        // the core and the amplifier must see its enable low (the QEMU
+        // image's real handler: `cargo xtask qemu`, fault paths).
+        Case::Panic => (w.cpu == Cpu::Halted && !w.rig.amp.enabled()).then_some(Fault::Panic),
         _ => w.fw.fault(),
     };
     let trace = std::mem::take(&mut *samples.borrow_mut());
     Ok(Run {
+        before_rev_in: before_rev.get(),
         latched,
         trace,
         t_inj,
@@ -575,10 +635,14 @@ pub fn run_case_at(
     seed_index: u64,
     at: Inject,
 ) -> anyhow::Result<Outcome> {
+    if let Some(why) = case.not_applicable(spec) {
+        return Ok(not_applicable(spec, case, why));
+    }
     if case == Case::MalformedHostFrame {
         return run_link_case(spec, seed_index, at);
     }
     let Run {
+        before_rev_in,
         latched,
         trace,
         t_inj,
@@ -587,7 +651,6 @@ pub fn run_case_at(
     } = simulate(spec, case, seed_index, at, None)?;
     let reaction = latched.map(Fault::reaction);
     let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
-    let before: Vec<&Sample> = trace.iter().filter(|x| x.t_ns < t_inj).collect();
     let safe = |x: &Sample| match reaction {
         Some(Reaction::RampToNull) => {
             x.amp_enabled && x.command_in == 0.0 && x.z_in.abs() <= NULL_HOLD_IN
@@ -618,7 +681,7 @@ pub fn run_case_at(
             latched: latched.map(|f| format!("{f:?}")),
             reaction: reaction.map(|r| format!("{r:?}")),
             max_excursion_uin: Some(into_part(&after)),
-            excursion_before_uin: (!case.at_boot()).then(|| into_part(&before)),
+            excursion_before_uin: (!case.at_boot()).then_some(before_rev_in.max(0.0) * 1e6),
             excursion_undisturbed_uin: None,
             safe_state: Some(stays),
             reason,
@@ -631,6 +694,30 @@ pub fn run_case_at(
         latched,
         trace,
     })
+}
+
+/// The row of a case this machine cannot have: nothing injected, nothing
+/// judged, the reason said.
+fn not_applicable(spec: &CutSpec, case: Case, why: &str) -> Outcome {
+    Outcome {
+        row: Row {
+            fault: case.name(),
+            injection: case.injection(),
+            detected: None,
+            latched: None,
+            reaction: None,
+            max_excursion_uin: None,
+            excursion_before_uin: None,
+            excursion_undisturbed_uin: None,
+            safe_state: None,
+            reason: format!("not applicable on {}: {why}", spec.scenario.file.name),
+            time_to_safe_ms: None,
+            injected_at_s: None,
+            link: None,
+        },
+        latched: None,
+        trace: Vec::new(),
+    }
 }
 
 /// The malformed-frame row: the cut with the flood, and the same cut
@@ -650,7 +737,6 @@ fn run_link_case(spec: &CutSpec, seed_index: u64, at: Inject) -> anyhow::Result<
         let v: Vec<&Sample> = t.iter().filter(|x| x.t_ns >= run.t_inj).collect();
         into_part(&v)
     };
-    let before: Vec<&Sample> = run.trace.iter().filter(|x| x.t_ns < run.t_inj).collect();
     let untouched = run.trace == quiet.trace;
     let unaffected = run.latched.is_none()
         && run.phase == Phase::Engaged
@@ -694,7 +780,7 @@ fn run_link_case(spec: &CutSpec, seed_index: u64, at: Inject) -> anyhow::Result<
             latched: run.latched.map(|f| format!("{f:?}")),
             reaction: Some("Refusal::Frame".into()),
             max_excursion_uin: Some(after(&run.trace)),
-            excursion_before_uin: Some(into_part(&before)),
+            excursion_before_uin: Some(run.before_rev_in.max(0.0) * 1e6),
             excursion_undisturbed_uin: Some(after(&quiet.trace)),
             safe_state: Some(unaffected && judged.all_served()),
             reason,
@@ -734,13 +820,24 @@ pub fn sweep(
     phases: usize,
     seed_index: u64,
 ) -> anyhow::Result<Vec<Outcome>> {
+    sweep_at(spec, case, phases, seed_index, X_INJECT_IN)
+}
+
+/// [`sweep`] with the tool centre at `x_in`.
+pub fn sweep_at(
+    spec: &CutSpec,
+    case: Case,
+    phases: usize,
+    seed_index: u64,
+    x_in: f64,
+) -> anyhow::Result<Vec<Outcome>> {
     if phases == 0 {
         bail!("a sweep needs at least one phase");
     }
     let runs: Vec<(Case, Inject)> = (0..phases)
         .map(|k| {
             let after_turns = k as f64 / phases as f64;
-            (case, Inject { after_turns })
+            (case, Inject { after_turns, x_in })
         })
         .collect();
     run_all(spec, &runs, seed_index)
