@@ -58,7 +58,7 @@ pub fn check() -> Result<String> {
 /// passed.
 pub fn params_check() -> Result<u32> {
     step("QEMU parameter region: a corrupt block");
-    let base = ServoDesign::brief(crate::regions::LOOP_HZ);
+    let base = ServoDesign::brief(zslide_host::regions::LOOP_HZ);
     let setting = (
         params::by_name("following_error_in")
             .ok_or("no parameter following_error_in")?
