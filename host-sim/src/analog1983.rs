@@ -278,7 +278,10 @@ impl AnalogController {
     }
     /// One substep against the rig: read the gauge, drive the amplifier.
     pub fn tick(&mut self, rig: &mut crate::plant::Rig) {
-        let y = rig.gauge.volts(rig.t_ns, rig.slide.gauge_position_in());
+        let y = rig.gauge.volts(
+            rig.t_ns,
+            rig.slide.gauge_position_in() + rig.gauge_injection_in,
+        );
         rig.v_in = self.step(self.substep_ns, y);
     }
 }
@@ -698,6 +701,9 @@ pub struct AnalogDrive {
     linear_since: Option<u64>,
     next_substep_ns: u64,
     pub reference_v: f64,
+    /// The command generator's sign (−1: the 1983 first part's mistake,
+    /// `cut --command-sign reversed`).
+    pub reference_sign: f64,
     /// Hand-overs to the co-simulation so far.
     pub nonlinear_spells: u64,
 }
@@ -723,6 +729,7 @@ impl AnalogDrive {
             linear_since: None,
             next_substep_ns,
             reference_v: 0.0,
+            reference_sign: 1.0,
             nonlinear_spells: 0,
         }
     }
