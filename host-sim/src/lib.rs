@@ -11,7 +11,6 @@ pub mod faults;
 pub mod fastmath;
 pub mod fwrig;
 pub mod geometry;
-pub mod link;
 pub mod machine;
 pub mod plant;
 pub mod plot;

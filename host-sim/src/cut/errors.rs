@@ -39,7 +39,7 @@ pub struct ErrorLevels {
     /// Mains hum at the power amplifier's input, mV peak, and its
     /// frequency (chapter 6: ≥ 20 mV of noise reached the amplifier).
     pub amp_hum_mv: f64,
-    pub amp_hum_hz: f64,
+    pub amp_hum_frequency_hz: f64,
     /// Tool nose recession by wear, µin per 1000 in of cut length.
     pub tool_wear_uin_per_kin: f64,
     /// Thermal drift of the tool against the part along +Y_t, µin per hour
@@ -80,7 +80,7 @@ impl ErrorLevels {
                 5000.0,
             ),
             ("errors.amp_hum_mv", self.amp_hum_mv, 0.0, 1000.0),
-            ("errors.amp_hum_hz", self.amp_hum_hz, 0.0, 5000.0),
+            ("errors.amp_hum_frequency_hz", self.amp_hum_frequency_hz, 0.0, 5000.0),
             (
                 "errors.tool_wear_uin_per_kin",
                 self.tool_wear_uin_per_kin,
@@ -109,8 +109,8 @@ impl ErrorLevels {
                 anyhow::bail!("{f} = {v} is out of range [{lo}, {hi}]");
             }
         }
-        if self.amp_hum_mv > 0.0 && self.amp_hum_hz <= 0.0 {
-            anyhow::bail!("errors.amp_hum_hz must be > 0 when errors.amp_hum_mv > 0");
+        if self.amp_hum_mv > 0.0 && self.amp_hum_frequency_hz <= 0.0 {
+            anyhow::bail!("errors.amp_hum_frequency_hz must be > 0 when errors.amp_hum_mv > 0");
         }
         Ok(())
     }
@@ -171,7 +171,7 @@ impl Source {
         let mut o = ErrorLevels {
             spindle_sync_per_rev: l.spindle_sync_per_rev,
             spindle_async_bw_hz: l.spindle_async_bw_hz,
-            amp_hum_hz: l.amp_hum_hz,
+            amp_hum_frequency_hz: l.amp_hum_frequency_hz,
             ..ErrorLevels::default()
         };
         match self {
@@ -215,7 +215,7 @@ impl Source {
                 "{} µin at {}/rev + {} µin RMS",
                 l.spindle_sync_uin, l.spindle_sync_per_rev, l.spindle_async_uin
             ),
-            Source::AmpHum => format!("{} mV at {} Hz", l.amp_hum_mv, l.amp_hum_hz),
+            Source::AmpHum => format!("{} mV at {} Hz", l.amp_hum_mv, l.amp_hum_frequency_hz),
             Source::ToolWear => format!("{} µin per 1000 in", l.tool_wear_uin_per_kin),
             Source::Thermal => format!("{} µin/h", l.thermal_drift_uin_per_h),
         }
@@ -381,7 +381,7 @@ impl ErrorState {
         if l.amp_hum_mv == 0.0 {
             return 0.0;
         }
-        let w = TAU * l.amp_hum_hz;
+        let w = TAU * l.amp_hum_frequency_hz;
         let g = 1.0 / (1.0 + (w * tau_e_s).powi(2)).sqrt();
         let lag = (w * tau_e_s).atan();
         kf * ka * l.amp_hum_mv * 1e-3 / r_ohm * g * (w * t_s - lag).sin()

@@ -31,8 +31,9 @@ pub mod run;
 pub mod sign;
 
 use crate::cut::part::{CmmGrid, PassLog, CMM_X_IN};
-use crate::cut::run::{Cutter, SharedCutter, StretchLog};
-use crate::fwrig::{machine_with_table, XInterface};
+use crate::cut::run::{Cutter, StretchLog};
+use crate::fwrig::machine_with_table;
+use crate::machine::XInterface;
 use crate::scenario::Scenario;
 use crate::surface::Surface;
 use anyhow::{bail, Context};
@@ -376,7 +377,7 @@ pub fn build_stretch(
         a.reference_sign = spec.command_sign.factor();
     }
     w.fw.set_target_code((spec.z_offset_in * run::CODES_PER_IN).round() as i32);
-    w.hook = Some(Box::new(SharedCutter(cutter.clone())));
+    w.hooks.push(Box::new(cutter.clone()));
     Ok(StretchRig {
         w,
         s,
@@ -443,7 +444,7 @@ pub fn run_stretch(
     if w.rig.amp.tripped() {
         faults.push("AmplifierTrip".to_string());
     }
-    w.hook = None;
+    w.hooks.clear();
     let log = match Rc::try_unwrap(cutter) {
         Ok(c) => c.into_inner().log,
         Err(_) => bail!("cutter still shared after the run"),
