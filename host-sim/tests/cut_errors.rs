@@ -81,7 +81,10 @@ fn a_constant_x_zero_error_gives_the_slope_times_the_offset() {
         worst = worst.max((with[i] - base[i] - expect).abs());
     }
     assert!(largest > 10.0, "the test sees the slope ({largest:.1} µin)");
-    assert!(worst < 1.5, "worst deviation from slope × δ: {worst:.2} µin");
+    assert!(
+        worst < 1.5,
+        "worst deviation from slope × δ: {worst:.2} µin"
+    );
 }
 
 /// The digital firmware with the 1983 command generator's mistake (a

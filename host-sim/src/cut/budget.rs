@@ -163,7 +163,11 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Budget> {
     progress("all sources");
     let all = pass(Some(levels))?;
     let (alo, ahi, arms, _) = contribution(&all, &base);
-    let rss = rows.iter().map(|r| r.rms_uin * r.rms_uin).sum::<f64>().sqrt();
+    let rss = rows
+        .iter()
+        .map(|r| r.rms_uin * r.rms_uin)
+        .sum::<f64>()
+        .sqrt();
     let total = cmm::read(&all, &surf, gain, &lv, spec.scenario.rig.seed);
     let tv: Vec<f64> = values(&total).into_iter().flatten().collect();
     let (tlo, thi, _, _) = stats(&tv);
@@ -187,7 +191,9 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Budget> {
 pub fn table(b: &Budget) -> String {
     use std::fmt::Write;
     let mut o = String::new();
-    let goal = b.goal_uin.map_or("none".to_string(), |g| format!("±{g} µin"));
+    let goal = b
+        .goal_uin
+        .map_or("none".to_string(), |g| format!("±{g} µin"));
     let _ = writeln!(
         o,
         "error budget: {} / {} / {} rpm / holes {}; goal {goal}",

@@ -131,7 +131,11 @@ mod tests {
         let surf = Surface::from_table_geometry(&t.header().geometry).unwrap();
         let grid = CmmGrid {
             err_uin: (0..36)
-                .map(|i| (0..7).map(|j| Some(f64::from(i * 7 + j) * 3.1 - 300.0)).collect())
+                .map(|i| {
+                    (0..7)
+                        .map(|j| Some(f64::from(i * 7 + j) * 3.1 - 300.0))
+                        .collect()
+                })
                 .collect(),
             in_hole: vec![vec![false; 7]; 36],
             finish_by_x_uin: vec![None; 7],
@@ -143,7 +147,12 @@ mod tests {
             ..CmmLevels::renault()
         };
         let r = read(&grid, &surf, surf.contact_gain(), &lv, 7);
-        for (a, b) in grid.err_uin.iter().flatten().zip(r.err_uin.iter().flatten()) {
+        for (a, b) in grid
+            .err_uin
+            .iter()
+            .flatten()
+            .zip(r.err_uin.iter().flatten())
+        {
             let (a, b) = (a.unwrap(), b.unwrap());
             assert!((a - b).abs() <= 39.37 / 2.0 + 1e-9, "{a} read {b}");
         }

@@ -51,7 +51,12 @@ impl ErrorLevels {
     /// Range checks naming the field.
     pub fn validate(&self) -> anyhow::Result<()> {
         let checks: [(&str, f64, f64, f64); 13] = [
-            ("errors.gauge_scale_error", self.gauge_scale_error, -0.2, 0.2),
+            (
+                "errors.gauge_scale_error",
+                self.gauge_scale_error,
+                -0.2,
+                0.2,
+            ),
             (
                 "errors.gauge_nonlinearity_uin",
                 self.gauge_nonlinearity_uin,
@@ -65,14 +70,24 @@ impl ErrorLevels {
                 1000.0,
             ),
             ("errors.x_zero_error_in", self.x_zero_error_in, -0.1, 0.1),
-            ("errors.spindle_sync_uin", self.spindle_sync_uin, 0.0, 1000.0),
+            (
+                "errors.spindle_sync_uin",
+                self.spindle_sync_uin,
+                0.0,
+                1000.0,
+            ),
             (
                 "errors.spindle_sync_per_rev",
                 f64::from(self.spindle_sync_per_rev),
                 0.0,
                 64.0,
             ),
-            ("errors.spindle_async_uin", self.spindle_async_uin, 0.0, 1000.0),
+            (
+                "errors.spindle_async_uin",
+                self.spindle_async_uin,
+                0.0,
+                1000.0,
+            ),
             (
                 "errors.spindle_async_bw_hz",
                 self.spindle_async_bw_hz,
@@ -80,7 +95,12 @@ impl ErrorLevels {
                 5000.0,
             ),
             ("errors.amp_hum_mv", self.amp_hum_mv, 0.0, 1000.0),
-            ("errors.amp_hum_frequency_hz", self.amp_hum_frequency_hz, 0.0, 5000.0),
+            (
+                "errors.amp_hum_frequency_hz",
+                self.amp_hum_frequency_hz,
+                0.0,
+                5000.0,
+            ),
             (
                 "errors.tool_wear_uin_per_kin",
                 self.tool_wear_uin_per_kin,
@@ -342,7 +362,9 @@ impl ErrorState {
     /// Whether the gauge needs the per-tick injection (nonzero terms).
     pub fn gauge_active(&self) -> bool {
         let l = &self.levels;
-        l.gauge_scale_error != 0.0 || l.gauge_nonlinearity_uin != 0.0 || l.gauge_drift_uin_per_h != 0.0
+        l.gauge_scale_error != 0.0
+            || l.gauge_nonlinearity_uin != 0.0
+            || l.gauge_drift_uin_per_h != 0.0
     }
 
     /// The tool's cutting point above the slide's commanded frame, in,
@@ -355,9 +377,8 @@ impl ErrorState {
         let l = &self.levels;
         self.wear.step(x, d_turns);
         let thermal = l.thermal_drift_uin_per_h * 1e-6 * self.pass_hours(x);
-        let sync = l.spindle_sync_uin
-            * 1e-6
-            * (TAU * f64::from(l.spindle_sync_per_rev) * phi_p).cos();
+        let sync =
+            l.spindle_sync_uin * 1e-6 * (TAU * f64::from(l.spindle_sync_per_rev) * phi_p).cos();
         if l.spindle_async_uin > 0.0 {
             let sigma = l.spindle_async_uin * 1e-6;
             let h = self.last_t.map_or(0.0, |t0| (t_s - t0).max(0.0));
