@@ -65,11 +65,15 @@ fn a_gauge_scale_error_eps_leaves_minus_eps_times_z() {
 fn a_constant_x_zero_error_gives_the_slope_times_the_offset() {
     let delta = 0.01;
     let x = 7.0;
-    let base = column(&spec(None), x);
-    let s = spec(Some(ErrorLevels {
+    // The band wide enough that the shifted part still covers the point.
+    let mut b = spec(None);
+    b.band_half_in = 0.012;
+    let base = column(&b, x);
+    let mut s = spec(Some(ErrorLevels {
         x_zero_error_in: delta,
         ..ErrorLevels::default()
     }));
+    s.band_half_in = 0.012;
     let with = column(&s, x);
     let (surf, _) = s.surface().unwrap();
     let sec = surf.section(x / surf.contact_gain()).unwrap();
