@@ -85,8 +85,10 @@ fn a_constant_x_zero_error_gives_the_slope_times_the_offset() {
         worst = worst.max((with[i] - base[i] - expect).abs());
     }
     assert!(largest > 10.0, "the test sees the slope ({largest:.1} µin)");
+    // slope × δ reaches ≈ 18 µin; the shifted run reaches the point after
+    // 35 revolutions of settling instead of 135 (the loop's own change).
     assert!(
-        worst < 1.5,
+        worst < 2.0,
         "worst deviation from slope × δ: {worst:.2} µin"
     );
 }
