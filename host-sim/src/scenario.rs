@@ -58,6 +58,10 @@ pub struct ScenarioFile {
     /// fields take the firmware's defaults, the slide model is `[motor]`.
     #[serde(default)]
     pub servo: ServoSection,
+    /// Error sources beyond the loop and their levels (`cut::errors`);
+    /// absent fields are 0 (off).
+    #[serde(default)]
+    pub errors: crate::cut::errors::ErrorLevels,
 }
 
 /// `[servo]`: the loop's gains, filters, learning and limits, in physical
@@ -341,6 +345,7 @@ fn check(field: &str, v: f64, lo: f64, hi: f64) -> anyhow::Result<()> {
 impl ScenarioFile {
     /// Range checks, each naming its field.
     pub fn validate(&self) -> anyhow::Result<()> {
+        self.errors.validate()?;
         let m = &self.motor;
         check("motor.kf_lbf_per_a", m.kf_lbf_per_a, 0.01, 100.0)?;
         check("motor.kb_v_s_per_ft", m.kb_v_s_per_ft, 0.0, 100.0)?;

@@ -84,14 +84,22 @@ fn the_cutting_force_on_the_slide_is_the_steady_thrust_along_plus_z() {
 #[test]
 fn open_bolt_holes_interrupt_the_force_at_the_bolt_circle_only() {
     let s = spec("modern-hw", Holes::Open);
-    let at3 = run(&s, &band(&s, 3.0));
+    // A band on the bolt circle (between the CMM radii 3 and 4 in).
+    let r_b = s.scenario.cutting.bolt_holes.circle_radius_in;
+    let on_circle = Stretch {
+        x_start_in: r_b + s.band_half_in + s.preroll_revs * s.feed_per_rev_in,
+        x_end_in: r_b - s.band_half_in - 2.0 * s.feed_per_rev_in,
+        windows: vec![(r_b - s.band_half_in, r_b + s.band_half_in)],
+        index: 3,
+    };
+    let at3 = run(&s, &on_circle);
     let at5 = run(&s, &band(&s, 5.0));
     let steady = s.scenario.cutting.thrust_lbf(s.depth_in, s.feed_per_rev_in);
     let m3 = at3.log.force_sum / at3.log.fe_n as f64;
     let m5 = at5.log.force_sum / at5.log.fe_n as f64;
     assert!(
         m3 < 0.9 * steady,
-        "holes at 3 in remove part of the cut: {m3}"
+        "holes on the bolt circle remove part of the cut: {m3}"
     );
     assert!(
         (m5 - steady).abs() < 0.02 * steady,
@@ -149,4 +157,26 @@ fn the_1983_loop_leaves_hundreds_of_microinch_on_the_same_part() {
         hi - lo > 400.0 && hi - lo < 1400.0,
         "{lo:.0} .. {hi:.0} µin"
     );
+}
+
+/// Table 5-1 (the first part, holes open) has a value at every one of its
+/// 252 points: the holes' assumed geometry puts no CMM point over a hole.
+#[test]
+fn no_cmm_grid_point_falls_in_an_open_bolt_hole() {
+    for name in ["legacy-hw", "modern-hw"] {
+        let sc = host_sim::scenario::load(name).unwrap();
+        let mut holes = sc.cutting.bolt_holes.clone();
+        holes.filled = false;
+        let ring = host_sim::cut::engage::HoleRing::new(&holes);
+        for &x in &CMM_X_IN {
+            for k in 0..36 {
+                let phi = f64::from(k) / 36.0;
+                assert!(!ring.over_hole(x, phi), "{name}: X {x} in, φ {}°", 10 * k);
+            }
+        }
+        // ... while the holes are there to be cut over.
+        let r_b = sc.cutting.bolt_holes.circle_radius_in;
+        let hole_phi = sc.cutting.bolt_holes.phase_deg / 360.0;
+        assert!(ring.over_hole(r_b, hole_phi), "{name}");
+    }
 }

@@ -20,6 +20,9 @@ pub struct AnalogDrive {
     linear_since: Option<u64>,
     next_substep_ns: u64,
     pub reference_v: f64,
+    /// The command generator's sign (−1: the 1983 first part's mistake,
+    /// `cut --command-sign reversed`).
+    pub reference_sign: f64,
     /// Hand-overs to the co-simulation so far.
     pub nonlinear_spells: u64,
 }
@@ -45,6 +48,7 @@ impl AnalogDrive {
             linear_since: None,
             next_substep_ns,
             reference_v: 0.0,
+            reference_sign: 1.0,
             nonlinear_spells: 0,
         }
     }

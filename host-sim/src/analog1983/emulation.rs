@@ -57,7 +57,10 @@ impl AnalogController {
     }
     /// One substep against the rig: read the gauge, drive the amplifier.
     pub fn tick(&mut self, rig: &mut crate::plant::Rig) {
-        let y = rig.gauge.volts(rig.t_ns, rig.slide.gauge_position_in());
+        let y = rig.gauge.volts(
+            rig.t_ns,
+            rig.slide.gauge_position_in() + rig.gauge_injection_in,
+        );
         rig.v_in = self.step(self.substep_ns, y);
     }
 }

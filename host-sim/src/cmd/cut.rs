@@ -58,6 +58,25 @@ pub struct Args {
     /// The part's table image (with `--part`).
     #[arg(long, requires = "part")]
     pub table: Option<PathBuf>,
+    /// Error sources beyond the loop at the scenario's `[errors]` levels
+    /// (default: `all` for legacy-analog, the 1983 shop; `none` for
+    /// digital, the loop's own contribution). docs/CUT.md.
+    #[arg(long, value_enum)]
+    pub errors: Option<crate::cut::errors::Selection>,
+    /// The command generator's sign: `reversed` is the 1983 first part's
+    /// mistake, measured against the reversed nominal.
+    #[arg(long, value_enum, default_value_t = crate::cut::sign::CommandSign::Normal)]
+    pub command_sign: crate::cut::sign::CommandSign,
+    /// How the grid is measured: the true surface, or as chapter 5's CMM
+    /// reads it (1 µm steps, repeatability, alignment and angle-datum
+    /// residuals; `cut::cmm`).
+    #[arg(long, value_enum, default_value_t = crate::cut::cmm::Measure::Exact)]
+    pub measure: crate::cut::cmm::Measure,
+    /// The error budget instead of one cut: the loop alone, each source of
+    /// the scenario's `[errors]` alone, all together, and the tolerance per
+    /// source the goal needs (`cut::budget`).
+    #[arg(long)]
+    pub budget: bool,
 }
 
 /// The JSON summary (brief §5).
@@ -93,6 +112,11 @@ pub struct Summary {
     pub depth_in: f64,
     pub feed_per_rev_in: f64,
     pub mean_force_lbf: f64,
+    /// Error sources applied (`none`, `all`) and the command's sign.
+    pub errors: crate::cut::errors::Selection,
+    pub command_sign: crate::cut::sign::CommandSign,
+    /// How `cmm_grid_uin` was measured (`exact`, `cmm`).
+    pub measure: crate::cut::cmm::Measure,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
@@ -121,6 +145,9 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         depth_in: spec.depth_in,
         feed_per_rev_in: spec.feed_per_rev_in,
         mean_force_lbf: o.mean_force_lbf,
+        errors: spec.errors,
+        command_sign: spec.command_sign,
+        measure: spec.measure,
     }
 }
 
@@ -154,6 +181,11 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     if let Some(path) = &args.part {
         spec.part = Some(crate::cmd::parttable::part_cut(path, args.table.as_ref())?);
     }
+    if let Some(e) = args.errors {
+        spec.errors = e;
+    }
+    spec.command_sign = args.command_sign;
+    spec.measure = args.measure;
     Ok(spec)
 }
 
@@ -205,6 +237,15 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec = spec_of(&args, args.controller)?;
+    if args.budget {
+        let b = crate::cut::budget::run(&spec, &|s| eprintln!("budget: {s}"))?;
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&b)?);
+        } else {
+            print!("{}", crate::cut::budget::table(&b));
+        }
+        return Ok(());
+    }
     let mut extras = Extras::default();
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir)
@@ -254,11 +295,11 @@ fn opt(v: Option<f64>) -> String {
 fn print_summary(s: &Summary, o: &CutOutcome) {
     println!();
     println!(
-        "{} / {} / {} rpm / holes {:?} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
+        "{} / {} / {} rpm / holes {} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
         s.scenario,
         s.controller.name(),
         s.rpm,
-        s.holes,
+        s.holes.name(),
         if s.full { "full pass" } else { "bands" },
         o.stretches,
         if o.stretches == 1 { "" } else { "es" },
@@ -292,6 +333,12 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         s.following_error_rms_uin, s.following_error_peak_uin
     );
     println!("cutting force      {:.2} lbf mean", s.mean_force_lbf);
+    println!(
+        "errors             {} (beyond the loop); command sign {}; measured {}",
+        s.errors.name(),
+        s.command_sign.name(),
+        s.measure.name()
+    );
     println!(
         "faults             {}",
         if s.faults.is_empty() {

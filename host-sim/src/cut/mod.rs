@@ -19,12 +19,17 @@
 //!
 //! Conventions and the model: docs/CUT.md.
 
+pub mod budget;
+pub mod cmm;
 pub mod engage;
+pub mod errors;
+pub mod frame;
 pub mod nominal;
 pub mod part;
 pub mod partcut;
 pub mod plot;
 pub mod run;
+pub mod sign;
 
 use crate::cut::part::{CmmGrid, PassLog, CMM_X_IN};
 use crate::cut::run::{Cutter, StretchLog};
@@ -48,6 +53,16 @@ pub enum Holes {
     Open,
     /// Filled with cast material (the second part).
     Filled,
+}
+
+impl Holes {
+    /// As the flag spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Holes::Open => "open",
+            Holes::Filled => "filled",
+        }
+    }
 }
 
 /// Everything a pass needs.
@@ -74,6 +89,14 @@ pub struct CutSpec {
     pub z_offset_in: f64,
     /// A part of one's own (`cut --part`); `None`: the default table's.
     pub part: Option<std::sync::Arc<partcut::PartCut>>,
+    /// Which error sources beyond the loop are applied, and their levels
+    /// (`errors`; the scenario's `[errors]`).
+    pub errors: errors::Selection,
+    pub error_levels: errors::ErrorLevels,
+    /// The command generator's sign (`sign`).
+    pub command_sign: sign::CommandSign,
+    /// How the grid is measured (`cmm`).
+    pub measure: cmm::Measure,
 }
 
 impl CutSpec {
@@ -112,6 +135,7 @@ impl CutSpec {
         });
         check_part_side(scenario.cutting.part_side)
             .with_context(|| format!("scenario {}", f.name))?;
+        let error_levels = scenario.file.errors.clone();
         Ok(Self {
             x_start_in: f.x.x0_in,
             scenario,
@@ -125,6 +149,16 @@ impl CutSpec {
             full,
             z_offset_in: 0.0,
             part: None,
+            // The 1983 loop cuts on the shop's machine as chapter 5 had
+            // it; the digital loop's figures are its own contribution,
+            // with the sources in the budget (docs/CUT.md).
+            errors: match controller {
+                Controller::LegacyAnalog => errors::Selection::All,
+                Controller::Digital => errors::Selection::None,
+            },
+            error_levels,
+            command_sign: sign::CommandSign::Normal,
+            measure: cmm::Measure::Exact,
         })
     }
 
@@ -149,6 +183,14 @@ impl CutSpec {
         match &self.part {
             Some(_) => Ok(1.0),
             None => Ok(self.surface()?.0.contact_gain()),
+        }
+    }
+
+    /// The levels this cut applies.
+    pub fn applied_levels(&self) -> Option<errors::ErrorLevels> {
+        match self.errors {
+            errors::Selection::None => None,
+            errors::Selection::All => Some(self.error_levels.clone()),
         }
     }
 
@@ -309,6 +351,9 @@ pub fn build_stretch(
     machine.spindle.rpm0 = spec.rpm;
     let mut cutting = sc.cutting.clone();
     cutting.bolt_holes.filled = spec.holes == Holes::Filled;
+    // The engagement works in the command's angle; the holes are placed
+    // in the part's (`frame`).
+    cutting.bolt_holes.phase_deg = frame::command_deg_of_part(cutting.bolt_holes.phase_deg);
     let nominal: nominal::Command = match &spec.part {
         Some(p) => {
             let rt = cutting.tool_radius_in;
@@ -345,8 +390,37 @@ pub fn build_stretch(
         // memory starts after a third of the pre-roll (at least 5 revs).
         (rec_start_s / 3.0).max(5.0 * 60.0 / spec.rpm),
     )));
+    {
+        let mut c = cutter.borrow_mut();
+        c.nominal_sign = spec.command_sign.factor();
+        c.errors = spec.applied_levels().map(|l| {
+            errors::ErrorState::new(
+                l,
+                spec.x_start_in,
+                st.x_start_in,
+                spec.feed_per_rev_in,
+                spec.rpm,
+                sc.rig.seed,
+            )
+        });
+        let m = &sc.file.motor;
+        c.drive = (
+            m.kf_lbf_per_a,
+            sc.file.amplifier.gain,
+            m.r_ohm,
+            m.l_over_r_ms * 1e-3,
+        );
+    }
+    // The digital firmware gets the mistake as a table (and refuses it).
+    let table = match (spec.command_sign, spec.controller) {
+        (sign::CommandSign::Reversed, Controller::Digital) => sign::negated_default_table()?,
+        _ => table,
+    };
     let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
     spec.controller.attach(&mut w, &mut s);
+    if let Some(a) = w.analog.as_mut() {
+        a.reference_sign = spec.command_sign.factor();
+    }
     w.fw.set_target_code((spec.z_offset_in * zslide::codes::GAUGE_CODES_PER_INCH).round() as i32);
     w.hooks.push(Box::new(cutter.clone()));
     Ok(StretchRig {
@@ -498,6 +572,20 @@ pub fn run_pass(
         spec.feed_per_rev_in,
         |x, phi_deg| holes.over_hole(x, phi_deg / 360.0),
     );
+    let grid = match spec.measure {
+        cmm::Measure::Exact => grid,
+        cmm::Measure::Cmm => {
+            // The CMM model's residuals follow the default part's slope
+            // on chapter 5's radii; a part of one's own has neither.
+            if spec.part.is_some() {
+                anyhow::bail!(
+                    "--measure cmm models chapter 5's CMM on the default part; a part of one's own (--part) is measured exact"
+                );
+            }
+            let (surf, _) = spec.surface()?;
+            cmm::read(&grid, &surf, gain, &cmm::CmmLevels::renault(), spec.scenario.rig.seed)
+        }
+    };
     let nf = n.max(1) as f64;
     Ok(CutOutcome {
         grid,

@@ -5,6 +5,8 @@
 //! measures.
 
 use super::engage::Engagement;
+use super::errors::ErrorState;
+use super::frame;
 use super::nominal::Command;
 use super::part::{Pass, PassLog, CMM_PHI_COUNT};
 use crate::fwrig::{Machine, TickHook};
@@ -48,6 +50,7 @@ pub struct Cutter {
     rev: i64,
     rev_force_sum: f64,
     rev_force_n: u32,
+    prev_turns: Option<f64>,
     pub log: StretchLog,
     /// A force added to the cutting force from now on, lbf (+Z: a hard
     /// spot or a wedged chip pushing the tool out; a fault campaign's
@@ -56,6 +59,14 @@ pub struct Cutter {
     /// At the last tick: the tool (slide carriage, true) minus the nominal
     /// command at the true X and φ, in; negative = into the part.
     pub last_error_in: f64,
+    /// The error sources beyond the loop (`errors`), and the sign of the
+    /// nominal the part is cut and measured against (−1: the 1983 command
+    /// generator's reversed sign, measured against the reversed nominal).
+    pub errors: Option<ErrorState>,
+    pub nominal_sign: f64,
+    /// The slide's electrical constants for the amplifier hum's force:
+    /// (Kf lbf/A, K_A V/V, R Ω, L/R s).
+    pub drive: (f64, f64, f64, f64),
 }
 
 impl Cutter {
@@ -78,12 +89,16 @@ impl Cutter {
             rev: i64::MIN,
             rev_force_sum: 0.0,
             rev_force_n: 0,
+            prev_turns: None,
             log: StretchLog {
                 passes: PassLog::new(),
                 ..StretchLog::default()
             },
             extra_force_lbf: 0.0,
             last_error_in: 0.0,
+            errors: None,
+            nominal_sign: 1.0,
+            drive: (0.0, 0.0, 1.0, 0.0),
         }
     }
 
@@ -96,20 +111,38 @@ impl TickHook for Cutter {
     fn before_tick(&mut self, rig: &mut Rig, m: &Machine, _fw: &Firmware) {
         let t = rig.t_ns;
         let t_s = t as f64 * 1e-9;
-        let x = m.x_true_in(t_s);
+        let x_read = m.x_true_in(t_s);
         let turns = m.spindle.borrow_mut().turns_at(t) + self.index_phase_turns;
+        // The command's angle (increasing with time) and the part's under
+        // the tool (`frame`: the part turns the other way round).
         let phi = crate::fastmath::frac(turns);
+        let phi_p = frame::part_turns(phi);
         // The tool rides on the slide carriage (not on the coil frame the
         // gauge also sees).
-        let z = rig.slide.position_in();
-        let e = z - self.nominal.fast(x, phi);
+        let z_slide = rig.slide.position_in();
+        let d_turns = self.prev_turns.map_or(0.0, |p| turns - p);
+        self.prev_turns = Some(turns);
+        let (x, z, hum) = match self.errors.as_mut() {
+            None => (x_read, z_slide, 0.0),
+            Some(er) => {
+                let x = er.x_part(x_read);
+                if er.gauge_active() {
+                    rig.gauge_injection_in = er.gauge_error_in(rig.slide.gauge_position_in(), x);
+                }
+                let (kf, ka, r, tau) = self.drive;
+                let hum = er.hum_force_lbf(t_s, kf, ka, r, tau);
+                (x, z_slide + er.tool_offset_in(t_s, x, phi_p, d_turns), hum)
+            }
+        };
+        let nom = self.nominal_sign * self.nominal.fast(x, phi);
+        let e = z - nom;
         if t_s >= self.settle_s {
             self.eng.reset_memory();
             self.settle_s = f64::INFINITY;
         }
         self.last_error_in = e;
         let c = self.eng.step(x, phi, e);
-        rig.set_force_lbf(c.force_lbf + self.extra_force_lbf);
+        rig.set_force_lbf(c.force_lbf + self.extra_force_lbf + hum);
 
         // Spindle load, once per revolution (the speed sags over seconds).
         let rev = crate::fastmath::floor_i64(turns);
@@ -131,7 +164,7 @@ impl TickHook for Cutter {
         if self.recording(x) {
             // The tool against the exact surface command at the true X and
             // φ (as `track`): what the part sees, whatever the controller.
-            let fe = e;
+            let fe = z_slide - nom;
             self.log.fe_sum_sq += fe * fe;
             self.log.fe_n += 1;
             self.log.fe_peak = self.log.fe_peak.max(fe.abs());
@@ -150,8 +183,9 @@ impl TickHook for Cutter {
                     let w = (tc - turns0) / (turns - turns0);
                     let xc = x0 + (x - x0) * w;
                     let zc = z0 + (z - z0) * w;
-                    let i = k.rem_euclid(CMM_PHI_COUNT as i64) as usize;
-                    let ec = zc - self.nominal.exact(xc, i as f64 / n);
+                    // The part's angle of this command angle: its CMM row.
+                    let i = frame::part_index(k, CMM_PHI_COUNT);
+                    let ec = zc - self.nominal_sign * self.nominal.exact(xc, i as f64 / n);
                     self.log.passes.by_phi[i].push(Pass { x_in: xc, e_in: ec });
                 }
             }

@@ -105,7 +105,7 @@ impl World for FirmwareWorld {
             Some(a) => {
                 // Its reference: the firmware's command, V = mil.
                 let code = self.fw.table_code().saturating_add(self.fw.target_code());
-                a.reference_v = f64::from(code) * 10.0 / 524_288.0;
+                a.reference_v = a.reference_sign * f64::from(code) * 10.0 / 524_288.0;
                 a.advance(&mut self.rig, t);
             }
         }

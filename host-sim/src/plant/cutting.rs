@@ -75,7 +75,7 @@ impl Default for BoltHoles {
     fn default() -> Self {
         Self {
             count: 8,
-            circle_radius_in: 3.25,
+            circle_radius_in: 3.5,
             diameter_in: 0.75,
             phase_deg: 22.5,
             filled: false,

@@ -1,0 +1,475 @@
+//! The machine's error sources beyond the loop (issue 21): the scenario's
+//! `[errors]` levels and their mechanisms, applied tick by tick by the
+//! cutter (`run`). Every level is either from the seeds or a labelled
+//! assumption (docs/CUT.md, "Error sources"); which ones a cut applies is
+//! chosen by `--errors` ([`Selection`]).
+//!
+//! Signs: heights along +Y_t (the part frame, `frame`); a source that
+//! lifts the tool's cutting point off the part leaves excess stock
+//! (positive on the CMM).
+
+use serde::Deserialize;
+use std::f64::consts::TAU;
+
+/// `[errors]` of a scenario: the levels of the sources. Every field is
+/// optional (absent = 0: the source is off).
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ErrorLevels {
+    /// Gauge scale error ε (fraction; + = reads high): the loop drives the
+    /// reading to the command, so the tool runs at Z/(1+ε) and leaves
+    /// −ε·Z.
+    pub gauge_scale_error: f64,
+    /// Gauge nonlinearity: peak deviation from its line at full range
+    /// (±0.010 in), µin, a quadratic bow `n (z/range)²`.
+    pub gauge_nonlinearity_uin: f64,
+    /// Gauge zero drift, µin per hour (+: reads high, the tool runs low).
+    pub gauge_drift_uin_per_h: f64,
+    /// X-zero error, in: the interferometer reads X + δ (the zero was set
+    /// by hand at the axis, chapter 5); the command is Z(X + δ).
+    pub x_zero_error_in: f64,
+    /// Spindle axial error motion, synchronous part: amplitude, µin, at
+    /// `spindle_sync_per_rev` per revolution (part frame).
+    pub spindle_sync_uin: f64,
+    pub spindle_sync_per_rev: u32,
+    /// Spindle axial error motion, asynchronous part: RMS, µin (first-order
+    /// noise of `spindle_async_bw_hz`).
+    pub spindle_async_uin: f64,
+    pub spindle_async_bw_hz: f64,
+    /// Mains hum at the power amplifier's input, mV peak, and its
+    /// frequency (chapter 6: ≥ 20 mV of noise reached the amplifier).
+    pub amp_hum_mv: f64,
+    pub amp_hum_frequency_hz: f64,
+    /// Tool nose recession by wear, µin per 1000 in of cut length.
+    pub tool_wear_uin_per_kin: f64,
+    /// Thermal drift of the tool against the part along +Y_t, µin per hour
+    /// of the pass.
+    pub thermal_drift_uin_per_h: f64,
+}
+
+impl ErrorLevels {
+    /// Range checks naming the field.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        let checks: [(&str, f64, f64, f64); 13] = [
+            (
+                "errors.gauge_scale_error",
+                self.gauge_scale_error,
+                -0.2,
+                0.2,
+            ),
+            (
+                "errors.gauge_nonlinearity_uin",
+                self.gauge_nonlinearity_uin,
+                -1000.0,
+                1000.0,
+            ),
+            (
+                "errors.gauge_drift_uin_per_h",
+                self.gauge_drift_uin_per_h,
+                -1000.0,
+                1000.0,
+            ),
+            ("errors.x_zero_error_in", self.x_zero_error_in, -0.1, 0.1),
+            (
+                "errors.spindle_sync_uin",
+                self.spindle_sync_uin,
+                0.0,
+                1000.0,
+            ),
+            (
+                "errors.spindle_sync_per_rev",
+                f64::from(self.spindle_sync_per_rev),
+                0.0,
+                64.0,
+            ),
+            (
+                "errors.spindle_async_uin",
+                self.spindle_async_uin,
+                0.0,
+                1000.0,
+            ),
+            (
+                "errors.spindle_async_bw_hz",
+                self.spindle_async_bw_hz,
+                0.0,
+                5000.0,
+            ),
+            ("errors.amp_hum_mv", self.amp_hum_mv, 0.0, 1000.0),
+            (
+                "errors.amp_hum_frequency_hz",
+                self.amp_hum_frequency_hz,
+                0.0,
+                5000.0,
+            ),
+            (
+                "errors.tool_wear_uin_per_kin",
+                self.tool_wear_uin_per_kin,
+                0.0,
+                100.0,
+            ),
+            (
+                "errors.thermal_drift_uin_per_h",
+                self.thermal_drift_uin_per_h,
+                -1000.0,
+                1000.0,
+            ),
+            (
+                "errors.spindle_async_bw_hz (needed with spindle_async_uin > 0)",
+                if self.spindle_async_uin > 0.0 {
+                    self.spindle_async_bw_hz
+                } else {
+                    1.0
+                },
+                1e-3,
+                5000.0,
+            ),
+        ];
+        for (f, v, lo, hi) in checks {
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                anyhow::bail!("{f} = {v} is out of range [{lo}, {hi}]");
+            }
+        }
+        if self.amp_hum_mv > 0.0 && self.amp_hum_frequency_hz <= 0.0 {
+            anyhow::bail!("errors.amp_hum_frequency_hz must be > 0 when errors.amp_hum_mv > 0");
+        }
+        Ok(())
+    }
+}
+
+/// One error source (the rows of `cut --budget`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Source {
+    GaugeScale,
+    GaugeNonlinearity,
+    GaugeDrift,
+    XZero,
+    SpindleMotion,
+    AmpHum,
+    ToolWear,
+    Thermal,
+}
+
+impl Source {
+    pub const ALL: [Source; 8] = [
+        Source::GaugeScale,
+        Source::GaugeNonlinearity,
+        Source::GaugeDrift,
+        Source::XZero,
+        Source::SpindleMotion,
+        Source::AmpHum,
+        Source::ToolWear,
+        Source::Thermal,
+    ];
+    pub fn name(self) -> &'static str {
+        match self {
+            Source::GaugeScale => "gauge scale",
+            Source::GaugeNonlinearity => "gauge nonlinearity",
+            Source::GaugeDrift => "gauge drift",
+            Source::XZero => "X zero",
+            Source::SpindleMotion => "spindle error motion",
+            Source::AmpHum => "120 Hz at the amplifier",
+            Source::ToolWear => "tool wear",
+            Source::Thermal => "thermal drift",
+        }
+    }
+    /// Whether `levels` give this source a non-zero level.
+    pub fn present(self, l: &ErrorLevels) -> bool {
+        match self {
+            Source::GaugeScale => l.gauge_scale_error != 0.0,
+            Source::GaugeNonlinearity => l.gauge_nonlinearity_uin != 0.0,
+            Source::GaugeDrift => l.gauge_drift_uin_per_h != 0.0,
+            Source::XZero => l.x_zero_error_in != 0.0,
+            Source::SpindleMotion => l.spindle_sync_uin != 0.0 || l.spindle_async_uin != 0.0,
+            Source::AmpHum => l.amp_hum_mv != 0.0,
+            Source::ToolWear => l.tool_wear_uin_per_kin != 0.0,
+            Source::Thermal => l.thermal_drift_uin_per_h != 0.0,
+        }
+    }
+    /// `levels` with only this source kept.
+    pub fn alone(self, l: &ErrorLevels) -> ErrorLevels {
+        let mut o = ErrorLevels {
+            spindle_sync_per_rev: l.spindle_sync_per_rev,
+            spindle_async_bw_hz: l.spindle_async_bw_hz,
+            amp_hum_frequency_hz: l.amp_hum_frequency_hz,
+            ..ErrorLevels::default()
+        };
+        match self {
+            Source::GaugeScale => o.gauge_scale_error = l.gauge_scale_error,
+            Source::GaugeNonlinearity => o.gauge_nonlinearity_uin = l.gauge_nonlinearity_uin,
+            Source::GaugeDrift => o.gauge_drift_uin_per_h = l.gauge_drift_uin_per_h,
+            Source::XZero => o.x_zero_error_in = l.x_zero_error_in,
+            Source::SpindleMotion => {
+                o.spindle_sync_uin = l.spindle_sync_uin;
+                o.spindle_async_uin = l.spindle_async_uin;
+            }
+            Source::AmpHum => o.amp_hum_mv = l.amp_hum_mv,
+            Source::ToolWear => o.tool_wear_uin_per_kin = l.tool_wear_uin_per_kin,
+            Source::Thermal => o.thermal_drift_uin_per_h = l.thermal_drift_uin_per_h,
+        }
+        o
+    }
+    /// `levels` with this source scaled by `k` (the budget's tolerance
+    /// search; sources are linear in their level to first order).
+    pub fn scaled(self, l: &ErrorLevels, k: f64) -> ErrorLevels {
+        let mut o = self.alone(l);
+        o.gauge_scale_error *= k;
+        o.gauge_nonlinearity_uin *= k;
+        o.gauge_drift_uin_per_h *= k;
+        o.x_zero_error_in *= k;
+        o.spindle_sync_uin *= k;
+        o.spindle_async_uin *= k;
+        o.amp_hum_mv *= k;
+        o.tool_wear_uin_per_kin *= k;
+        o.thermal_drift_uin_per_h *= k;
+        o
+    }
+    /// The level as the scenario states it, with its unit.
+    pub fn level(self, l: &ErrorLevels) -> String {
+        match self {
+            Source::GaugeScale => format!("ε = {:.2} %", l.gauge_scale_error * 100.0),
+            Source::GaugeNonlinearity => format!("{} µin at full range", l.gauge_nonlinearity_uin),
+            Source::GaugeDrift => format!("{} µin/h", l.gauge_drift_uin_per_h),
+            Source::XZero => format!("{} in", l.x_zero_error_in),
+            Source::SpindleMotion => format!(
+                "{} µin at {}/rev + {} µin RMS",
+                l.spindle_sync_uin, l.spindle_sync_per_rev, l.spindle_async_uin
+            ),
+            Source::AmpHum => format!("{} mV at {} Hz", l.amp_hum_mv, l.amp_hum_frequency_hz),
+            Source::ToolWear => format!("{} µin per 1000 in", l.tool_wear_uin_per_kin),
+            Source::Thermal => format!("{} µin/h", l.thermal_drift_uin_per_h),
+        }
+    }
+}
+
+/// Which sources a cut applies (`--errors`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Selection {
+    /// None: the loop's own contribution (the digital loop's default).
+    None,
+    /// Every source at the scenario's level (the 1983 loop's default: the
+    /// shop's machine as chapter 5 cut the part).
+    All,
+}
+
+impl Selection {
+    pub fn name(self) -> &'static str {
+        match self {
+            Selection::None => "none",
+            Selection::All => "all",
+        }
+    }
+}
+
+/// Tool wear: nose recession proportional to the length of cut, from the
+/// start of the pass (the outer edge; the pass feeds inward, so the
+/// centre is cut last, with the most worn edge).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ToolWear {
+    /// Recession per inch of cut, in/in.
+    pub rate: f64,
+    /// Length cut so far, in.
+    pub cut_length_in: f64,
+}
+
+impl ToolWear {
+    /// The cut length a pass from `x_pass_start` reaches at tool-centre
+    /// radius `x` with feed `f` per revolution: the spiral's length,
+    /// `π (x_s² − x²)/f` (its turns are circles to 1e-9).
+    pub fn length_to(x_pass_start: f64, x: f64, feed_in: f64) -> f64 {
+        let x = x.clamp(0.0, x_pass_start);
+        std::f64::consts::PI * (x_pass_start * x_pass_start - x * x) / feed_in
+    }
+    /// The wear state a band starting at `x` inherits from the pass.
+    pub fn at(rate_uin_per_kin: f64, x_pass_start: f64, x: f64, feed_in: f64) -> Self {
+        Self {
+            rate: rate_uin_per_kin * 1e-6 / 1000.0,
+            cut_length_in: Self::length_to(x_pass_start, x, feed_in),
+        }
+    }
+    /// The tool cut `d_turns` of a revolution at radius `x` in contact.
+    pub fn step(&mut self, x: f64, d_turns: f64) {
+        self.cut_length_in += TAU * x.max(0.0) * d_turns.max(0.0);
+    }
+    /// Recession of the cutting point, in (+: the tool cuts less deep).
+    pub fn recession_in(&self) -> f64 {
+        self.rate * self.cut_length_in
+    }
+}
+
+/// The per-tick state of the sources in one stretch.
+pub struct ErrorState {
+    pub levels: ErrorLevels,
+    pub wear: ToolWear,
+    /// Where the whole pass starts (tool-centre X) and its feed, in/s
+    /// (positive, inward): the pass time at radius x is `(x_s − x)/v`.
+    x_pass_start: f64,
+    v_in_per_s: f64,
+    /// Asynchronous axial motion (Ornstein–Uhlenbeck), in, and its stream.
+    ou: f64,
+    last_t: Option<f64>,
+    rng: rand_xoshiro::Xoshiro256PlusPlus,
+}
+
+impl ErrorState {
+    pub fn new(
+        levels: ErrorLevels,
+        x_pass_start: f64,
+        x_stretch_start: f64,
+        feed_per_rev_in: f64,
+        rpm: f64,
+        seed: u64,
+    ) -> Self {
+        use rand::SeedableRng;
+        Self {
+            wear: ToolWear::at(
+                levels.tool_wear_uin_per_kin,
+                x_pass_start,
+                x_stretch_start,
+                feed_per_rev_in,
+            ),
+            levels,
+            x_pass_start,
+            v_in_per_s: feed_per_rev_in * rpm / 60.0,
+            ou: 0.0,
+            last_t: None,
+            rng: rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x5EED_E770),
+        }
+    }
+
+    /// Hours since the pass started when the tool is at radius `x`.
+    fn pass_hours(&self, x: f64) -> f64 {
+        ((self.x_pass_start - x) / self.v_in_per_s).max(0.0) / 3600.0
+    }
+
+    /// The part radius under the tool when the X the firmware reads is the
+    /// machine's `x_read` (the interferometer's zero off by δ).
+    pub fn x_part(&self, x_read: f64) -> f64 {
+        x_read - self.levels.x_zero_error_in
+    }
+
+    /// What the gauge adds to the slide's true position, in (scale,
+    /// nonlinearity, drift) at gauge position `z` and pass radius `x`.
+    pub fn gauge_error_in(&self, z: f64, x: f64) -> f64 {
+        let l = &self.levels;
+        let u = z / 0.010;
+        l.gauge_scale_error * z
+            + l.gauge_nonlinearity_uin * 1e-6 * u * u
+            + l.gauge_drift_uin_per_h * 1e-6 * self.pass_hours(x)
+    }
+
+    /// Whether the gauge needs the per-tick injection (nonzero terms).
+    pub fn gauge_active(&self) -> bool {
+        let l = &self.levels;
+        l.gauge_scale_error != 0.0
+            || l.gauge_nonlinearity_uin != 0.0
+            || l.gauge_drift_uin_per_h != 0.0
+    }
+
+    /// The tool's cutting point above the slide's commanded frame, in,
+    /// at time `t_s`, radius `x`, part angle `phi_p` (turns): wear and
+    /// thermal drift lift it, the spindle's axial motion toward the tool
+    /// (+Y_t) lowers it relative to the part. Advances the noise and the
+    /// wear (`d_turns` turned in contact since the last call).
+    pub fn tool_offset_in(&mut self, t_s: f64, x: f64, phi_p: f64, d_turns: f64) -> f64 {
+        use rand_distr::Distribution;
+        let l = &self.levels;
+        self.wear.step(x, d_turns);
+        let thermal = l.thermal_drift_uin_per_h * 1e-6 * self.pass_hours(x);
+        let sync =
+            l.spindle_sync_uin * 1e-6 * (TAU * f64::from(l.spindle_sync_per_rev) * phi_p).cos();
+        if l.spindle_async_uin > 0.0 {
+            let sigma = l.spindle_async_uin * 1e-6;
+            let h = self.last_t.map_or(0.0, |t0| (t_s - t0).max(0.0));
+            let a = (-TAU * l.spindle_async_bw_hz * h).exp();
+            let w: f64 = rand_distr::StandardNormal.sample(&mut self.rng);
+            self.ou = if self.last_t.is_none() {
+                sigma * w
+            } else {
+                a * self.ou + sigma * (1.0 - a * a).sqrt() * w
+            };
+        }
+        self.last_t = Some(t_s);
+        self.wear.recession_in() + thermal - sync - self.ou
+    }
+
+    /// The force the amplifier's input hum puts on the slide, lbf, at
+    /// `t_s`: `Kf·K_A·v/R` through the coil's electrical lag (the linear
+    /// amplifier in voltage mode, below its limits).
+    pub fn hum_force_lbf(&self, t_s: f64, kf: f64, ka: f64, r_ohm: f64, tau_e_s: f64) -> f64 {
+        let l = &self.levels;
+        if l.amp_hum_mv == 0.0 {
+            return 0.0;
+        }
+        let w = TAU * l.amp_hum_frequency_hz;
+        let g = 1.0 / (1.0 + (w * tau_e_s).powi(2)).sqrt();
+        let lag = (w * tau_e_s).atan();
+        kf * ka * l.amp_hum_mv * 1e-3 / r_ohm * g * (w * t_s - lag).sin()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn band_runs_start_with_the_wear_a_whole_pass_reaches_at_their_radius() {
+        // The whole pass from 7.2502 in stepped tick by tick (20 kHz at
+        // 300 rpm, 100 µin/rev) down to 5.01 in, against the state a band
+        // starting there inherits in closed form.
+        let (f, rpm) = (100e-6, 300.0);
+        let mut full = ToolWear::at(0.2, 7.2502, 7.2502, f);
+        let dt = 1.0 / 20_000.0;
+        let d_turns = rpm / 60.0 * dt;
+        let mut x = 7.2502;
+        while x > 5.01 {
+            full.step(x, d_turns);
+            x -= f * d_turns;
+        }
+        let band = ToolWear::at(0.2, 7.2502, x, f);
+        let (a, b) = (full.recession_in(), band.recession_in());
+        assert!(a > 50e-6, "{a}");
+        assert!((a - b).abs() < 1e-4 * a, "full pass {a} vs band {b}");
+    }
+
+    #[test]
+    fn wear_rises_toward_the_centre_as_the_cut_length() {
+        let f = 100e-6;
+        let at = |x| ToolWear::at(0.2, 7.25, x, f).recession_in();
+        assert!(at(1.0) > at(4.0) && at(4.0) > at(7.0));
+        let expect = 0.2e-9 * std::f64::consts::PI * (7.25f64.powi(2) - 1.0) / f;
+        assert!((at(1.0) - expect).abs() < 1e-15);
+    }
+
+    #[test]
+    fn an_x_zero_error_moves_the_part_under_the_tool_by_minus_delta() {
+        let s = ErrorState::new(
+            ErrorLevels {
+                x_zero_error_in: 0.002,
+                ..ErrorLevels::default()
+            },
+            7.25,
+            7.25,
+            1e-4,
+            300.0,
+            1,
+        );
+        assert!((s.x_part(5.0) - 4.998).abs() < 1e-15);
+    }
+
+    #[test]
+    fn out_of_range_levels_are_refused_naming_the_field() {
+        let l = ErrorLevels {
+            gauge_scale_error: 0.5,
+            ..ErrorLevels::default()
+        };
+        let e = l.validate().unwrap_err().to_string();
+        assert!(e.contains("errors.gauge_scale_error"), "{e}");
+        let l = ErrorLevels {
+            amp_hum_mv: 5.0,
+            ..ErrorLevels::default()
+        };
+        assert!(l.validate().is_err());
+    }
+}
