@@ -67,10 +67,15 @@ where
         .y_label_area_size(70)
         .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let (xspan, yspan) = (x1 - x0, y1 - y0 + 2.0 * pad);
     chart
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
+        .x_label_formatter(&|v| crate::scope::tick_label(*v, xspan))
+        .y_label_formatter(&|v| crate::scope::tick_label(*v, yspan))
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     for (k, s) in series.iter().enumerate() {
@@ -153,21 +158,24 @@ pub fn write_images(
     Ok(())
 }
 
+/// A column name from a label: `φ, deg` → `phi_deg`, `error, µin` →
+/// `error_uin` (ASCII, one `_` between words).
 fn csv_name(s: &str) -> String {
-    s.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '.' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
+    let ascii = s.replace('φ', "phi").replace('µ', "u").replace('−', "-");
+    let mut out = String::new();
+    for c in ascii.chars() {
+        if c.is_ascii_alphanumeric() || c == '.' {
+            out.push(c);
+        } else if !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    out.trim_matches('_').to_string()
 }
 
 /// The CSV behind a plot: series sharing the x column when their x agree,
 /// else one `x,y` pair of columns per series.
-fn write_csv(dir: &Path, name: &str, x_label: &str, series: &[Series]) -> anyhow::Result<()> {
+pub(crate) fn write_csv(dir: &Path, name: &str, x_label: &str, series: &[Series]) -> anyhow::Result<()> {
     use std::fmt::Write as _;
     let path = dir.join(format!("{name}.csv"));
     let shared = series.windows(2).all(|w| {

@@ -198,8 +198,21 @@ pub fn param_block(args: &ParamBlockArgs) -> Result<u8> {
         .map(|s| parse_setting(s))
         .collect::<Result<Vec<_>>>()?;
     let mut out = vec![0u8; params::HEADER_LEN + entries.len() * params::ENTRY_LEN];
-    let n = params::encode_block(&entries, &ServoDesign::brief(LOOP_HZ), &mut out)
-        .map_err(|e| format!("parameter block refused: {e}"))?;
+    let base = ServoDesign::brief(LOOP_HZ);
+    let n = params::encode_block(&entries, &base, &mut out).map_err(|e| match e {
+        // The design's rule with the values that break it (the block's
+        // values on the built-in design), not the rule alone.
+        params::ParamError::Design(de) => {
+            let mut d = base;
+            for &(id, v) in &entries {
+                if let Some(p) = params::by_id(id) {
+                    p.set(&mut d, v);
+                }
+            }
+            format!("parameter block refused: {}", d.refusal(de))
+        }
+        e => format!("parameter block refused: {e}"),
+    })?;
     fs::write(&args.out, &out[..n]).map_err(|e| format!("{}: {e}", args.out.display()))?;
     eprintln!(
         "{}: {n} bytes, {} parameters",
@@ -477,6 +490,17 @@ mod tests {
         .unwrap_err();
         assert!(
             e.contains("current_limit_a = 9 A is outside its limits 0.1 .. 8 A"),
+            "{e}"
+        );
+        // Within its own limits (1 .. 1000) but above the built-in fast
+        // bandwidth (150 Hz): the relation and both values are named.
+        let e = param_block(&ParamBlockArgs {
+            set: vec!["bandwidth_hz=160".into()],
+            out: dir.join("r.zspb"),
+        })
+        .unwrap_err();
+        assert!(
+            e.contains("bandwidth_fast_hz = 150 must be at least bandwidth_hz = 160"),
             "{e}"
         );
         assert!(parse_setting("bandwith_hz=3")
