@@ -60,14 +60,17 @@ where
         (x0, x1, y0, y1) = (0.0, 1.0, -1.0, 1.0);
     }
     let pad = ((y1 - y0) * 0.08).max(1e-3);
+    // Room above the data for the legend (upper right), so that it never
+    // hides a curve.
+    let legend_room = (y1 - y0).max(1e-3) * 0.07 * series.len() as f64;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 20))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad + legend_room))
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let (xspan, yspan) = (x1 - x0, y1 - y0 + 2.0 * pad);
+    let (xspan, yspan) = (x1 - x0, y1 - y0 + 2.0 * pad + legend_room);
     chart
         .configure_mesh()
         .x_desc(x_label)
@@ -104,6 +107,7 @@ where
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()

@@ -27,6 +27,10 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// Relative height (an analog panel 3, a digital one 1 reads well).
     pub weight: u32,
+    /// A fixed y range (values beyond it are drawn at its edge), and the
+    /// note that says so.
+    pub y_limits: Option<(f64, f64)>,
+    pub note: Option<String>,
 }
 
 impl Panel {
@@ -36,7 +40,17 @@ impl Panel {
             kind: Kind::Analog { unit: unit.into() },
             series,
             weight: 3,
+            y_limits: None,
+            note: None,
         }
+    }
+
+    /// Shows `lo..hi` only, with `note` in the panel's corner (what lies
+    /// beyond and why it is not the point of the plot).
+    pub fn limited(mut self, lo: f64, hi: f64, note: String) -> Panel {
+        self.y_limits = Some((lo, hi));
+        self.note = Some(note);
+        self
     }
 
     pub fn digital(title: &str, points: Vec<(f64, bool)>) -> Panel {
@@ -51,6 +65,8 @@ impl Panel {
                     .collect(),
             }],
             weight: 1,
+            y_limits: None,
+            note: None,
         }
     }
 }
@@ -72,7 +88,7 @@ pub struct Figure<'a> {
 }
 
 const WIDTH: u32 = 1100;
-const LEGEND_W: u32 = 260;
+const LEGEND_W: u32 = 300;
 const COLORS: [RGBColor; 6] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
@@ -167,6 +183,9 @@ fn y_range(panel: &Panel) -> (f64, f64) {
     if let Kind::Digital = panel.kind {
         return (-0.25, 1.25);
     }
+    if let Some(l) = panel.y_limits {
+        return l;
+    }
     let (mut lo, mut hi) = (f64::MAX, f64::MIN);
     for &(_, y) in panel.series.iter().flat_map(|s| s.points.iter()) {
         if y.is_finite() {
@@ -222,9 +241,11 @@ where
         .y_label_area_size(100)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(err)?;
+    // A digital panel is too short for a rotated title: its name is
+    // written beside it, where the legends are.
     let y_desc = match &panel.kind {
         Kind::Analog { unit } => format!("{}, {unit}", panel.title),
-        Kind::Digital => panel.title.clone(),
+        Kind::Digital => String::new(),
     };
     let span = y1 - y0;
     let xspan = x1 - x0;
@@ -282,6 +303,15 @@ where
             .map_err(err)?;
         }
     }
+    if let Some(note) = &panel.note {
+        // Top right, clear of the marker's label at the top left.
+        let (px, py) = chart.backend_coord(&(x1, y1));
+        let base = area.get_base_pixel();
+        let font = ("sans-serif", 13).into_font().color(&RGBColor(90, 90, 90));
+        let (w, _) = area.estimate_text_size(note, &font).map_err(err)?;
+        area.draw_text(note, &font, (px - base.0 - w as i32 - 6, py - base.1 + 4))
+            .map_err(err)?;
+    }
     for (k, s) in panel.series.iter().enumerate() {
         let color = COLORS[k % COLORS.len()];
         let points: Vec<(f64, f64)> = if digital {
@@ -294,7 +324,11 @@ where
             v.extend(s.points.last());
             v
         } else {
-            s.points.clone()
+            // Clamped to a limited range: drawn along its edge.
+            s.points
+                .iter()
+                .map(|&(x, y)| (x, if y.is_finite() { y.clamp(y0, y1) } else { y }))
+                .collect()
         };
         // The first series is drawn widest, so that a second one lying on
         // it (the slide on its command) leaves it visible at the edges.
@@ -319,7 +353,14 @@ fn draw_legend<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    if matches!(panel.kind, Kind::Digital) && panel.series.len() == 1 {
+    if matches!(panel.kind, Kind::Digital) {
+        let (_, h) = area.dim_in_pixel();
+        area.draw_text(
+            &panel.title,
+            &("sans-serif", 14).into_font().color(&BLACK),
+            (8, h as i32 / 2 - 14),
+        )
+        .map_err(err)?;
         return Ok(());
     }
     let mut y = 12;
@@ -330,7 +371,7 @@ where
             color.stroke_width(3),
         ))
         .map_err(err)?;
-        for line in wrap(&s.label, 30) {
+        for line in wrap(&s.label, 34) {
             area.draw_text(
                 &line,
                 &("sans-serif", 13).into_font().color(&BLACK),

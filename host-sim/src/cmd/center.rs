@@ -388,14 +388,14 @@ where
         &BLUE,
     ))
     .map_err(|e| anyhow::anyhow!("{e}"))?
-    .label("X'")
+    .label("X' slide")
     .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
     ch.draw_series(LineSeries::new(
         o.trace.iter().map(|p| (p.t_s, p.slide_y_in)),
         &RED,
     ))
     .map_err(|e| anyhow::anyhow!("{e}"))?
-    .label("Y'")
+    .label("Y' slide")
     .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
     ch.configure_series_labels()
         .border_style(BLACK)

@@ -270,11 +270,11 @@ fn opt(v: Option<f64>) -> String {
 fn print_summary(s: &Summary, o: &CutOutcome) {
     println!();
     println!(
-        "{} / {} / {} rpm / holes {:?} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
+        "{} / {} / {} rpm / {} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
         s.scenario,
         s.controller.name(),
         s.rpm,
-        s.holes,
+        holes_words(s.holes),
         if s.full { "full pass" } else { "bands" },
         o.stretches,
         if o.stretches == 1 { "" } else { "es" },

@@ -341,15 +341,32 @@ fn write_trace(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
     };
     // One panel per quantity and unit: the excursion (µin) is read against
     // its own scale, not against the command's 60 000-90 000 µin.
+    let err = pts(&|x| x.err_in * 1e6);
+    let (lo, hi) = err
+        .iter()
+        .fold((0.0f64, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let mut err_panel = Panel::analog(
+        "tool − exact command",
+        "µin",
+        vec![one("tool − exact command (< 0: into the part)", err)],
+    );
+    // After a ramp to null or a disabled amplifier the tool leaves the
+    // part and this error grows to thousands of µin; the safety question
+    // is how far it went *into* the part first, so the scale is kept to
+    // that, and what went off it is said.
+    let top = (5.0 * lo.abs()).max(25.0);
+    if hi > 1.5 * top {
+        let pad = 0.08 * (top - lo);
+        err_panel = err_panel.limited(
+            lo - pad,
+            top,
+            format!(
+                "off scale above {top:.0} µin: up to {hi:.0} µin, the tool out of the part after the reaction"
+            ),
+        );
+    }
     let panels = [
-        Panel::analog(
-            "tool − exact command",
-            "µin",
-            vec![one(
-                "tool − exact command (< 0: into the part)",
-                pts(&|x| x.err_in * 1e6),
-            )],
-        ),
+        err_panel,
         Panel::analog(
             "position",
             "µin",

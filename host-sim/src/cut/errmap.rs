@@ -111,7 +111,10 @@ where
         .margin(12)
         .x_label_area_size(44)
         .y_label_area_size(64)
-        .build_cartesian_2d(0.0..360.0, CMM_X_IN[0]..CMM_X_IN[CMM_X_IN.len() - 1])
+        .build_cartesian_2d(
+            0.0..360.0,
+            CMM_X_IN[0]..CMM_X_IN[CMM_X_IN.len() - 1],
+        )
         .map_err(err)?;
     let (dphi, dx) = (2.0, 0.05);
     let nphi = (360.0 / dphi) as usize;
