@@ -12,7 +12,6 @@ pub mod faults;
 pub mod fastmath;
 pub mod fwrig;
 pub mod geometry;
-pub mod link;
 pub mod machine;
 pub mod outpath;
 pub mod plant;

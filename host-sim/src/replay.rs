@@ -14,8 +14,9 @@
 //! and the target computes the same design).
 
 use crate::chips::BusFault;
-use crate::fwrig::{add_machine_sources, FirmwareWorld, SpindleSensor, WorldTick, XInterface};
+use crate::fwrig::{add_machine_sources, FirmwareWorld, WorldTick};
 use crate::machine::xslide::{FeedSegment, XSlideConfig};
+use crate::machine::{SpindleSensor, XInterface};
 use crate::sched::{prio, Nanos, OneShots, Scheduler};
 use anyhow::{bail, Context};
 use zslide::firmware::Request;

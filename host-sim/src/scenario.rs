@@ -14,9 +14,9 @@
 //! any directory); anything else is read as a path. Commands take it as
 //! `--scenario NAME|PATH` (see [`ScenarioArg`]).
 
-use crate::fwrig::{MachineConfig, SpindleSensor, XInterface};
 use crate::machine::spindle::SpindleConfig;
 use crate::machine::xslide::{FeedSegment, XSlideConfig};
+use crate::machine::{MachineConfig, SpindleSensor, XInterface};
 use crate::plant::amplifier::AmplifierParams;
 use crate::plant::cutting::{BoltHoles, CuttingParams};
 use crate::plant::gauge::GaugeParams;

@@ -29,8 +29,9 @@
 //! grow).
 
 use crate::cut::nominal::Nominal;
-use crate::fwrig::{machine_with, Controller, Machine, TickHook, XInterface};
+use crate::fwrig::{machine_with, Controller, Machine, TickHook};
 use crate::machine::xslide::FeedSegment;
+use crate::machine::XInterface;
 use crate::plant::Rig;
 use crate::scenario::Scenario;
 use rand::{Rng, SeedableRng};
@@ -226,14 +227,6 @@ impl TickHook for SoakHook {
     }
 }
 
-struct Shared(Rc<RefCell<SoakHook>>);
-
-impl TickHook for Shared {
-    fn before_tick(&mut self, rig: &mut Rig, m: &Machine, fw: &Firmware) {
-        self.0.borrow_mut().before_tick(rig, m, fw);
-    }
-}
-
 /// X going back and forth between the limits, starting at the top going
 /// in, at |feed|: the segments cover `total_s`.
 fn traverse(x_lo: f64, x_hi: f64, feed_abs: f64, total_s: f64) -> Vec<FeedSegment> {
@@ -268,7 +261,7 @@ pub fn run(spec: &SoakSpec, progress: &dyn Fn(f64)) -> anyhow::Result<Vec<HourSu
     }
     // The photodiode index of the tachometer machine has timing jitter; an
     // encoder's index is gated by its own counts (none).
-    if machine.sensor == crate::fwrig::SpindleSensor::TachIndex {
+    if machine.sensor == crate::machine::SpindleSensor::TachIndex {
         machine.spindle.index_jitter_us = spec.index_jitter_us;
     }
     machine.spindle.speed_noise_rpm = spec.speed_noise_rpm;
@@ -292,7 +285,7 @@ pub fn run(spec: &SoakSpec, progress: &dyn Fn(f64)) -> anyhow::Result<Vec<HourSu
     }));
     let (mut w, mut s) = machine_with(sc.rig.clone(), &machine, sc.loop_hz, sc.servo);
     Controller::Digital.attach(&mut w, &mut s);
-    w.hook = Some(Box::new(Shared(hook.clone())));
+    w.hooks.push(Box::new(hook.clone()));
 
     let hour_ns = 3_600_000_000_000u64;
     let end_ns = (total_s * 1e9) as u64;
@@ -339,6 +332,6 @@ pub fn run(spec: &SoakSpec, progress: &dyn Fn(f64)) -> anyhow::Result<Vec<HourSu
         last = (st.x_events, st.x_stale, st.index_events);
         hour += 1;
     }
-    w.hook = None;
+    w.hooks.clear();
     Ok(out)
 }

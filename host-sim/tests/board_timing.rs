@@ -184,7 +184,8 @@ fn both_scenarios_carry_the_nucleo_timing() {
 
 #[test]
 fn the_firmware_angle_is_the_angle_at_the_handler_read_instant() {
-    use host_sim::fwrig::{machine_demo, MachineConfig};
+    use host_sim::fwrig::machine_demo;
+    use host_sim::machine::MachineConfig;
     let mut m = MachineConfig::modern(3);
     m.encoder_edges = EdgeStamps::Captured;
     m.spindle = SpindleConfig {

@@ -2,8 +2,9 @@
 //! models behind the core's `hw` traits, interrupts at their exact
 //! instants, interleaved with the loop tick in priority order.
 
-use host_sim::fwrig::{machine_demo, FirmwareWorld, MachineConfig, SpindleSensor, XInterface};
+use host_sim::fwrig::{machine_demo, FirmwareWorld};
 use host_sim::machine::xslide::{FeedSegment, XSlideConfig};
+use host_sim::machine::{MachineConfig, SpindleSensor, XInterface};
 use host_sim::plant::zslide::st;
 use host_sim::plant::RigConfig;
 use host_sim::sched::{prio, OneShots};

@@ -1,7 +1,7 @@
 //! Scenario files: both standard files load, differ where they should, and
 //! bad files are refused with the offending field named.
 
-use host_sim::fwrig::{SpindleSensor, XInterface};
+use host_sim::machine::{SpindleSensor, XInterface};
 use host_sim::plant::{GaugeParams, ZSlideParams};
 use host_sim::scenario::{load, parse};
 

@@ -16,6 +16,7 @@ pub mod amplifier;
 pub mod fastmath;
 pub mod gauge;
 pub mod slide;
+pub mod statespace;
 #[cfg(feature = "std")]
 pub mod zoh;
 

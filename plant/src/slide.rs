@@ -36,15 +36,7 @@ use num_traits::Float;
 /// lbm per slug (standard gravity 32.174 ft/s²).
 pub const LBM_PER_SLUG: f64 = 32.174;
 
-/// Index of each state in the state vector.
-pub mod st {
-    pub const I: usize = 0;
-    pub const V: usize = 1;
-    pub const Z: usize = 2;
-    pub const Q: usize = 3;
-    pub const QD: usize = 4;
-    pub const N: usize = 5;
-}
+pub use crate::statespace::{st, Mats};
 
 /// Physical parameters of slide, motor and mode, inch units (see module doc).
 #[derive(Clone, Debug, PartialEq)]
@@ -203,14 +195,6 @@ impl ZSlideParams {
     pub fn eq4_11_numerator(&self) -> f64 {
         self.kf_lbf_per_a / (self.mass_lbf_s2_per_in * self.l_h)
     }
-}
-
-/// `Φ` and `Γ` of one step: `x(t+h) = Φ x(t) + Γ u`, exact for inputs held
-/// over the step (zero-order hold), in fixed arrays.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Mats {
-    pub phi: [[f64; st::N]; st::N],
-    pub gamma: [[f64; 2]; st::N],
 }
 
 /// One discretisation: its step length, its drive model and the matrices.

@@ -9,7 +9,7 @@
 //! or 3 ns apart, where an explicit integrator would need steps far below
 //! the fastest time constant.
 
-use crate::slide::{st, Mats};
+use crate::statespace::{st, Mats};
 use nalgebra::SMatrix;
 
 /// States plus inputs of the augmented matrix.

@@ -32,6 +32,7 @@ mod nopanic;
 mod regions;
 mod replay;
 mod stack;
+mod table_checks;
 mod trace;
 mod watchdog;
 
@@ -640,7 +641,7 @@ fn cmd_link_test() -> Result<u8> {
     if code != 0 {
         return Err(format!("the QEMU image exited with status {code}"));
     }
-    let n = regions::qemu_table_checks(&lines)? + link::end_to_end()?;
+    let n = table_checks::qemu_table_checks(&lines)? + link::end_to_end()?;
     eprintln!("{n} passed, 0 failed");
     Ok(0)
 }
@@ -845,7 +846,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
         check_snapshot(&lines, false)?;
         qemu_code = Some(code);
-        board_checks += u64::from(regions::qemu_table_checks(&lines)?);
+        board_checks += u64::from(table_checks::qemu_table_checks(&lines)?);
         board_checks += u64::from(link::end_to_end()?);
         replay_line = Some(replay::check()?);
         watchdog_line = Some(watchdog::check()?);

@@ -27,8 +27,9 @@ pub mod plot;
 pub mod run;
 
 use crate::cut::part::{CmmGrid, PassLog, CMM_X_IN};
-use crate::cut::run::{Cutter, SharedCutter, StretchLog};
-use crate::fwrig::{machine_with_table, XInterface};
+use crate::cut::run::{Cutter, StretchLog};
+use crate::fwrig::machine_with_table;
+use crate::machine::XInterface;
 use crate::scenario::Scenario;
 use crate::surface::Surface;
 use anyhow::{bail, Context};
@@ -303,7 +304,7 @@ pub fn build_stretch(
     let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
     spec.controller.attach(&mut w, &mut s);
     w.fw.set_target_code((spec.z_offset_in * run::CODES_PER_IN).round() as i32);
-    w.hook = Some(Box::new(SharedCutter(cutter.clone())));
+    w.hooks.push(Box::new(cutter.clone()));
     Ok(StretchRig {
         w,
         s,
@@ -370,7 +371,7 @@ pub fn run_stretch(
     if w.rig.amp.tripped() {
         faults.push("AmplifierTrip".to_string());
     }
-    w.hook = None;
+    w.hooks.clear();
     let log = match Rc::try_unwrap(cutter) {
         Ok(c) => c.into_inner().log,
         Err(_) => bail!("cutter still shared after the run"),

@@ -9,8 +9,6 @@ use super::nominal::Nominal;
 use super::part::{Pass, PassLog, CMM_PHI_COUNT};
 use crate::fwrig::{Machine, TickHook};
 use crate::plant::Rig;
-use std::cell::RefCell;
-use std::rc::Rc;
 use zslide::firmware::Firmware;
 
 /// Gauge codes per inch (2¹⁹ codes = 0.010 in).
@@ -164,15 +162,5 @@ impl TickHook for Cutter {
         } else {
             self.prev = None;
         }
-    }
-}
-
-/// A shareable cutter: the world owns one handle, the driver reads the
-/// log through the other.
-pub struct SharedCutter(pub Rc<RefCell<Cutter>>);
-
-impl TickHook for SharedCutter {
-    fn before_tick(&mut self, rig: &mut Rig, m: &Machine, fw: &Firmware) {
-        self.0.borrow_mut().before_tick(rig, m, fw);
     }
 }

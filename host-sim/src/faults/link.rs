@@ -2,13 +2,13 @@
 //! (garbage, truncated, corrupt, unknown commands, another protocol
 //! version, undecodable fields, oversize, empty), with a few valid
 //! read-only requests among them, written by the host into the running
-//! cut's link (`crate::link`) as fast as the RTT buffer takes them; and
+//! cut's link (`crate::fwrig::link`) as fast as the RTT buffer takes them; and
 //! what the host read back.
 //!
 //! The truncated and corrupted frames are made from every kind of request,
 //! arm, disarm, clear and set included: a damaged disarm must not disarm.
 
-use crate::link::HostLink;
+use crate::fwrig::HostLink;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use zslide::link::proto::{

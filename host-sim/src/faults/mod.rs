@@ -9,7 +9,7 @@
 //! Injections reuse the simulator's own mechanisms: the chips' bus-fault
 //! injector, the gauge's injection input, the amplifier's trip, the
 //! spindle and X-slide models, the cutter's force, the host link's
-//! transport ([`crate::link`]); the watchdog and the panic handler are
+//! transport ([`crate::fwrig::link`]); the watchdog and the panic handler are
 //! board models ([`board`]).
 
 pub mod board;
@@ -284,7 +284,7 @@ struct Run {
     t_inj: Nanos,
     t_end: Nanos,
     /// The host link (malformed-frame row).
-    link: Option<Box<crate::link::HostLink>>,
+    link: Option<Rc<RefCell<crate::fwrig::HostLink>>>,
     phase: Phase,
 }
 
@@ -367,7 +367,7 @@ fn simulate(
         // beyond it, so only a count below zero is outside it: the
         // interferometer count crossing the axis (the 1983 BCD counter
         // has no sign and would wrap, a jump: a glitch storm).
-        use crate::fwrig::XInterface;
+        use crate::machine::XInterface;
         if let XInterface::LegacyBcd(c) = &spec.scenario.machine.x {
             spec.scenario.machine.x = XInterface::Quadrature(c.clone());
         }
@@ -384,15 +384,17 @@ fn simulate(
     let mut rig = build_stretch(&spec, &st, 0.0, table)?;
     let reset_at = Rc::new(Cell::new(None));
     rig.s.add(board::Iwdg::new(reset_at.clone()));
-    if case == Case::MalformedHostFrame {
+    let host_link = if case == Case::MalformedHostFrame {
         // From boot, as on the board.
-        crate::link::attach(
+        Some(crate::fwrig::link::attach(
             &mut rig.w,
             &mut rig.s,
             spec.scenario.loop_hz,
             spec.scenario.servo_design,
-        )?;
-    }
+        )?)
+    } else {
+        None
+    };
 
     // One sample per loop-tick instant from BEFORE_NS before the injection.
     let samples: Rc<RefCell<Vec<Sample>>> = Rc::new(RefCell::new(Vec::new()));
@@ -527,12 +529,8 @@ fn simulate(
         Case::StalledLoop => w.cpu = Cpu::LoopStalled,
         Case::Panic => board::panic(w),
         Case::MalformedHostFrame => {
-            if let Some(bytes) = flood {
-                burst.at(t_inj, move |_, w| {
-                    if let Some(l) = w.link.as_mut() {
-                        l.send(&bytes);
-                    }
-                });
+            if let (Some(bytes), Some(l)) = (flood, host_link.clone()) {
+                burst.at(t_inj, move |_, _| l.borrow_mut().send(&bytes));
             }
         }
     }
@@ -553,7 +551,7 @@ fn simulate(
         trace,
         t_inj,
         t_end,
-        link: w.link.take(),
+        link: host_link,
         phase: w.fw.servo().phase(),
     })
 }
@@ -647,7 +645,7 @@ fn run_link_case(spec: &CutSpec, seed_index: u64, at: Inject) -> anyhow::Result<
     let run = simulate(spec, case, seed_index, at, Some(fl.bytes.clone()))?;
     let quiet = simulate(spec, case, seed_index, at, None)?;
     let l = run.link.as_ref().context("the link was attached")?;
-    let judged = link::judge(&fl, l);
+    let judged = link::judge(&fl, &l.borrow());
     let after = |t: &[Sample]| -> f64 {
         let v: Vec<&Sample> = t.iter().filter(|x| x.t_ns >= run.t_inj).collect();
         into_part(&v)

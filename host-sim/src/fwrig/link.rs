@@ -15,10 +15,16 @@
 //! The link posts operator requests straight into the firmware's `Shared`,
 //! which a replay recording does not see: a world with a recorder refuses
 //! the link ([`attach`]).
+//!
+//! The world runs the tap as one of its tick hooks ([`TickHook`]); the
+//! background and the host's polling are event sources that hold the same
+//! link.
 
-use crate::fwrig::{Cpu, FirmwareWorld};
+use super::world::{Cpu, FirmwareWorld, TickHook};
 use crate::sched::{prio, EventSource, Nanos, Scheduler};
+use std::cell::RefCell;
 use std::collections::VecDeque;
+use std::rc::Rc;
 use zslide::firmware::{LoopState, Shared};
 use zslide::link::proto::{FrameCounters, SpindleSource, XSource};
 use zslide::link::station::{LinkIo, Station, StationConfig};
@@ -89,11 +95,6 @@ impl HostLink {
         }
     }
 
-    /// At the end of the loop-tick handler.
-    pub fn after_tick(&mut self, lp: &mut LoopState) {
-        self.tap.after_tick(self.shared, lp);
-    }
-
     /// One background pass.
     pub fn poll(&mut self, shared: &Shared) {
         let mut io = Rtt {
@@ -134,8 +135,16 @@ impl HostLink {
     }
 }
 
+impl TickHook for HostLink {
+    /// At the end of the loop-tick handler.
+    fn after_tick(&mut self, lp: &mut LoopState) {
+        self.tap.after_tick(self.shared, lp);
+    }
+}
+
 /// The background (thread mode): one station pass after each loop tick.
 struct Background {
+    link: Rc<RefCell<HostLink>>,
     period_ns: Nanos,
     next: Nanos,
 }
@@ -156,14 +165,13 @@ impl EventSource<FirmwareWorld> for Background {
         if w.cpu == Cpu::Halted {
             return;
         }
-        if let Some(l) = w.link.as_mut() {
-            l.poll(w.fw.shared());
-        }
+        self.link.borrow_mut().poll(w.fw.shared());
     }
 }
 
 /// The debug probe's RTT polling.
 struct HostPoll {
+    link: Rc<RefCell<HostLink>>,
     next: Nanos,
 }
 
@@ -178,11 +186,9 @@ impl EventSource<FirmwareWorld> for HostPoll {
     fn name(&self) -> &str {
         "rtt_host"
     }
-    fn fire(&mut self, _now: Nanos, w: &mut FirmwareWorld) {
+    fn fire(&mut self, _now: Nanos, _w: &mut FirmwareWorld) {
         self.next += HOST_POLL_NS;
-        if let Some(l) = w.link.as_mut() {
-            l.host_transfer();
-        }
+        self.link.borrow_mut().host_transfer();
     }
 }
 
@@ -190,12 +196,13 @@ impl EventSource<FirmwareWorld> for HostPoll {
 /// beyond the loaded table's, the scenario's design, built-in parameters)
 /// and registers the background and the host's polling with the
 /// scheduler. `loop_hz`: the loop-tick rate (one background pass per tick).
+/// Returns the host's handle on the link.
 pub fn attach(
     w: &mut FirmwareWorld,
     s: &mut Scheduler<FirmwareWorld>,
     loop_hz: u32,
     design: ServoDesign,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Rc<RefCell<HostLink>>> {
     if w.recorder.is_some() {
         anyhow::bail!(
             "the host link posts requests a replay recording does not see: record without it"
@@ -217,7 +224,7 @@ pub fn attach(
             },
         ),
     };
-    w.link = Some(Box::new(HostLink::new(StationConfig {
+    let link = Rc::new(RefCell::new(HostLink::new(StationConfig {
         loop_hz,
         x_source,
         spindle_source,
@@ -226,10 +233,15 @@ pub fn attach(
         params: ParamSource::BuiltIn,
     })));
     let period_ns = 1_000_000_000 / Nanos::from(loop_hz.max(1));
+    w.hooks.push(Box::new(link.clone()));
     s.add(Background {
+        link: link.clone(),
         period_ns,
         next: period_ns,
     });
-    s.add(HostPoll { next: HOST_POLL_NS });
-    Ok(())
+    s.add(HostPoll {
+        link: link.clone(),
+        next: HOST_POLL_NS,
+    });
+    Ok(link)
 }

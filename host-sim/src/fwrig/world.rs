@@ -1,31 +1,16 @@
-//! The firmware on the simulated machine, end to end: the core's own
-//! drivers (`zslide::drivers::{Ad5791, Ad4020}`) on the simulated chips, the
-//! core's `Firmware::loop_tick`, and (optionally) the X slide and spindle
-//! through the core's `hw` traits with their interrupts delivered by the
-//! scheduler at their exact instants.
-//!
-//! Event sources and priorities (`sched::prio`): loop tick (timer, CNV then
-//! the handler) > X half-mil interrupt > index pulse. The plant is advanced
-//! exactly to each event before it runs (`World::advance_to`).
-//!
-//! With a machine attached the firmware is the integrated one
-//! (`Firmware::with_table(DEFAULT_TABLE, ..)`): the X half-mil interrupt
-//! calls `Firmware::x_event` (with the core's AD5686 driver on the simulated
-//! quad DAC for the legacy coefficient output), the index calls
-//! `Firmware::index_event`, and the loop tick gets its `TickInput` from the
-//! hw-trait implementations (`Encoder`, `Tachometer`, `Clock`). The
-//! firmware keeps its spindle angle private, so the world runs a monitor
-//! copy of the core's estimator on the same readings to report it.
+//! The world: the rig and the firmware with the core's drivers on the
+//! simulated chips, its handlers run on the board's timing, and the one way
+//! to plug into the loop tick ([`TickHook`]).
 
+use super::attached::{AngleState, Machine, MachineStats, XState};
 use crate::chips::{SimAd4020, SimAd5686, SimAd5791, SimAmpEnablePin, SimClock, SimLdacPin};
 use crate::machine::hw::{
-    SharedSpindle, SimSpindleEncoder, SimTachometer, SimXLatch, SimXQuadrature, SpindleLink,
-    XHalfMilLink,
+    SimSpindleEncoder, SimTachometer, SimXLatch, SimXQuadrature, SpindleLink, XHalfMilLink,
 };
 use crate::machine::spindle::SpindleConfig;
-use crate::machine::xslide::XSlideConfig;
+use crate::machine::{MachineConfig, SpindleSensor, XInterface};
 use crate::plant::{Rig, RigConfig};
-use crate::sched::{prio, EventSource, Nanos, Scheduler, World};
+use crate::sched::{Nanos, World};
 use embedded_hal::digital::OutputPin;
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -33,204 +18,41 @@ use zslide::drivers::ad4020::Ad4020;
 use zslide::drivers::ad5686::Ad5686;
 use zslide::drivers::ad5791::Ad5791;
 use zslide::firmware::{
-    Firmware, FirmwareConfig, Request, SpindleMode, SpindleReading, TickInput, XMode,
+    Firmware, FirmwareConfig, LoopState, Request, SpindleMode, SpindleReading, TickInput, XMode,
 };
 use zslide::hw::{Clock, Encoder, Tachometer, XLatch};
 use zslide::safety::{Device, Fault};
 use zslide::servo::ServoConfig;
 use zslide::spindle::{EncoderAngle, EncoderConfig, TachAngle, TachConfig};
-use zslide::units::{SpindleAngle, XInches};
+use zslide::units::SpindleAngle;
 use zslide::xpos::{CountConfig, CountX, XEvent};
 use zslide_replay::record::{Recorder, Tap, TapPin};
 use zslide_replay::wire::{Dev, Event, XResult};
 
-/// How the firmware learns X.
-#[derive(Clone, Debug, PartialEq)]
-pub enum XInterface {
-    /// 1983: BCD counter chain, half-mil interrupt, latched digits.
-    LegacyBcd(XSlideConfig),
-    /// Interferometer count (1 µin) read every loop tick.
-    Quadrature(XSlideConfig),
-}
-
-/// How the firmware learns the spindle angle.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SpindleSensor {
-    /// 1983: tachometer (5 V at 300 rpm) + once-per-rev index.
-    TachIndex,
-    /// Rotary encoder with index.
-    EncoderIndex,
-}
-
-/// The machine around the Z slide.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MachineConfig {
-    pub x: XInterface,
-    pub spindle: SpindleConfig,
-    pub sensor: SpindleSensor,
-    /// The encoder's edge timestamps as the board gives them.
-    pub encoder_edges: zslide::spindle::EdgeStamps,
-    /// Integration step of the spindle model, ns (speed changes over
-    /// seconds: 250 µs keeps the angle's interpolation error far below a
-    /// count; the angle is interpolated linearly inside a step).
-    pub spindle_step_ns: u64,
-    /// Sampling step of the X position (feed, vibration, jitter), ns.
-    pub x_step_ns: u64,
-    /// How far the event-producing models run ahead per scan, ns.
-    pub window_ns: u64,
-    /// Speed band the firmware accepts, rpm.
-    pub min_rpm: u32,
-    pub max_rpm: u32,
-    /// Legacy coefficient-output mode (C00..C03 on the quad DAC at every
-    /// accepted X event).
-    pub coefficient_output: bool,
-}
-
-impl MachineConfig {
-    /// 1983: BCD X at 0.2 in/min from 1 in, tachometer + index at 300 rpm.
-    pub fn legacy(seed: u64) -> Self {
-        Self {
-            x: XInterface::LegacyBcd(XSlideConfig {
-                x0_in: 1.0,
-                seed: seed ^ 0x58,
-                ..XSlideConfig::default()
-            }),
-            spindle: SpindleConfig {
-                seed: seed ^ 0x5350,
-                ..SpindleConfig::default()
-            },
-            sensor: SpindleSensor::TachIndex,
-            encoder_edges: zslide::spindle::EdgeStamps::AtRead,
-            spindle_step_ns: 250_000,
-            x_step_ns: 100_000,
-            window_ns: 5_000_000,
-            min_rpm: 30,
-            max_rpm: 600,
-            coefficient_output: false,
-        }
-    }
-    /// Modern: quadrature X, encoder + index.
-    pub fn modern(seed: u64) -> Self {
-        let l = Self::legacy(seed);
-        let XInterface::LegacyBcd(x) = l.x.clone() else {
-            unreachable!()
-        };
-        Self {
-            x: XInterface::Quadrature(x),
-            sensor: SpindleSensor::EncoderIndex,
-            ..l
-        }
-    }
-}
-
-/// What the X and spindle handlers saw (for tests and reports).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct MachineStats {
-    pub x_events: u64,
-    pub x_accepted: u64,
-    pub x_ignored: u64,
-    pub x_faults: u64,
-    /// Interrupts whose latch caught a ripple (model truth).
-    pub x_stale: u64,
-    pub index_events: u64,
-    pub index_faults: u64,
-    /// Last X the firmware knows.
-    pub x: Option<XInches>,
-    /// Spindle angle at the last loop tick.
-    pub angle: SpindleAngle,
-    pub referenced: bool,
-    /// Last fault raised by an X or spindle handler.
-    pub last_fault: Option<Fault>,
-}
-
-impl Machine {
-    /// True X at `t_s` (feed profile, without vibration and jitter), in.
-    pub fn x_true_in(&self, t_s: f64) -> f64 {
-        match &self.x {
-            XState::Legacy { link, .. } => link.borrow().model().nominal_x(t_s),
-            XState::Count { enc, .. } => enc.model().nominal_x(t_s),
-        }
-    }
-}
-
-enum XState {
-    Legacy {
-        link: Rc<RefCell<XHalfMilLink>>,
-        latch: SimXLatch,
-    },
-    Count {
-        enc: Box<SimXQuadrature>,
-        decoder: CountX,
-    },
-}
-
-enum AngleState {
-    Encoder {
-        dev: SimSpindleEncoder,
-        est: EncoderAngle,
-    },
-    Tach {
-        dev: SimTachometer,
-        est: TachAngle,
-    },
-}
-
-/// Called at every loop tick, after the plant has reached the tick's instant
-/// and before the firmware's `loop_tick` runs: what the machine's physics
-/// (the cutting force of `cut`) reads from the truth and applies to the rig.
+/// What plugs into the loop tick (the world's [`FirmwareWorld::hooks`], run
+/// in their order): the machine's physics (the cutting force of `cut`, the
+/// soak's drift) and the host link's tap ([`super::link`]).
 pub trait TickHook {
-    fn before_tick(&mut self, rig: &mut Rig, machine: &Machine, fw: &Firmware);
+    /// At every loop tick with a machine attached, after the plant has
+    /// reached the tick's instant and before the firmware's `loop_tick`
+    /// runs, whatever the MCU does: what the machine's physics reads from
+    /// the truth and applies to the rig.
+    fn before_tick(&mut self, _rig: &mut Rig, _machine: &Machine, _fw: &Firmware) {}
+    /// Last in the loop-tick handler, when it runs (as on the boards: fault
+    /// changes, snapshots and the capture for the host link).
+    fn after_tick(&mut self, _lp: &mut LoopState) {}
 }
 
-/// X slide and spindle as the firmware sees them.
-pub struct Machine {
-    x: XState,
-    angle: AngleState,
-    pub spindle: SharedSpindle,
-    pub stats: MachineStats,
-    /// Run the monitor copy of the firmware's angle estimator (the
-    /// stats' `angle`, `referenced` and index faults; on by default). A
-    /// run that reads none of them turns it off: it costs as much as the
-    /// firmware's own estimator (≈ 170 instructions a tick with an
-    /// encoder).
-    pub monitor: bool,
-}
-
-/// Which loop drives the amplifier.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Controller {
-    /// The firmware's digital loop (`zslide::servo`) writes the amplifier
-    /// DAC.
-    Digital,
-    /// The 1983 analog loop (eq 4-44 velocity loop, eq 4-45 lag at
-    /// Ko = 0.5934: Kv ≈ 4800 1/s; `analog1983`) drives the amplifier from
-    /// the gauge and the firmware's command. The 1983 command came from
-    /// analog multipliers fed by the 8080's coefficient DACs and a sine
-    /// generator; here it is the firmware's own command (the same table,
-    /// angle and X), sampled at each loop tick and held, so the comparison
-    /// isolates the loop. The firmware stays disarmed: its DAC holds 0 V
-    /// and is not connected.
-    LegacyAnalog,
-}
-
-impl Controller {
-    pub fn name(self) -> &'static str {
-        match self {
-            Controller::Digital => "digital",
-            Controller::LegacyAnalog => "legacy-analog",
-        }
+/// A hook shared with whoever reads it after the run: the world owns one
+/// handle, the driver keeps the other.
+impl<H: TickHook> TickHook for Rc<RefCell<H>> {
+    #[inline]
+    fn before_tick(&mut self, rig: &mut Rig, machine: &Machine, fw: &Firmware) {
+        self.borrow_mut().before_tick(rig, machine, fw);
     }
-
-    /// Puts this controller in charge of the amplifier of a freshly built
-    /// world: the digital loop is armed (sign check, then bumpless
-    /// engagement), the 1983 loop is attached (it runs inside the world's
-    /// advance: [`crate::analog1983::AnalogDrive`]).
-    pub fn attach(self, w: &mut FirmwareWorld, _s: &mut Scheduler<FirmwareWorld>) {
-        match self {
-            Controller::Digital => w.request(Request::Arm),
-            Controller::LegacyAnalog => w.use_legacy_analog(),
-        }
+    #[inline]
+    fn after_tick(&mut self, lp: &mut LoopState) {
+        self.borrow_mut().after_tick(lp);
     }
 }
 
@@ -250,18 +72,16 @@ pub struct FirmwareWorld {
     /// bit-exact replay on the target (`zslide_replay`, `crate::replay`).
     pub recorder: Option<Recorder>,
     pub machine: Option<Machine>,
-    /// Machine physics run at each loop tick (none: no cutting).
-    pub hook: Option<Box<dyn TickHook>>,
+    /// What runs at each loop tick besides the firmware: the machine's
+    /// physics, the host link's tap (none: no cutting, no link).
+    pub hooks: Vec<Box<dyn TickHook>>,
     init_fault: Option<Fault>,
-    /// The 1983 loop when it drives the amplifier ([`Controller::LegacyAnalog`]).
+    /// The 1983 loop when it drives the amplifier ([`super::controller::Controller::LegacyAnalog`]).
     pub analog: Option<crate::analog1983::AnalogDrive>,
     /// What the MCU is doing: a board-level state the core has no notion
     /// of (a stalled loop-tick interrupt, a halted core), set by the fault
     /// campaign's board models (`faults::board`).
     pub cpu: Cpu,
-    /// The host link, when attached (`crate::link::attach`): its tap runs
-    /// at the end of every loop tick, its station in the background.
-    pub link: Option<Box<crate::link::HostLink>>,
 }
 
 /// The MCU's execution state, as far as the handlers are concerned.
@@ -365,11 +185,10 @@ impl FirmwareWorld {
             clock: dev.clock,
             quad,
             machine: None,
-            hook: None,
+            hooks: Vec::new(),
             init_fault,
             analog: None,
             cpu: Cpu::Running,
-            link: None,
             recorder,
         }
     }
@@ -506,8 +325,10 @@ impl FirmwareWorld {
     #[inline]
     pub fn tick(&mut self) {
         // The machine's physics runs whatever the MCU does.
-        if let (Some(h), Some(m)) = (self.hook.as_mut(), self.machine.as_ref()) {
-            h.before_tick(&mut self.rig, m, &self.fw);
+        if let Some(m) = self.machine.as_ref() {
+            for h in &mut self.hooks {
+                h.before_tick(&mut self.rig, m, &self.fw);
+            }
         }
         if self.cpu != Cpu::Running {
             return;
@@ -579,8 +400,8 @@ impl FirmwareWorld {
         }
         // Last in the handler, as on the boards: fault changes, snapshots
         // and the capture for the host link.
-        if let Some(l) = self.link.as_mut() {
-            l.after_tick(self.fw.loop_state_mut());
+        for h in &mut self.hooks {
+            h.after_tick(self.fw.loop_state_mut());
         }
         self.rig.time.set(t_event);
     }
@@ -711,194 +532,5 @@ impl FirmwareWorld {
 
     pub fn stats(&self) -> Option<&MachineStats> {
         self.machine.as_ref().map(|m| &m.stats)
-    }
-}
-
-/// The loop tick as a periodic source of the world. A plain function
-/// pointer (no boxed closure on the hot path).
-pub struct WorldTick {
-    name: &'static str,
-    period_ns: Nanos,
-    next: Nanos,
-    fire: fn(&mut FirmwareWorld),
-}
-
-impl WorldTick {
-    /// The firmware's loop tick every `period_ns`.
-    pub fn loop_tick(period_ns: Nanos) -> Self {
-        Self {
-            name: "loop_tick",
-            period_ns,
-            next: period_ns,
-            fire: FirmwareWorld::tick,
-        }
-    }
-}
-
-impl EventSource<FirmwareWorld> for WorldTick {
-    #[inline]
-    fn next_time(&self) -> Option<Nanos> {
-        Some(self.next)
-    }
-    fn priority(&self) -> u8 {
-        prio::LOOP_TICK
-    }
-    fn name(&self) -> &str {
-        self.name
-    }
-    #[inline]
-    fn fire(&mut self, _now: Nanos, w: &mut FirmwareWorld) {
-        (self.fire)(w);
-        self.next += self.period_ns;
-    }
-}
-
-/// Half-mil interrupts of the legacy X interface, at their exact instants.
-pub struct XHalfMilSource {
-    link: Rc<RefCell<XHalfMilLink>>,
-}
-
-impl EventSource<FirmwareWorld> for XHalfMilSource {
-    fn next_time(&self) -> Option<Nanos> {
-        let l = self.link.borrow();
-        // Nothing queued: wake at the end of the scanned window to scan on.
-        Some(l.next_interrupt().map_or(l.scanned_to(), |i| i.t_ns))
-    }
-    fn priority(&self) -> u8 {
-        prio::X_EVENT
-    }
-    fn name(&self) -> &str {
-        "x_event"
-    }
-    fn fire(&mut self, now: Nanos, w: &mut FirmwareWorld) {
-        let due = {
-            let mut l = self.link.borrow_mut();
-            match l.next_interrupt() {
-                Some(i) if i.t_ns <= now => l.take(),
-                Some(_) => None,
-                None => {
-                    l.scan();
-                    None
-                }
-            }
-        };
-        if let Some(i) = due {
-            w.x_event(i.stale);
-        }
-    }
-}
-
-/// Index pulses of the spindle (true and spurious), at their exact instants.
-pub struct IndexSource {
-    link: SharedSpindle,
-}
-
-impl EventSource<FirmwareWorld> for IndexSource {
-    fn next_time(&self) -> Option<Nanos> {
-        let l = self.link.borrow();
-        Some(l.next_pulse().map_or(l.scanned_to(), |p| p.t_ns))
-    }
-    fn priority(&self) -> u8 {
-        prio::INDEX
-    }
-    fn name(&self) -> &str {
-        "index"
-    }
-    fn fire(&mut self, now: Nanos, w: &mut FirmwareWorld) {
-        let due = {
-            let mut l = self.link.borrow_mut();
-            match l.next_pulse() {
-                Some(p) if p.t_ns <= now => l.pop_pulse(),
-                Some(_) => None,
-                None => {
-                    l.scan();
-                    None
-                }
-            }
-        };
-        if let Some(p) = due {
-            w.index_event(p.count, p.edge_ticks);
-        }
-    }
-}
-
-/// Scheduler source indices of a firmware run.
-pub mod src {
-    pub const LOOP_TICK: usize = 0;
-}
-
-/// Rig + firmware at `loop_hz` with the loop-tick source registered (index
-/// [`src::LOOP_TICK`]).
-pub fn firmware_demo(cfg: RigConfig, loop_hz: u32) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    let loop_cfg = ServoConfig::at_rate(loop_hz)
-        .expect("the default loop design holds at the rig rates (8 kHz..200 kHz)");
-    firmware_with(cfg, loop_hz, loop_cfg)
-}
-
-/// [`firmware_demo`] with a given loop configuration.
-pub fn firmware_with(
-    cfg: RigConfig,
-    loop_hz: u32,
-    loop_cfg: ServoConfig,
-) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    let w = FirmwareWorld::new(cfg, loop_cfg);
-    let mut s = Scheduler::new();
-    let period = 1_000_000_000 / u64::from(loop_hz.max(1));
-    s.add(WorldTick::loop_tick(period));
-    (w, s)
-}
-
-/// [`firmware_demo`] with the X slide and spindle attached and their
-/// interrupt sources registered (after the loop tick).
-pub fn machine_demo(
-    cfg: RigConfig,
-    machine: &MachineConfig,
-    loop_hz: u32,
-) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    let loop_cfg = ServoConfig::at_rate(loop_hz)
-        .expect("the default loop design holds at the rig rates (8 kHz..200 kHz)");
-    machine_with(cfg, machine, loop_hz, loop_cfg)
-}
-
-/// The scenario's machine with its `[servo]` loop (rig, X slide, spindle,
-/// firmware; disarmed until [`FirmwareWorld::request`] arms it).
-pub fn scenario_demo(sc: &crate::scenario::Scenario) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    machine_with(sc.rig.clone(), &sc.machine, sc.loop_hz, sc.servo)
-}
-
-/// [`machine_demo`] with a given loop configuration.
-pub fn machine_with(
-    cfg: RigConfig,
-    machine: &MachineConfig,
-    loop_hz: u32,
-    loop_cfg: ServoConfig,
-) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    machine_with_table(cfg, machine, loop_hz, loop_cfg, zslide::DEFAULT_TABLE)
-}
-
-/// [`machine_with`] with another coefficient table image.
-pub fn machine_with_table(
-    cfg: RigConfig,
-    machine: &MachineConfig,
-    loop_hz: u32,
-    loop_cfg: ServoConfig,
-    table: &'static [u8],
-) -> (FirmwareWorld, Scheduler<FirmwareWorld>) {
-    let (mut w, mut s) = firmware_with(cfg, loop_hz, loop_cfg);
-    w.attach_machine_with_table(machine, table);
-    add_machine_sources(&w, &mut s);
-    (w, s)
-}
-
-/// Registers the X half-mil (legacy X) and index sources of the attached
-/// machine, after the loop tick.
-pub fn add_machine_sources(w: &FirmwareWorld, s: &mut Scheduler<FirmwareWorld>) {
-    if let Some(m) = &w.machine {
-        if let XState::Legacy { link, .. } = &m.x {
-            s.add(XHalfMilSource { link: link.clone() });
-        }
-        s.add(IndexSource {
-            link: m.spindle.clone(),
-        });
     }
 }
