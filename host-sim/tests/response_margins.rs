@@ -68,11 +68,33 @@ fn refined_margins_match_the_closed_form_at_any_sweep_resolution() {
     }
 }
 
-/// The defect the refinement removes: read off a coarse sweep by linear
-/// interpolation, the phase margin is off by more than a degree.
+fn exact_peak_s_db() -> f64 {
+    // A dense scan in log f (10⁵ points over the decade around the
+    // crossover) and the best point: independent of the code under test.
+    (0..100_000)
+        .map(|k| 30.0 * 10f64.powf(k as f64 / 1e5))
+        .map(|f| -20.0 * (1.0 + l_of(f)).norm().log10())
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
 #[test]
-fn margins_read_off_a_coarse_sweep_depend_on_its_resolution() {
-    let (_, pm, _, _) = exact();
-    let coarse = margins(&sweep(12)).phase_margin_deg.unwrap();
-    assert!((coarse - pm).abs() > 1.0, "coarse {coarse} vs {pm}");
+fn refined_peak_sensitivity_matches_a_dense_scan_at_any_resolution() {
+    let exact = exact_peak_s_db();
+    for n in [12, 30, 200] {
+        let m = margins_refined(&sweep(n), &point);
+        assert!(
+            (m.peak_sensitivity_db - exact).abs() < 0.005,
+            "{n} points: {} vs {exact}",
+            m.peak_sensitivity_db
+        );
+    }
+}
+
+/// The defect the refinement removes: read off a coarse sweep, the peak
+/// of |S| is the largest sweep point's, well below the true peak.
+#[test]
+fn the_peak_sensitivity_of_a_coarse_sweep_alone_depends_on_its_resolution() {
+    let exact = exact_peak_s_db();
+    let coarse = margins(&sweep(12)).peak_sensitivity_db;
+    assert!(exact - coarse > 0.3, "coarse {coarse} vs {exact}");
 }

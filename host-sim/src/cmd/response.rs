@@ -537,7 +537,48 @@ fn margins_with(pts: &[LoopPoint], refine: Option<&dyn Fn(f64) -> LoopPoint>) ->
             m.gain_margin_db = Some(-20.0 * (ma + f * (mb - ma)));
         }
     }
+    if let Some(measure) = refine {
+        m.peak_sensitivity_db = refine_peak_s(pts, measure);
+    }
     m
+}
+
+/// The largest |S|, dB: the sweep's largest point, then a golden-section
+/// search in log f between its two neighbours (the peak of a sweep point
+/// alone moves with the resolution).
+fn refine_peak_s(pts: &[LoopPoint], measure: &dyn Fn(f64) -> LoopPoint) -> f64 {
+    let db = |p: &LoopPoint| 20.0 * p.s.norm().log10();
+    let Some(k) = (0..pts.len()).max_by(|&a, &b| db(&pts[a]).total_cmp(&db(&pts[b]))) else {
+        return f64::NEG_INFINITY;
+    };
+    let best = db(&pts[k]);
+    let (mut a, mut b) = (
+        pts[k.saturating_sub(1)].f_hz.ln(),
+        pts[(k + 1).min(pts.len() - 1)].f_hz.ln(),
+    );
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let at = |x: f64| db(&measure(x.exp()));
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (at(c), at(d));
+    for _ in 0..30 {
+        if (b - a).abs() < 1e-4 {
+            break;
+        }
+        if fc > fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = at(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = at(d);
+        }
+    }
+    best.max(fc).max(fd)
 }
 
 fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
