@@ -208,7 +208,7 @@ mod app {
     /// over by reference: as an `Option<Tick>` static its `None` is
     /// niche-encoded nonzero, which put the 5.8 KiB state in `.data` twice
     /// (the handler's and this cell's), each with its flash initialiser.
-    static HANDOFF: Mutex<Cell<Option<&'static mut Tick>>> = Mutex::new(Cell::new(None));
+    static TICK_HANDOVER: Mutex<Cell<Option<&'static mut Tick>>> = Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The level detector's setting, µin, for the log.
     static LEVEL_UIN: AtomicI32 = AtomicI32::new(0);
@@ -278,7 +278,7 @@ mod app {
         // `None` only on a second run of this code, which cannot happen
         // (main never returns); the tick would then stay idle.
         let tick = cortex_m::singleton!(: Tick = tick);
-        critical_section::with(|cs| HANDOFF.borrow(cs).set(tick));
+        critical_section::with(|cs| TICK_HANDOVER.borrow(cs).set(tick));
         timers::start_watchdog(&dp.IWDG, &dp.DBGMCU);
         timers::start_loop_timer_at(&dp.TIM3, TICK_HZ);
         // SAFETY: every datum shared with the handler is an atomic or
@@ -407,7 +407,7 @@ mod app {
         static mut TICK: Option<&'static mut Tick> = None;
         timers::ack_loop_tick();
         if TICK.is_none() {
-            *TICK = critical_section::with(|cs| HANDOFF.borrow(cs).take());
+            *TICK = critical_section::with(|cs| TICK_HANDOVER.borrow(cs).take());
         }
         let Some(t) = TICK.as_mut() else {
             return;

@@ -8,6 +8,11 @@ use crate::units::ZInches;
 pub const CODE_MAX: i32 = (1 << 19) - 1;
 /// Smallest 20-bit two's complement code.
 pub const CODE_MIN: i32 = -(1 << 19);
+/// Gauge codes per inch: 2¹⁹ codes = 10 V = 0.010 in (exact in f64:
+/// 52 428 800; per µin 52.4288). For the host's and the boards' reports
+/// and plants; the firmware itself converts in integers
+/// ([`gauge_code_from_z`]).
+pub const GAUGE_CODES_PER_INCH: f64 = 52_428_800.0;
 
 /// The gauge code that reads `z` (gauge 1 V/mil, ±10 V = ±0.010 in over
 /// ±2¹⁹ codes), rounded to nearest and clamped to the converter range.

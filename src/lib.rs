@@ -2,49 +2,47 @@
 //!
 //! `no_std`, no allocation, no chips and no simulator: boards (`src/main.rs`,
 //! `boards/qemu`) and `host-sim` implement its traits. The modules are
-//! grouped: types and traits; configuration and the coefficient table; the
-//! data path in order (X position and spindle angle arrive by interrupt, the
-//! table is interpolated at X, the command is formed at φ, the loop closes on
-//! the gauge, the result goes to the DAC); what serves it (converter drivers,
-//! the watchdog's feed decision); the bundle; the second system. See
-//! `docs/ARCHITECTURE.md`.
+//! grouped, each depending only on the ones above it: units and
+//! vocabulary; the coefficient table; the data path, one folder per stage
+//! (X position and spindle angle arrive by interrupt, the table is
+//! interpolated at X, the command is formed at φ, the loop closes on the
+//! gauge, the result goes to the DAC); the hand-offs between priorities;
+//! the firmware (its handlers and the bundle); what serves it (converter
+//! drivers, the host link, the trace, the watchdog's feed decision); the
+//! second system. See `docs/ARCHITECTURE.md`.
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-// Types and traits.
+// Units and vocabulary: fixed-point quantities, the hardware traits, the
+// faults and their reactions, the gauge's codes, the sine.
+pub mod codes;
 pub mod hw;
 pub mod safety;
+pub mod trig;
 pub mod units;
-// Configuration and the coefficient table.
-pub mod codes;
-pub mod config;
+// The coefficient table: its format, parser and interpolation.
 pub mod table;
-pub mod params;
-// The data path: interrupt → X / angle → coefficients → command → loop → DAC.
-pub mod handoff;
-pub mod xevent;
+// The data path, one folder per stage: X position and its coefficient
+// columns; the spindle angle; the command (Z, its derivatives, the
+// setpoint and its expansion); the servo loop to the amplifier DAC.
 pub mod xpos;
 pub mod spindle;
-pub mod interp;
-pub mod coeffcache;
-pub mod trig;
 pub mod command;
-pub mod setpoint;
-pub mod ahead;
 pub mod servo;
-pub mod looptick;
-// Below the loop tick: the learning's update, fed by the tick's samples.
-pub mod learning;
-// Around the data path: the converters' drivers, the watchdog feed decision.
-pub mod drivers;
-pub mod watchdog;
-// What the boards report of their handlers, for a VCD beside the simulator's.
-pub mod trace;
-// The bundle the boards and host-sim use.
+// The servo parameters (the flash block, the link's set/get).
+pub mod params;
+// The hand-offs between interrupt priorities (lock-free).
+pub mod handoff;
+// The firmware: its configuration, the three interrupt handlers (X/index
+// events, loop tick, learning) and the bundle the boards and host-sim use.
 pub mod firmware;
-// The host link (background and a tap in the loop tick).
+// Around the data path: the converters' drivers, the watchdog feed
+// decision, the handlers' trace events, the host link.
+pub mod drivers;
 pub mod link;
+pub mod trace;
+pub mod watchdog;
 // The second system on the same core (Feezell 1967).
 pub mod centring;
 

@@ -120,9 +120,9 @@ mod app {
     // and the cell's) a niche-encoded nonzero `None` put the state in
     // `.data` twice, each copy with its flash initialiser (8.7 KiB for the
     // X handler's slope table).
-    static HANDOFF: Mutex<Cell<Option<&'static mut Loop>>> = Mutex::new(Cell::new(None));
-    static HANDOFF_X: Mutex<Cell<Option<&'static mut XHandler>>> = Mutex::new(Cell::new(None));
-    static HANDOFF_LEARN: Mutex<Cell<Option<&'static mut LearnState>>> =
+    static LOOP_HANDOVER: Mutex<Cell<Option<&'static mut Loop>>> = Mutex::new(Cell::new(None));
+    static X_HANDOVER: Mutex<Cell<Option<&'static mut XHandler>>> = Mutex::new(Cell::new(None));
+    static LEARN_HANDOVER: Mutex<Cell<Option<&'static mut LearnState>>> =
         Mutex::new(Cell::new(None));
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The amplifier is enabled (the loop armed), for the arm button.
@@ -239,9 +239,9 @@ mod app {
         });
         let learn = cortex_m::singleton!(: LearnState = learn);
         critical_section::with(|cs| {
-            HANDOFF.borrow(cs).set(lp);
-            HANDOFF_X.borrow(cs).set(x);
-            HANDOFF_LEARN.borrow(cs).set(learn);
+            LOOP_HANDOVER.borrow(cs).set(lp);
+            X_HANDOVER.borrow(cs).set(x);
+            LEARN_HANDOVER.borrow(cs).set(learn);
         });
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
@@ -363,7 +363,7 @@ mod app {
         static mut LOOP: Option<&'static mut Loop> = None;
         timers::ack_loop_tick();
         if LOOP.is_none() {
-            *LOOP = critical_section::with(|cs| HANDOFF.borrow(cs).take());
+            *LOOP = critical_section::with(|cs| LOOP_HANDOVER.borrow(cs).take());
         }
         let Some(l) = LOOP.as_mut() else {
             return;
@@ -402,7 +402,7 @@ mod app {
         let word = board::LatchPins.read();
         let now = timers::now_ticks();
         if X.is_none() {
-            *X = critical_section::with(|cs| HANDOFF_X.borrow(cs).take());
+            *X = critical_section::with(|cs| X_HANDOVER.borrow(cs).take());
         }
         if let Some(x) = X.as_mut() {
             trace::emit(Event::XEnter, now);
@@ -423,7 +423,7 @@ mod app {
     fn TIM7() {
         static mut LEARN: Option<&'static mut LearnState> = None;
         if LEARN.is_none() {
-            *LEARN = critical_section::with(|cs| HANDOFF_LEARN.borrow(cs).take());
+            *LEARN = critical_section::with(|cs| LEARN_HANDOVER.borrow(cs).take());
         }
         if let Some(l) = LEARN.as_mut() {
             l.run(&SHARED);

@@ -28,7 +28,7 @@
 //! wrong never falls back to them: the firmware latches
 //! `Fault::Parameters` and keeps the amplifier off.
 
-use crate::servo::{DesignError, ServoConfig, ServoDesign};
+use crate::servo::design::{DesignError, ServoConfig, ServoDesign};
 
 pub const MAGIC: [u8; 4] = *b"ZSPB";
 pub const FORMAT_VERSION: u16 = 1;

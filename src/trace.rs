@@ -275,7 +275,11 @@ impl LoopTrace {
     }
 
     /// The events of this tick's outputs that differ from the last tick's.
-    pub fn after_tick(&mut self, lp: &crate::looptick::LoopState, mut emit: impl FnMut(Event)) {
+    pub fn after_tick(
+        &mut self,
+        lp: &crate::firmware::looptick::LoopState,
+        mut emit: impl FnMut(Event),
+    ) {
         let command = lp.command_code();
         let position = lp.position_code();
         let now = [
@@ -339,7 +343,11 @@ impl Outputs {
 
     /// After a loop tick: the outputs that changed, stamped by `clock`.
     #[inline(always)]
-    pub fn after_tick(&mut self, lp: &crate::looptick::LoopState, clock: impl Fn() -> u32) {
+    pub fn after_tick(
+        &mut self,
+        lp: &crate::firmware::looptick::LoopState,
+        clock: impl Fn() -> u32,
+    ) {
         #[cfg(feature = "trace")]
         self.last.after_tick(lp, |e| emit(e, clock()));
         #[cfg(not(feature = "trace"))]

@@ -21,6 +21,10 @@ pub enum Command {
     Coeffs(cmd::coeffs::Args),
     /// Accuracy of the firmware command path against the exact surface.
     Accuracy(cmd::accuracy::Args),
+    /// The smallest harmonic table meeting a part file's bound, and its error split.
+    PartTable(cmd::parttable::Args),
+    /// Feasibility of a part on the machine before cutting (exit 1 with the reasons if not).
+    Plan(cmd::plan::Args),
     /// Z command from the firmware's fixed-point path for `x_in,phi_deg` lines on stdin.
     Zcmd(cmd::zcmd::Args),
     /// Appendix C block diagrams (CSMP studies C-1 .. C-6) simulated.
@@ -72,6 +76,8 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Coeffs(a) => cmd::coeffs::run(a),
         Command::Accuracy(a) => cmd::accuracy::run(a),
         Command::Zcmd(a) => cmd::zcmd::run(a),
+        Command::PartTable(a) => cmd::parttable::run(a),
+        Command::Plan(a) => cmd::plan::run(a),
         Command::Csmp(a) => cmd::csmp::run(a),
         Command::Track(a) => cmd::track::run(a),
         Command::Response(a) => cmd::response::run(a),

@@ -14,6 +14,7 @@ pub mod fwrig;
 pub mod geometry;
 pub mod machine;
 pub mod outpath;
+pub mod part;
 pub mod plant;
 pub mod plot;
 pub mod replay;

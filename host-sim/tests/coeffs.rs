@@ -419,7 +419,7 @@ fn committed_tables_are_the_generators() {
         img == committed,
         "tables/short-focus.zsct is stale: regenerate it (see tables/short-focus.toml)"
     );
-    assert!(zslide::config::check_table(&committed).is_ok());
+    assert!(zslide::firmware::config::check_table(&committed).is_ok());
     let legacy = CoeffTable::parse(zslide::LEGACY4_TABLE).unwrap();
     assert_eq!(
         (legacy.representation(), legacy.terms()),

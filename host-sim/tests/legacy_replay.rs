@@ -11,10 +11,11 @@
 
 use host_sim::machine::xslide::{FeedSegment, XSlide, XSlideConfig};
 use std::convert::Infallible;
-use zslide::command::{CommandGen, LegacyOutput};
+use zslide::command::CommandGen;
 use zslide::drivers::ad5686::Ad5686;
 use zslide::hw::XLatchWord;
 use zslide::table::{CoeffTable, Geometry, Representation, TableHeader};
+use zslide::xpos::legacy_output::LegacyOutput;
 use zslide::xpos::{LegacyConfig, LegacyX, XEvent};
 
 /// Table 2-2, as printed (0.1 in grid, X = 0..8 in, C00..C03).

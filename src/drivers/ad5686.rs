@@ -7,7 +7,7 @@
 //! (A=0001 … D=1000), bits 15..0 straight binary data. The coefficients of
 //! one X event go to the input registers, then one low pulse on LDAC copies
 //! all four to the outputs at once: the 1983 strobe (appendix A `DACS`).
-//! Scaling (Table 3-1): [`crate::command::legacy_dac_code`].
+//! Scaling (Table 3-1): [`crate::xpos::legacy_output::legacy_dac_code`].
 
 use super::frame_bytes;
 use crate::hw::BusError;

@@ -32,8 +32,8 @@ pub const CTRL_RUN: u32 = CTRL_RBUF;
 /// Safe state: output clamped to ground through the chip's own switch.
 pub const CTRL_SAFE: u32 = CTRL_RBUF | CTRL_OPGND;
 
-pub const CODE_MIN: i32 = -(1 << 19);
-pub const CODE_MAX: i32 = (1 << 19) - 1;
+/// The DAC's code range: the 20-bit codes of `crate::codes`.
+pub use crate::codes::{CODE_MAX, CODE_MIN};
 
 /// Write frame for `reg` with 20 data bits.
 pub const fn write_frame(reg: u32, data: u32) -> u32 {

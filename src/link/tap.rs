@@ -20,7 +20,7 @@
 //! in [`TapShared`] with the capture ring, so a board needs one `static`.
 
 use super::proto::{CaptureState, LoopPhase, LoopSnapshot as Snapshot, Sample, Trigger};
-use crate::looptick::LoopState;
+use crate::firmware::looptick::LoopState;
 use crate::safety::Fault;
 use crate::servo::{Phase, ServoConfig};
 use core::mem::Discriminant;

@@ -50,6 +50,7 @@ pub use repetitive::{
     Correction, CorrectionAhead, Freeze, LearnRequests, LearnSample, LearnedTable, Learner,
 };
 
+use crate::codes::CODE_MAX;
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
 use engage::{SignCheck, SignStep};
@@ -57,9 +58,6 @@ use filters::Notch;
 use fixed::{mul_hi, qadd_mul, round_q8, ssat};
 use limits::{CurrentLimit, FollowingError, SlewProfile};
 use observer::{Estimate, Observer};
-
-/// Largest 20-bit code.
-const CODE_MAX: i32 = (1 << 19) - 1;
 
 /// The reference the command path gives the loop.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -87,7 +85,7 @@ pub struct ServoInput {
     /// The amplifier's fault line (it tripped).
     pub amplifier_tripped: bool,
     /// The learned correction expanded below the tick near this angle
-    /// (`crate::ahead`), stepped to it when the correction applies;
+    /// (`crate::handoff::ahead`), stepped to it when the correction applies;
     /// `None` (or too far from the angle): read from the table here.
     pub correction_ahead: Option<CorrectionAhead>,
 }

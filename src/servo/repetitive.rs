@@ -40,7 +40,7 @@
 //! [`CorrectionAhead::step`]; read directly, [`LearnedTable::correction`],
 //! without a fresh expansion); the learning itself (the hum notch on the error, the update, the Q-filter)
 //! runs below it, in its own handler ([`Learner`], driven by
-//! `crate::learning`), on the samples each tick hands over
+//! `crate::firmware::learning`), on the samples each tick hands over
 //! ([`LearnSample`]). The table is shared as atomic words. The update
 //! writes bins i − lead and i − lead + 1 and the Q-filter bins up to
 //! i − lead + 1, all below the bins i − 1 .. i + 2 the tick reads at
@@ -57,11 +57,17 @@
 //! angle step (< 2²²) are single 32×32 → 64-bit multiplies, shifted back to
 //! 32 bits once.
 
+use super::design::ServoConfig;
 use super::filters::Notch;
 use super::fixed::sat_i32;
-use super::ServoConfig;
 use crate::units::SpindleAngle;
 use core::sync::atomic::{AtomicI32, Ordering};
+
+/// Largest |φ − φ₀| a value made ahead of the tick (this
+/// correction, the command's expansion: `crate::command::expansion`) is
+/// stepped over: 3·2²², 1/341 turn
+/// (two ticks at 1800 rpm and 20 kHz).
+pub const DELTA_LIMIT: i32 = 3 << 22;
 
 /// Bins per revolution.
 pub const BINS: usize = 256;
@@ -226,7 +232,7 @@ pub struct Correction {
 
 /// The learned correction expanded at one angle φ₀ (by the handler below
 /// the tick, at the angle the next tick is predicted to read:
-/// `crate::ahead`), and stepped in the tick to the angle φ = φ₀ + δ it
+/// `crate::handoff::ahead`), and stepped in the tick to the angle φ = φ₀ + δ it
 /// reads ([`CorrectionAhead::step`]).
 ///
 /// Inside φ₀'s bin the correction is linear in φ (the interpolation
@@ -256,7 +262,7 @@ pub struct Correction {
 /// quarter bin past a node (one tick at 1200 rpm, β = ¼): position 0.96
 /// codes, velocity 0.05 codes per tick, acceleration 0.05 codes per tick²
 /// (the command's own Taylor step at that δ: 0.045 codes, 0.14 codes per
-/// tick; `crate::ahead`). Tested against the direct evaluation
+/// tick; `crate::handoff::ahead`). Tested against the direct evaluation
 /// (`correction_step_is_the_direct_evaluation_within_its_bound`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CorrectionAhead {
@@ -277,11 +283,11 @@ pub struct CorrectionAhead {
 
 impl CorrectionAhead {
     /// The correction at `phi` with its rates for the step `dphi` (None
-    /// beyond `crate::ahead::DELTA_LIMIT` from φ₀).
+    /// beyond `DELTA_LIMIT` from φ₀).
     #[inline(always)]
     pub fn step(&self, phi: SpindleAngle, dphi: i32) -> Option<Correction> {
         let d = phi.0.wrapping_sub(self.phi.0) as i32;
-        if !(-crate::ahead::DELTA_LIMIT..=crate::ahead::DELTA_LIMIT).contains(&d) {
+        if !(-DELTA_LIMIT..=DELTA_LIMIT).contains(&d) {
             return None;
         }
         Some(self.at(d, dphi))
@@ -340,7 +346,7 @@ impl LearnedTable {
     /// The correction to add to the reference at `phi`, with its rates for
     /// an angle step of `dphi` per tick (the feedforward's input): the
     /// expansion at `phi` taken there (the tick's fallback when no fresh
-    /// expansion from below it is at hand, `crate::ahead`).
+    /// expansion from below it is at hand, `crate::handoff::ahead`).
     #[inline]
     pub fn correction(&self, phi: SpindleAngle, dphi: i32) -> Correction {
         self.ahead(phi, dphi).at(0, dphi)
@@ -684,7 +690,7 @@ mod tests {
     /// measured step off the predicted one.
     #[test]
     fn correction_step_is_the_direct_evaluation_within_its_bound() {
-        let limit = crate::ahead::DELTA_LIMIT;
+        let limit = DELTA_LIMIT;
         let mut seed = 0x2545_f491u32;
         let mut rnd = move || {
             seed ^= seed << 13;

@@ -29,7 +29,7 @@ use zslide::params;
 use crate::Result;
 
 /// Gauge codes per µin (20 bits over ±0.010 in: 2¹⁹ / 10 000 µin).
-pub const CODES_PER_UIN: f64 = 52.4288;
+pub const CODES_PER_UIN: f64 = zslide::codes::GAUGE_CODES_PER_INCH / 1e6;
 /// Volts per DAC code (±10 V over 20 bits).
 const V_PER_CODE: f64 = 10.0 / 524_288.0;
 

@@ -2,7 +2,8 @@
 //!
 //! * `test`    – everything: host tests, the board firmware, the QEMU image
 //!   built, run and its log checked; image sizes; a short fuzz run of every
-//!   target. Installs what is missing when it can (Rust target, flip-link,
+//!   target; no import cycle between modules (`cycles`). Installs what is
+//!   missing when it can (Rust target, flip-link,
 //!   defmt-print, QEMU, cargo-fuzz) and otherwise says exactly what is
 //!   missing.
 //! * `qemu [--bless]` – builds and runs the QEMU image, decodes its defmt
@@ -16,12 +17,15 @@
 //!   instructions per interrupt handler under QEMU.
 //! * `no-panic` – builds both images and proves that no panic path is
 //!   reachable from their interrupt handlers (`nopanic.rs`); part of `test`.
+//! * `cycles` – no import cycle between the modules of any crate, and the
+//!   biggest source file (`cycles.rs`); part of `test`.
 //! * `fuzz --seconds N [--target T]` – builds and runs the cargo-fuzz
 //!   targets of `fuzz/` (`fuzz.rs`).
 //!
 //! Arguments are parsed strictly (clap): an unknown or mistyped flag is an
 //! error with exit status 2, never ignored.
 
+mod cycles;
 mod docnames;
 mod elf;
 mod figures;
@@ -111,6 +115,8 @@ enum Cmd {
     /// docs/*.md and rewrite them (`--check`: list what drifted, exit 1);
     /// also checks the names the docs cite exist.
     Figures(figures::Args),
+    /// Import cycles between the modules of every crate (part of `test`).
+    Cycles,
 }
 
 fn main() -> ExitCode {
@@ -130,6 +136,7 @@ fn main() -> ExitCode {
         Cmd::ParamBlock(args) => regions::param_block(&args),
         Cmd::LinkTest => cmd_link_test(),
         Cmd::Figures(args) => figures::run(&args),
+        Cmd::Cycles => cycles::run(),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -811,6 +818,10 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
             .iter()
             .any(|m| m.starts_with("qemu") || m.starts_with("defmt-print"));
 
+    step("import cycles between modules (every crate)");
+    let modules = cycles::check_crates(&root(), cycles::CRATES)?;
+    modules.print();
+
     step("host tests: cargo test --workspace");
     let results = host_tests()?;
     // The docs' cheap figures (the full set: `cargo xtask figures --check`)
@@ -925,7 +936,11 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     );
     eprintln!("fuzz: {fuzz_line}");
     eprintln!("docs: {docs_line}");
-    let code = if fuzz_failed > 0 || docs_failed > 0 {
+    eprintln!("{}", modules.summary());
+    eprintln!("{}", modules.biggest_line());
+    // The cycle check is one test of the tally.
+    let cycle_failed = u64::from(!modules.cycles.is_empty());
+    let code = if fuzz_failed > 0 || cycle_failed > 0 || docs_failed > 0 {
         1
     } else if missing.is_empty() {
         0
@@ -940,8 +955,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     // last libtest line above is a doc-test run that may count zero.
     eprintln!(
         "tests: {} passed, {} failed, {ignored} skipped",
-        passed + fuzz_passed + board_checks + docs_passed,
-        failed + fuzz_failed + docs_failed
+        passed + fuzz_passed + board_checks + (1 - cycle_failed) + docs_passed,
+        failed + fuzz_failed + cycle_failed + docs_failed
     );
     Ok(code)
 }

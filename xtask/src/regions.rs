@@ -82,7 +82,7 @@ pub struct ParamBlockArgs {
 /// fits `regions`; every refusal names the file and says what is wrong.
 pub fn check_table_file(file: &Path, regions: &Regions) -> Result<TableIdentity> {
     let bytes = fs::read(file).map_err(|e| format!("{}: cannot read: {e}", file.display()))?;
-    let table = zslide::config::check_table(&bytes)
+    let table = zslide::firmware::config::check_table(&bytes)
         .map_err(|e| format!("{}: table refused: {e}", file.display()))?;
     let id = table.identity();
     if id.len > regions.table_len {
@@ -224,6 +224,7 @@ pub fn param_block(args: &ParamBlockArgs) -> Result<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use zslide::table::CoeffTable;
 
     fn region_of(memory_x: &str, name: &str) -> (u32, u32) {
         let line = memory_x

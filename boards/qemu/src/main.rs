@@ -269,8 +269,8 @@ struct Events {
 
 static SHARED: Shared = Shared::new();
 /// Hands the parts to the handlers once, before their interrupts are unmasked.
-static HANDOFF: Mutex<Cell<Option<Run>>> = Mutex::new(Cell::new(None));
-static HANDOFF_EVENTS: Mutex<Cell<Option<Events>>> = Mutex::new(Cell::new(None));
+static RUN_HANDOVER: Mutex<Cell<Option<Run>>> = Mutex::new(Cell::new(None));
+static EVENTS_HANDOVER: Mutex<Cell<Option<Events>>> = Mutex::new(Cell::new(None));
 static RESULT: Mutex<Cell<Option<Summary>>> = Mutex::new(Cell::new(None));
 static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
 static DONE: AtomicBool = AtomicBool::new(false);
@@ -284,7 +284,7 @@ fn TIMER0() {
     TIMER0_LOOP.clear_interrupt();
     let n = ISR_COUNT.fetch_add(1, Ordering::Relaxed) + 1;
     if RUN.is_none() {
-        *RUN = critical_section::with(|cs| HANDOFF.borrow(cs).take());
+        *RUN = critical_section::with(|cs| RUN_HANDOVER.borrow(cs).take());
     }
     let Some(run) = RUN.as_mut() else {
         return;
@@ -368,7 +368,7 @@ fn TIMER1() {
     static mut EVENTS: Option<Events> = None;
     TIMER1_EVENTS.clear_interrupt();
     if EVENTS.is_none() {
-        *EVENTS = critical_section::with(|cs| HANDOFF_EVENTS.borrow(cs).take());
+        *EVENTS = critical_section::with(|cs| EVENTS_HANDOVER.borrow(cs).take());
     }
     let Some(e) = EVENTS.as_mut() else {
         return;
@@ -521,7 +521,7 @@ fn main() -> ! {
     if dac.init().is_err() {
         lp.trip(Fault::Bus(Device::AmplifierDac));
     }
-    let plant = Plant::new(f64::from(START_CODE) / plant::CODES_PER_IN, LOOP_HZ);
+    let plant = Plant::new(f64::from(START_CODE) / zslide::codes::GAUGE_CODES_PER_INCH, LOOP_HZ);
     defmt::info!(
         "plant: slide at {=i32} codes (0.001 in = 52429), zslide-plant Model 15 with the 3150 Hz mode, modern gauge; spindle {=u32} rpm, {=u32} counts/turn; X from {=u32} half-mils, one every {=u32} ticks",
         plant.gauge_code(),
@@ -548,8 +548,8 @@ fn main() -> ! {
         generation: 0,
     };
     critical_section::with(|cs| {
-        HANDOFF.borrow(cs).set(Some(run));
-        HANDOFF_EVENTS.borrow(cs).set(Some(events));
+        RUN_HANDOVER.borrow(cs).set(Some(run));
+        EVENTS_HANDOVER.borrow(cs).set(Some(events));
     });
 
     // SAFETY: unmasking can break a critical section that relies on masking

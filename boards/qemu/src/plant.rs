@@ -29,8 +29,6 @@ mod steps {
     include!(concat!(env!("OUT_DIR"), "/plant_steps.rs"));
 }
 
-/// Gauge codes per inch: 1000 V/in · 2¹⁹ codes / 10 V.
-pub const CODES_PER_IN: f64 = 52_428_800.0;
 /// Time from the loop-tick event to the end of its DAC frame, ns: the
 /// NUCLEO's estimate (`scenarios/*.toml`, `loop.dac_latency_ns`), so the
 /// loop sees the board's delay here too.

@@ -1,7 +1,9 @@
 //! `host-sim accuracy`: the firmware's own command path (the `zslide` core's
 //! fixed-point interpolation, sine and series, bit-exact with the target)
 //! against the exact surface of eq 2-15 with FOREX4's tool compensation
-//! (`host_sim::surface`), over X = 0..x_null (7.2 in) and all φ.
+//! (`host_sim::surface`), over X = 0..x_null (7.2 in) and all φ; or, with
+//! `--part FILE.toml`, against that part's surface (`host_sim::part`: a
+//! table from `part-table`, whose header cannot name its surface).
 //!
 //! Sampling: every grid node, `--per-interval` points inside each interval
 //! (the interpolation error peaks near the middle), X = x_null itself, and
@@ -10,7 +12,7 @@
 //! Inputs are the nominal X and φ (so X→`I8F24` and φ→binary-angle
 //! quantisation are included, as is Z's `I2F30` quantisation).
 
-use crate::surface::Surface;
+use crate::part::reference::Reference;
 use anyhow::Context;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -32,6 +34,10 @@ pub struct Args {
     /// φ samples per turn (before refinement around each X's worst φ).
     #[arg(long, default_value_t = 1440)]
     pub phi: usize,
+    /// Measure against this part file's surface (a table made by
+    /// `part-table`) instead of the paraboloid the header names.
+    #[arg(long)]
+    pub part: Option<PathBuf>,
 }
 
 /// The numbers of the report (the acceptance interface's two first).
@@ -116,13 +122,11 @@ fn f64_command(t: &CoeffTable, x: f64, phi: f64) -> f64 {
 fn sweep(
     gen: &CommandGen,
     t: &CoeffTable,
-    surface: &Surface,
+    surface: &Reference,
     x: f64,
     phis: impl Iterator<Item = f64>,
 ) -> anyhow::Result<(f64, f64, f64, u64)> {
-    let sec = surface
-        .section(x)
-        .map_err(|e| anyhow::anyhow!("surface at X = {x}: {e}"))?;
+    let sec = surface.at(x)?;
     let xi = XInches::from_f64(x);
     let c = gen
         .coefficients(xi)
@@ -147,13 +151,27 @@ fn sweep(
 /// share µin, samples).
 type XResult = (f64, bool, f64, f64, f64, u64);
 
-/// Measures a table image through the firmware path.
+/// Measures a table image through the firmware path against the
+/// paraboloid its header names.
 pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<Report> {
     let t = CoeffTable::parse(image).map_err(|e| anyhow::anyhow!("table refused: {e}"))?;
+    measure_against(
+        image,
+        &Reference::of_header(&t.header().geometry)?,
+        per_interval,
+        phi,
+    )
+}
+
+/// Measures a table image through the firmware path against `surface`.
+pub fn measure_against(
+    image: &[u8],
+    surface: &Reference,
+    per_interval: usize,
+    phi: usize,
+) -> anyhow::Result<Report> {
+    let t = CoeffTable::parse(image).map_err(|e| anyhow::anyhow!("table refused: {e}"))?;
     let gen = CommandGen::new(t);
-    let g = t.header().geometry;
-    let surface =
-        Surface::from_table_geometry(&g).map_err(|e| anyhow::anyhow!("table geometry: {e}"))?;
     let x_max = t.x_null().to_f64();
     let phi = phi.max(8);
     let per = per_interval.max(1);
@@ -183,7 +201,7 @@ pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<
         let handles: Vec<_> = xs
             .chunks(chunk)
             .map(|part| {
-                let (gen, t, surface) = (&gen, &t, &surface);
+                let (gen, t) = (&gen, &t);
                 s.spawn(move || {
                     part.iter()
                         .map(|&(x, node)| {
@@ -249,7 +267,18 @@ pub fn measure(image: &[u8], per_interval: usize, phi: usize) -> anyhow::Result<
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let image = load_table(args.table.as_ref())?;
-    let r = measure(&image, args.per_interval, args.phi)?;
+    let r = match &args.part {
+        Some(p) => {
+            let lp = crate::part::config::load_part(p)?;
+            measure_against(
+                &image,
+                &Reference::Part(lp.part),
+                args.per_interval,
+                args.phi,
+            )?
+        }
+        None => measure(&image, args.per_interval, args.phi)?,
+    };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {

@@ -6,7 +6,7 @@
 //! `--out DIR` the plots (PNG, SVG, CSV) and a VCD. The model and its
 //! conventions: docs/CUT.md.
 
-use crate::cut::part::{cmm_phi_deg, CMM_X_IN};
+use crate::cut::part::cmm_phi_deg;
 use crate::cut::plot::{column, write_plot, Series};
 use crate::cut::{run_pass, Controller, CutOutcome, CutSpec, Extras, Holes};
 use anyhow::Context;
@@ -50,12 +50,22 @@ pub struct Args {
     /// stays off the part and leaves that much stock).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub z_offset_uin: f64,
+    /// Cut this part (a part file, docs/PARTS.md) instead of the default
+    /// table's: its table is `--table`, else the `.zsct` beside the part
+    /// file, else made from it.
+    #[arg(long)]
+    pub part: Option<PathBuf>,
+    /// The part's table image (with `--part`).
+    #[arg(long, requires = "part")]
+    pub table: Option<PathBuf>,
 }
 
 /// The JSON summary (brief §5).
 #[derive(serde::Serialize, Debug)]
 pub struct Summary {
     pub scenario: String,
+    /// The part cut (`--part`), or null for the default table's.
+    pub part: Option<String>,
     pub controller: Controller,
     pub rpm: f64,
     pub holes: Holes,
@@ -93,6 +103,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
     let band = o.grid.band();
     Summary {
         scenario: spec.scenario.file.name.clone(),
+        part: spec.part.as_ref().map(|p| p.name.clone()),
         controller: spec.controller,
         rpm: spec.rpm,
         holes: spec.holes,
@@ -109,7 +120,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         cpu_s: o.cpu_s,
         faults: o.faults.clone(),
         phi_deg: cmm_phi_deg(),
-        x_in: CMM_X_IN.to_vec(),
+        x_in: spec.cmm_x(),
         cmm_grid_uin: o.grid.err_uin.clone(),
         contour_goal_uin: contour_goal_uin(&spec.scenario.file.name),
         contour_goal_met: contour_goal_uin(&spec.scenario.file.name)
@@ -148,12 +159,14 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.z_offset_uin
     );
     spec.z_offset_in = args.z_offset_uin * 1e-6;
+    if let Some(path) = &args.part {
+        spec.part = Some(crate::cmd::parttable::part_cut(path, args.table.as_ref())?);
+    }
     Ok(spec)
 }
 
 fn progress_bar(spec: &CutSpec) -> anyhow::Result<ProgressBar> {
-    let (surf, _) = spec.surface()?;
-    let total: f64 = crate::cut::plan(spec, surf.contact_gain())
+    let total: f64 = crate::cut::plan(spec, spec.contact_gain()?)
         .iter()
         .map(|s| s.seconds(spec))
         .sum();
@@ -183,7 +196,7 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
     // The VCD goes to the outermost band (X = 7 in, where the slide moves
     // most), or to the full pass; every band keeps its trace, so that the
     // plot can show the radius with the largest error.
-    let outer = CMM_X_IN.len() as u64;
+    let outer = spec.cmm_x().len() as u64;
     let o = run_pass(
         spec,
         |st| {
@@ -333,7 +346,7 @@ fn holes_words(h: Holes) -> &'static str {
     }
 }
 
-/// The CMM column (index into `CMM_X_IN`) with the largest |error|.
+/// The CMM column (index into the spec's radii) with the largest |error|.
 fn worst_column(grid: &crate::cut::part::CmmGrid) -> Option<usize> {
     let mut worst: Option<(usize, f64)> = None;
     for row in &grid.err_uin {
@@ -364,10 +377,11 @@ fn write_outputs(
     crate::cut::errmap::write(
         dir,
         &o.grid,
+        &spec.cmm_x(),
         &format!("{what}: CMM contour error (+ = excess stock)"),
     )?;
     // X = 7 in for both controllers (the other one run the same way).
-    let j7 = CMM_X_IN.len() - 1;
+    let j7 = spec.cmm_x().len() - 1;
     let mut x7 = vec![Series {
         label: spec.controller.name().to_string(),
         points: column(&o.grid, j7),
@@ -388,10 +402,11 @@ fn write_outputs(
         dir,
         "error_x7",
         &format!(
-            "{}, {} rpm, {}: contour error at X = 7 in",
+            "{}, {} rpm, {}: contour error at X = {} in",
             spec.scenario.file.name,
             spec.rpm,
-            holes_words(spec.holes)
+            holes_words(spec.holes),
+            spec.cmm_x()[j7]
         ),
         "φ, deg",
         "error, µin (+ = excess stock)",
@@ -401,9 +416,9 @@ fn write_outputs(
     // radii in order; a full pass keeps one trace, at its first radius).
     let (x_in, trace) = match worst_column(&o.grid) {
         Some(j) if !spec.full && o.traces.get(j).is_some_and(|t| !t.is_empty()) => {
-            (CMM_X_IN[j], &o.traces[j])
+            (spec.cmm_x()[j], &o.traces[j])
         }
-        _ => (CMM_X_IN[j7], &o.trace),
+        _ => (spec.cmm_x()[j7], &o.trace),
     };
     let t0 = trace.first().map_or(0.0, |p| p.0);
     let ms = |p: &(f64, f64, f64)| (p.0 - t0) * 1e3;

@@ -6,6 +6,8 @@ pub mod coeffs;
 pub mod csmp;
 pub mod cut;
 pub mod faults;
+pub mod parttable;
+pub mod plan;
 pub mod replay;
 pub mod response;
 pub mod soak;

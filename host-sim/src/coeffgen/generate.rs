@@ -78,7 +78,7 @@ pub fn generate(spec: &TableSpec) -> Result<Generated, SpecError> {
 /// path represents (`zslide::command::COEFF_LIMIT`, ±1/8 in, which it
 /// clamps to): the clamped series would be another, possibly positive,
 /// command. Found by the geometry fuzz target (a 5 in focal length).
-fn check_coefficient_range(
+pub(crate) fn check_coefficient_range(
     spec: &TableSpec,
     x: &[f64],
     cols: &[Vec<f64>],
@@ -112,7 +112,7 @@ const SIGN_LIMIT_IN: f64 = 0.9e-6;
 /// coefficients give a positive command. (The exact series of a table
 /// within the coefficient range is never positive; its quantisation can be
 /// with too few fraction bits.)
-fn check_sign(spec: &TableSpec, x: &[f64], raw: &[i32]) -> Result<(), SpecError> {
+pub(crate) fn check_sign(spec: &TableSpec, x: &[f64], raw: &[i32]) -> Result<(), SpecError> {
     let n = spec.columns();
     let scale = f64::from(spec.coeff_frac_bits).exp2();
     for (i, &xi) in x.iter().enumerate() {

@@ -42,6 +42,7 @@ pub use budget::{error_split, interpolate, quantization_bound_uin, ErrorSplit, S
 pub use fit::{
     columns_of, eval_columns, eval_sin_power, harmonics, harmonics_with, Harmonics, FOURIER_SAMPLES,
 };
+pub(crate) use generate::{check_coefficient_range, check_sign};
 pub use generate::{generate, Generated};
-pub use pick::{pick, PickResult, BINARY_STEPS, CANDIDATE_STEPS};
+pub use pick::{pick, pick_smallest, PickResult, BINARY_STEPS, CANDIDATE_STEPS};
 pub use spec::{SpecError, TableSpec};

@@ -41,36 +41,69 @@ pub fn pick(
     max_terms: usize,
     sampling: Sampling,
 ) -> Result<Option<PickResult>, SpecError> {
-    // For each term count, grids from coarse to fine: the first that meets
-    // the budget is the smallest table with those terms. Truncation does not
-    // depend on the grid, so a term count whose truncation alone exceeds the
-    // budget is abandoned at once.
-    let budget = bound_uin - firmware_allowance_uin;
-    let mut best: Option<PickResult> = None;
-    for terms in 1..=max_terms {
-        for &step in steps {
+    let spec_of = |step, terms| {
+        let spec = TableSpec {
+            step,
+            terms,
+            ..base.clone()
+        };
+        spec.validate().is_ok().then_some(spec)
+    };
+    pick_smallest(
+        steps,
+        max_terms,
+        bound_uin - firmware_allowance_uin,
+        |step, terms| {
+            spec_of(step, terms).map(|s| {
+                let bytes = zslide::table::HEADER_LEN + s.node_count() * s.columns() * 4;
+                (bytes, s.columns())
+            })
+        },
+        |step, terms| {
             let spec = TableSpec {
                 step,
                 terms,
                 ..base.clone()
             };
-            if spec.validate().is_err() {
+            error_split(&generate(&spec)?, x_lo, x_hi, sampling)
+        },
+    )
+}
+
+/// The picker's search, for any table builder (this module's tables and a
+/// part's, `crate::part::table`): for each term count (1..=`max_terms`),
+/// grids from coarse to fine; the first that meets `budget_uin` is the
+/// smallest table with those terms. Truncation does not depend on the
+/// grid, so a term count whose truncation alone exceeds the budget is
+/// abandoned at once. `size(step, terms)` gives the table's bytes and
+/// columns per node (`None`: a grid the format refuses); `measure(step,
+/// terms)` its errors, called only for a table smaller than the best so
+/// far.
+pub fn pick_smallest<E>(
+    steps: &[f64],
+    max_terms: usize,
+    budget_uin: f64,
+    size: impl Fn(f64, usize) -> Option<(usize, usize)>,
+    mut measure: impl FnMut(f64, usize) -> Result<ErrorSplit, E>,
+) -> Result<Option<PickResult>, E> {
+    let mut best: Option<PickResult> = None;
+    for terms in 1..=max_terms {
+        for &step in steps {
+            let Some((bytes, columns)) = size(step, terms) else {
                 continue;
-            }
-            let bytes = zslide::table::HEADER_LEN + spec.node_count() * spec.columns() * 4;
+            };
             if best.as_ref().is_some_and(|b| b.bytes <= bytes) {
                 continue;
             }
-            let g = generate(&spec)?;
-            let errors = error_split(&g, x_lo, x_hi, sampling)?;
-            if errors.truncation_uin > budget {
+            let errors = measure(step, terms)?;
+            if errors.truncation_uin > budget_uin {
                 break; // no grid fixes truncation
             }
-            if errors.total_uin <= budget {
+            if errors.total_uin <= budget_uin {
                 best = Some(PickResult {
                     step_in: step,
                     terms,
-                    columns: spec.columns(),
+                    columns,
                     bytes,
                     errors,
                 });

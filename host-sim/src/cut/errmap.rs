@@ -9,7 +9,8 @@
 //! bilinearly, φ wrapping from 350° to 360° = 0°; a cell whose nearest CMM
 //! point is in a hole is grey.
 
-use super::part::{cmm_phi_deg, CmmGrid, CMM_X_IN};
+use super::part::{cmm_phi_deg, CmmGrid};
+use crate::plot::Series;
 use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -49,21 +50,25 @@ fn band_of(v: f64, lim: f64) -> usize {
     k.clamp(0.0, (2 * BANDS - 1) as f64) as usize
 }
 
-/// The error at (φ, X) between the CMM points; `None` where the nearest
-/// point is unmeasured.
-pub fn interpolate(grid: &CmmGrid, phi_deg: f64, x_in: f64) -> Option<f64> {
+/// The error at (φ, X) between the CMM points (radii `xs`, ascending: the
+/// grid's columns); `None` where the nearest point is
+/// unmeasured.
+pub fn interpolate(grid: &CmmGrid, xs: &[f64], phi_deg: f64, x_in: f64) -> Option<f64> {
     let rows = grid.err_uin.len();
-    let cols = CMM_X_IN.len();
+    let cols = xs.len();
+    if rows == 0 || cols < 2 {
+        return None;
+    }
     let step = 360.0 / rows as f64;
     let u = phi_deg.rem_euclid(360.0) / step;
     let i0 = (u.floor() as usize) % rows;
     let i1 = (i0 + 1) % rows;
     let fu = u - u.floor();
-    let (x_lo, x_hi) = (CMM_X_IN[0], CMM_X_IN[cols - 1]);
-    let v = ((x_in.clamp(x_lo, x_hi) - x_lo) / (x_hi - x_lo)) * (cols - 1) as f64;
-    let j0 = (v.floor() as usize).min(cols - 2);
+    // The bracketing radii (any spacing).
+    let x = x_in.clamp(xs[0], xs[cols - 1]);
+    let j0 = (0..cols - 1).rfind(|&j| xs[j] <= x).unwrap_or(0);
     let j1 = j0 + 1;
-    let fv = v - j0 as f64;
+    let fv = (x - xs[j0]) / (xs[j1] - xs[j0]);
     let nearest = (
         if fu < 0.5 { i0 } else { i1 },
         if fv < 0.5 { j0 } else { j1 },
@@ -92,6 +97,7 @@ fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
 fn draw<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     grid: &CmmGrid,
+    xs: &[f64],
     title: &str,
 ) -> anyhow::Result<()>
 where
@@ -113,18 +119,19 @@ where
         .y_label_area_size(64)
         .build_cartesian_2d(
             0.0..360.0,
-            CMM_X_IN[0]..CMM_X_IN[CMM_X_IN.len() - 1],
+            xs[0]..xs[xs.len() - 1],
         )
         .map_err(err)?;
-    let (dphi, dx) = (2.0, 0.05);
+    let dphi = 2.0;
     let nphi = (360.0 / dphi) as usize;
-    let nx = ((CMM_X_IN[CMM_X_IN.len() - 1] - CMM_X_IN[0]) / dx).round() as usize;
+    let dx = (xs[xs.len() - 1] - xs[0]) / 120.0;
+    let nx = 120;
     let grey = RGBColor(170, 170, 170);
     let mut cells = Vec::with_capacity(nphi * nx);
     for a in 0..nphi {
         for b in 0..nx {
-            let (p0, x0) = (a as f64 * dphi, CMM_X_IN[0] + b as f64 * dx);
-            let c = match interpolate(grid, p0 + dphi / 2.0, x0 + dx / 2.0) {
+            let (p0, x0) = (a as f64 * dphi, xs[0] + b as f64 * dx);
+            let c = match interpolate(grid, xs, p0 + dphi / 2.0, x0 + dx / 2.0) {
                 Some(v) => band_color(band_of(v, lim)),
                 None => grey,
             };
@@ -146,7 +153,7 @@ where
         .map_err(err)?;
     let pts: Vec<(f64, f64)> = cmm_phi_deg()
         .into_iter()
-        .flat_map(|p| CMM_X_IN.iter().map(move |&x| (p, x)))
+        .flat_map(|p| xs.iter().map(move |&x| (p, x)))
         .collect();
     ch.draw_series(pts.into_iter().map(|p| Circle::new(p, 1, BLACK.filled())))
         .map_err(err)?;
@@ -189,27 +196,43 @@ where
 }
 
 /// Writes `<dir>/error_map.svg`, `.png` and `.csv` (φ rows, one column per
-/// X, empty where unmeasured).
-pub fn write(dir: &Path, grid: &CmmGrid, title: &str) -> anyhow::Result<()> {
+/// radius of `xs`, empty where unmeasured).
+pub fn write(dir: &Path, grid: &CmmGrid, xs: &[f64], title: &str) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        xs.len() >= 2 && grid.err_uin.iter().all(|r| r.len() == xs.len()),
+        "error map: {} CMM radii for a grid of {} columns",
+        xs.len(),
+        grid.err_uin.first().map_or(0, Vec::len)
+    );
     crate::plot::register_font();
     let size = (980, 560);
     let svg = dir.join("error_map.svg");
-    draw(SVGBackend::new(&svg, size).into_drawing_area(), grid, title)
+    draw(SVGBackend::new(&svg, size).into_drawing_area(), grid, xs, title)
         .with_context(|| format!("writing {}", svg.display()))?;
     let png = dir.join("error_map.png");
-    draw(BitMapBackend::new(&png, size).into_drawing_area(), grid, title)
+    draw(BitMapBackend::new(&png, size).into_drawing_area(), grid, xs, title)
         .with_context(|| format!("writing {}", png.display()))?;
-    crate::plot::write_csv(dir, "error_map", "phi_deg", &super::plot::error_map_series(grid))
+    let series: Vec<Series> = xs
+        .iter()
+        .enumerate()
+        .map(|(j, x)| Series {
+            label: format!("X = {x} in"),
+            points: super::plot::column(grid, j),
+        })
+        .collect();
+    crate::plot::write_csv(dir, "error_map", "phi_deg", &series)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    const XS: [f64; 7] = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
+
     fn grid(f: impl Fn(f64, f64) -> Option<f64>) -> CmmGrid {
         let err_uin: Vec<Vec<Option<f64>>> = cmm_phi_deg()
             .into_iter()
-            .map(|p| CMM_X_IN.iter().map(|&x| f(p, x)).collect())
+            .map(|p| XS.iter().map(|&x| f(p, x)).collect())
             .collect();
         CmmGrid {
             in_hole: err_uin
@@ -217,25 +240,25 @@ mod tests {
                 .map(|r| r.iter().map(Option::is_none).collect())
                 .collect(),
             err_uin,
-            finish_by_x_uin: vec![None; CMM_X_IN.len()],
+            finish_by_x_uin: vec![None; XS.len()],
         }
     }
 
     #[test]
     fn interpolation_is_exact_for_a_plane_in_x_and_wraps_in_phi() {
         let g = grid(|p, x| Some(10.0 * x + if p == 0.0 { 100.0 } else { 0.0 }));
-        let v = interpolate(&g, 20.0, 3.25).unwrap();
+        let v = interpolate(&g, &XS, 20.0, 3.25).unwrap();
         assert!((v - 32.5).abs() < 1e-9, "{v}");
         // Halfway from 350° to 360° (= 0°, +100): +50.
-        let v = interpolate(&g, 355.0, 2.0).unwrap();
+        let v = interpolate(&g, &XS, 355.0, 2.0).unwrap();
         assert!((v - 70.0).abs() < 1e-9, "{v}");
     }
 
     #[test]
     fn a_cell_next_to_a_hole_point_is_unmeasured() {
         let g = grid(|p, x| if p == 40.0 && x == 3.0 { None } else { Some(1.0) });
-        assert_eq!(interpolate(&g, 41.0, 3.1), None);
-        assert_eq!(interpolate(&g, 30.0, 3.0), Some(1.0));
+        assert_eq!(interpolate(&g, &XS, 41.0, 3.1), None);
+        assert_eq!(interpolate(&g, &XS, 30.0, 3.0), Some(1.0));
     }
 
     #[test]

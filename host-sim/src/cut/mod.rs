@@ -23,6 +23,7 @@ pub mod engage;
 pub mod errmap;
 pub mod nominal;
 pub mod part;
+pub mod partcut;
 pub mod plot;
 pub mod run;
 
@@ -72,6 +73,8 @@ pub struct CutSpec {
     /// Offset added to the firmware's Z command (its target), in:
     /// positive lifts the tool off the part and leaves stock.
     pub z_offset_in: f64,
+    /// A part of one's own (`cut --part`); `None`: the default table's.
+    pub part: Option<std::sync::Arc<partcut::PartCut>>,
 }
 
 impl CutSpec {
@@ -122,7 +125,32 @@ impl CutSpec {
             preroll_revs: 60.0,
             full,
             z_offset_in: 0.0,
+            part: None,
         })
+    }
+
+    /// The table image the firmware runs.
+    pub fn table(&self) -> &'static [u8] {
+        self.part
+            .as_ref()
+            .map_or(zslide::DEFAULT_TABLE, |p| p.table)
+    }
+
+    /// Radii the CMM measures (tool centre for a part, surface else), in.
+    pub fn cmm_x(&self) -> Vec<f64> {
+        self.part
+            .as_ref()
+            .map_or(CMM_X_IN.to_vec(), |p| p.cmm_x.clone())
+    }
+
+    /// Surface radius over tool-centre radius of a contact (FOREX4's
+    /// constant gain for the default part; 1 for a part, whose CMM radii
+    /// are tool-centre radii: `partcut`).
+    pub fn contact_gain(&self) -> anyhow::Result<f64> {
+        match &self.part {
+            Some(_) => Ok(1.0),
+            None => Ok(self.surface()?.0.contact_gain()),
+        }
     }
 
     /// Feed, in/min (negative: toward the axis).
@@ -185,7 +213,8 @@ impl Stretch {
 /// The stretches of the pass: one band per CMM radius, or the whole pass.
 pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
     let f = spec.feed_per_rev_in;
-    let windows: Vec<(f64, f64)> = CMM_X_IN
+    let windows: Vec<(f64, f64)> = spec
+        .cmm_x()
         .iter()
         .map(|&x| {
             let xc = x / contact_gain;
@@ -281,7 +310,23 @@ pub fn build_stretch(
     machine.spindle.rpm0 = spec.rpm;
     let mut cutting = sc.cutting.clone();
     cutting.bolt_holes.filled = spec.holes == Holes::Filled;
-    let (surf, x_null) = spec.surface()?;
+    let nominal: nominal::Command = match &spec.part {
+        Some(p) => {
+            let rt = cutting.tool_radius_in;
+            if (rt - p.part.tool.nose_radius).abs() > 1e-12 {
+                bail!(
+                    "cutting.tool_radius_in = {rt} but part {} is tabled for a {} in nose (tool.nose_radius_in)",
+                    p.name,
+                    p.part.tool.nose_radius
+                );
+            }
+            partcut::PartNominal::new(p.clone()).into()
+        }
+        None => {
+            let (surf, x_null) = spec.surface()?;
+            nominal::Nominal::new(surf, x_null).into()
+        }
+    };
     let eng = engage::Engagement::new(&cutting, spec.depth_in, spec.feed_per_rev_in);
     let total_s = st.seconds(spec);
     let v = feed / 60.0;
@@ -293,7 +338,7 @@ pub fn build_stretch(
         .max(0.0);
     let cutter = Rc::new(RefCell::new(Cutter::new(
         eng,
-        nominal::Nominal::new(surf, x_null),
+        nominal,
         machine.spindle.index_phase_turns,
         st.windows.clone(),
         (rec_start_s, rec_start_s + trace_s),
@@ -303,7 +348,7 @@ pub fn build_stretch(
     )));
     let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
     spec.controller.attach(&mut w, &mut s);
-    w.fw.set_target_code((spec.z_offset_in * run::CODES_PER_IN).round() as i32);
+    w.fw.set_target_code((spec.z_offset_in * zslide::codes::GAUGE_CODES_PER_INCH).round() as i32);
     w.hooks.push(Box::new(cutter.clone()));
     Ok(StretchRig {
         w,
@@ -328,7 +373,7 @@ pub fn run_stretch(
         cutter,
         rec_start_s,
         total_s,
-    } = build_stretch(spec, st, extras.trace_s, zslide::DEFAULT_TABLE)?;
+    } = build_stretch(spec, st, extras.trace_s, spec.table())?;
     // Nothing but the VCD reads the monitor copy of the angle estimator.
     if extras.vcd.is_none() {
         if let Some(m) = w.machine.as_mut() {
@@ -414,8 +459,7 @@ pub fn run_pass(
     extras_for: impl Fn(&Stretch) -> Extras + Sync,
     progress: &(dyn Fn(f64) + Sync),
 ) -> anyhow::Result<CutOutcome> {
-    let (surf, _) = spec.surface()?;
-    let gain = surf.contact_gain();
+    let gain = spec.contact_gain()?;
     let stretches = plan(spec, gain);
     let wall0 = Instant::now();
     let results: Vec<anyhow::Result<StretchResult>> = stretches
@@ -452,8 +496,9 @@ pub fn run_pass(
         filled: spec.holes == Holes::Filled,
         ..spec.scenario.cutting.bolt_holes.clone()
     });
-    let grid = CmmGrid::measure(
+    let grid = CmmGrid::measure_at(
         &passes,
+        &spec.cmm_x(),
         gain,
         spec.scenario.cutting.tool_radius_in,
         spec.feed_per_rev_in,

@@ -95,6 +95,41 @@ impl Nominal {
     }
 }
 
+/// The command the cutter compares the slide with: the default table's
+/// part, or a part of one's own (`super::partcut`).
+pub enum Command {
+    Default(Nominal),
+    Part(super::partcut::PartNominal),
+}
+
+impl Command {
+    pub fn exact(&self, x: f64, phi_turns: f64) -> f64 {
+        match self {
+            Self::Default(n) => n.exact(x, phi_turns),
+            Self::Part(n) => n.exact(x, phi_turns),
+        }
+    }
+
+    pub fn fast(&mut self, x: f64, phi_turns: f64) -> f64 {
+        match self {
+            Self::Default(n) => n.fast(x, phi_turns),
+            Self::Part(n) => n.fast(x, phi_turns),
+        }
+    }
+}
+
+impl From<Nominal> for Command {
+    fn from(n: Nominal) -> Self {
+        Self::Default(n)
+    }
+}
+
+impl From<super::partcut::PartNominal> for Command {
+    fn from(n: super::partcut::PartNominal) -> Self {
+        Self::Part(n)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

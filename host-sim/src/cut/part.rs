@@ -169,12 +169,24 @@ impl CmmGrid {
         feed_in: f64,
         in_open_hole: impl Fn(f64, f64) -> bool,
     ) -> Self {
+        Self::measure_at(log, &CMM_X_IN, contact_gain, r_t, feed_in, in_open_hole)
+    }
+
+    /// [`Self::measure`] at the radii `radii` (a part's: `partcut`).
+    pub fn measure_at(
+        log: &PassLog,
+        radii: &[f64],
+        contact_gain: f64,
+        r_t: f64,
+        feed_in: f64,
+        in_open_hole: impl Fn(f64, f64) -> bool,
+    ) -> Self {
         let phis = cmm_phi_deg();
-        let mut err = vec![vec![None; CMM_X_IN.len()]; CMM_PHI_COUNT];
-        let mut hole = vec![vec![false; CMM_X_IN.len()]; CMM_PHI_COUNT];
-        let mut fin_sum = vec![(0.0f64, 0usize); CMM_X_IN.len()];
+        let mut err = vec![vec![None; radii.len()]; CMM_PHI_COUNT];
+        let mut hole = vec![vec![false; radii.len()]; CMM_PHI_COUNT];
+        let mut fin_sum = vec![(0.0f64, 0usize); radii.len()];
         for (i, passes) in log.by_phi.iter().enumerate() {
-            for (j, &x) in CMM_X_IN.iter().enumerate() {
+            for (j, &x) in radii.iter().enumerate() {
                 let xc = x / contact_gain;
                 if in_open_hole(x, phis[i]) {
                     hole[i][j] = true;

@@ -5,14 +5,11 @@
 //! measures.
 
 use super::engage::Engagement;
-use super::nominal::Nominal;
+use super::nominal::Command;
 use super::part::{Pass, PassLog, CMM_PHI_COUNT};
 use crate::fwrig::{Machine, TickHook};
 use crate::plant::Rig;
 use zslide::firmware::Firmware;
-
-/// Gauge codes per inch (2¹⁹ codes = 0.010 in).
-pub const CODES_PER_IN: f64 = (1u32 << 19) as f64 / 0.010;
 
 /// Cutting force that counts as full spindle load (a 0.010 in roughing cut
 /// at the outer edge, 3–4 A on the slide: 10 lbf at 7.25 in).
@@ -38,7 +35,7 @@ pub struct StretchLog {
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
 pub struct Cutter {
     eng: Engagement,
-    nominal: Nominal,
+    nominal: Command,
     index_phase_turns: f64,
     /// Recording windows of tool-centre X, in (lo, hi).
     windows: Vec<(f64, f64)>,
@@ -64,7 +61,7 @@ pub struct Cutter {
 impl Cutter {
     pub fn new(
         eng: Engagement,
-        nominal: Nominal,
+        nominal: impl Into<Command>,
         index_phase_turns: f64,
         windows: Vec<(f64, f64)>,
         trace_window: (f64, f64),
@@ -73,7 +70,7 @@ impl Cutter {
         Self {
             settle_s,
             eng,
-            nominal,
+            nominal: nominal.into(),
             index_phase_turns,
             windows,
             trace_window,

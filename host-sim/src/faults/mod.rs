@@ -16,13 +16,13 @@ pub mod board;
 pub mod link;
 
 use crate::chips::BusFault;
-use crate::cut::run::CODES_PER_IN;
 use crate::cut::{build_stretch, CutSpec, Stretch};
 use crate::fwrig::{src, Controller, Cpu};
 use crate::sched::{prio, Nanos, OneShots};
 use anyhow::{bail, Context};
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
+use zslide::codes::GAUGE_CODES_PER_INCH as CODES_PER_IN;
 use zslide::hw::XLatchWord;
 use zslide::safety::{Device, Fault, Reaction};
 use zslide::servo::Phase;

@@ -13,11 +13,10 @@
 //! in X bits, takes the command path's general interpolation instead.
 
 use crate::command::{Coefficients, CommandGen, COEFF_LIMIT};
-use crate::handoff::CoeffSlot;
 use crate::safety::Fault;
 use crate::table::MAX_TERMS;
 use crate::units::XInches;
-use core::sync::atomic::Ordering;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 /// Capacity of the slope table, words (8 KiB).
 pub const SLOPES: usize = 2048;
@@ -36,7 +35,7 @@ pub(crate) struct IntervalCache {
     pub(crate) x0: i32,
     pub(crate) dx: i32,
     /// A binary grid's fraction as a shift of the remainder
-    /// ([`crate::interp::Interpolator::frac_shift`]).
+    /// ([`crate::table::interp::Interpolator::frac_shift`]).
     pub(crate) frac_shift: Option<u32>,
     /// Columns per node row.
     pub(crate) terms: usize,
@@ -53,7 +52,7 @@ pub(crate) struct IntervalCache {
 pub(crate) fn general_columns(
     g: &CommandGen<'static>,
     terms: usize,
-    slot: &CoeffSlot,
+    values: &[AtomicU32],
     x: XInches,
 ) -> Result<bool, Fault> {
     let mut c = Coefficients::NULL;
@@ -61,8 +60,8 @@ pub(crate) fn general_columns(
     if c.null {
         return Ok(false);
     }
-    for (v, a) in slot.value.iter().zip(c.value.iter()).take(terms) {
-        v.store(*a, Ordering::Relaxed);
+    for (v, a) in values.iter().zip(c.value.iter()).take(terms) {
+        v.store(*a as u32, Ordering::Relaxed);
     }
     Ok(true)
 }
@@ -133,7 +132,7 @@ impl IntervalCache {
     }
 
     /// Moves to the interval holding `x` and gives the position in it, bit
-    /// for bit what [`crate::interp::Interpolator::locate`] gives: the
+    /// for bit what [`crate::table::interp::Interpolator::locate`] gives: the
     /// cached interval while X stays in it (X moves by half-mils, ~60
     /// events per 1/32 in); otherwise the node from the offset (a shift on
     /// a binary grid, exactly `locate`'s node) or, off the grid's interior,
@@ -205,21 +204,21 @@ pub(crate) fn fast_columns(
     g: &CommandGen<'static>,
     c: &mut IntervalCache,
     n: usize,
-    slot: &CoeffSlot,
+    values: &[AtomicU32],
     x: XInches,
 ) -> Result<bool, Fault> {
     let f = match c.seek(g, x)? {
         Seek::Null => return Ok(false),
-        Seek::General => return general_columns(g, n, slot, x),
+        Seek::General => return general_columns(g, n, values, x),
         Seek::In(f) => f,
     };
-    let (row, values) = (c.row, &slot.value);
+    let row = c.row;
     let slopes = c.slopes.get(c.at..).unwrap_or(&[]);
     // One length for all three: no bounds checks in the loop.
     let m = n.min(row.len()).min(slopes.len()).min(values.len());
     for k in 0..m {
         let v = IntervalCache::lerp(i32::from_le_bytes(row[k]), slopes[k], f);
-        values[k].store(v, Ordering::Relaxed);
+        values[k].store(v as u32, Ordering::Relaxed);
     }
     Ok(true)
 }

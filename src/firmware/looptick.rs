@@ -4,17 +4,17 @@
 //! the servo and writes its DAC code. It only orchestrates: the loop
 //! itself is `servo`, the command `command`/`setpoint`.
 
-use crate::ahead::{Ahead, Expansion, MAX_AGE};
 use crate::codes::{CODE_MAX, CODE_MIN};
+use crate::command::expansion::Expansion;
+use crate::command::setpoint::{setpoint, SetpointState};
 use crate::command::{Coefficients, CommandGen};
+use crate::handoff::ahead::{Ahead, MAX_AGE};
 use crate::handoff::{Request, Shared, X_FAULTS};
 use crate::hw::{AmplifierDac, EncoderSample, GaugeAdc};
 use crate::safety::{Device, Fault, Reaction};
-use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput};
-use crate::setpoint::{setpoint, SetpointState};
+use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput, ServoOutput};
 use crate::spindle::{EncoderAngle, TachAngle};
 use crate::units::{SpindleAngle, XInches};
-use core::sync::atomic::{fence, Ordering};
 
 /// One spindle reading, as the hw traits deliver it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,7 +37,7 @@ pub struct TickInput {
     /// Modern X mode: the X encoder's count at the tick
     /// ([`crate::hw::Encoder`]). The loop tick itself does not use it: the
     /// coefficients at the count's X are the X handler's work, at its
-    /// lower priority ([`crate::xevent::EventState::x_count_event`]), and
+    /// lower priority ([`crate::firmware::xevent::EventState::x_count_event`]), and
     /// reach the tick through the same hand-off as a legacy X event. The
     /// `Firmware` bundle hands this count to that handler after the tick,
     /// as a board's lower-priority handler would take it.
@@ -173,7 +173,7 @@ impl LoopState {
     /// Picks up what the X / index handlers published.
     #[inline(always)]
     pub(crate) fn take_published(&mut self, sh: &Shared) {
-        let xf = sh.x_faults.load(Ordering::Relaxed);
+        let xf = sh.x_faults();
         if xf != self.x_faults_seen {
             let new = xf & !self.x_faults_seen;
             self.x_faults_seen = xf;
@@ -183,38 +183,33 @@ impl LoopState {
                 }
             }
         }
-        let s = sh.index_seq.load(Ordering::Acquire);
-        if s != self.index_seen {
-            let missed = s.wrapping_sub(self.index_seen) > 1;
-            let slot = &sh.index[(s & 1) as usize];
-            let count = slot[0].load(Ordering::Relaxed);
-            let edge = slot[1].load(Ordering::Relaxed);
-            fence(Ordering::Acquire);
-            if slot[2].load(Ordering::Relaxed) != s {
+        match sh.take_index(&mut self.index_seen) {
+            Ok(None) => {}
+            Err(()) => {
                 // Overwritten while read (a writer that can preempt the
                 // tick): the pulses came faster than the loop rate.
-                self.index_seen = s;
                 self.trip(Fault::IndexExtra);
                 return;
             }
-            self.index_seen = s;
-            if missed {
-                // Two index pulses within one loop period: noise.
-                self.trip(Fault::IndexExtra);
-            }
-            let r = match &mut self.spindle {
-                Estimator::Encoder(e) => e.on_index(count, edge),
-                Estimator::Tach(t) => t.on_index(edge),
-                Estimator::None => Ok(()),
-            };
-            if let Err(f) = r {
-                self.trip(f);
+            Ok(Some(p)) => {
+                if p.missed {
+                    // Two index pulses within one loop period: noise.
+                    self.trip(Fault::IndexExtra);
+                }
+                let r = match &mut self.spindle {
+                    Estimator::Encoder(e) => e.on_index(p.count_at_index, p.edge_ticks),
+                    Estimator::Tach(t) => t.on_index(p.edge_ticks),
+                    Estimator::None => Ok(()),
+                };
+                if let Err(f) = r {
+                    self.trip(f);
+                }
             }
         }
         if self.x_published {
             // The X and the null flag only: the values are copied if the
             // tick has to evaluate the command itself (`command_at`).
-            match sh.take_coefficient_x(&mut self.coeff_seen) {
+            match sh.coefficients().take_x(&mut self.coeff_seen) {
                 Ok(Some((x, null))) => {
                     self.coeff_null = null;
                     self.note_x(x);
@@ -230,6 +225,12 @@ impl LoopState {
     }
 
     /// The loop-tick interrupt: gauge and spindle sample in, one DAC code out.
+    /// It reads as the steps below, each inlined into it: what the other
+    /// priorities handed over, the gauge (sense), the fault checks that
+    /// hold the amplifier safe, the spindle angle (sense), the reference
+    /// (the table's setpoint and the operator's target), the servo
+    /// (control), and the amplifier DAC (output). (The trace and the link's
+    /// tap run in the boards around it.)
     ///
     /// Never inlined, so that `cargo xtask isr-cost` finds it in the image
     /// and counts its instructions apart from the board's glue.
@@ -243,8 +244,21 @@ impl LoopState {
     ) {
         self.ticks = self.ticks.wrapping_add(1);
         self.take_published(sh);
-        // The gauge is read even with the amplifier off: a clear request
-        // needs to see whether a gauge fault's cause is gone.
+        let read = self.sense_gauge(gauge);
+        self.take_requests(sh, input.amplifier_fault);
+        let Some(y) = self.fault_checks(read, dac) else {
+            return;
+        };
+        let phi = self.sense_angle(input);
+        let (reference, dphi, fresh) = self.reference(sh, phi);
+        let out = self.control(sh, input, y, reference, phi, dphi, fresh);
+        self.output(&out, dac);
+    }
+
+    /// Sense: the gauge, read even with the amplifier off (a clear request
+    /// needs to see whether a gauge fault's cause is gone).
+    #[inline(always)]
+    fn sense_gauge(&mut self, gauge: &mut impl GaugeAdc) -> Result<i32, Fault> {
         let read = match gauge.read() {
             Err(_) => Err(Fault::Bus(Device::GaugeAdc)),
             Ok(s) if s.overrange => Err(Fault::GaugeRange),
@@ -255,18 +269,30 @@ impl LoopState {
             Ok(s) => Ok(s.code),
         };
         self.gauge_bad = read.is_err();
-        self.take_requests(sh, input.amplifier_fault);
+        read
+    }
+
+    /// Fault checks: a bad gauge reading or a fault that needs the
+    /// amplifier off holds the output safe (`None`: the tick ends here);
+    /// a cleared fault releases the DAC's clamp. Otherwise the slide's
+    /// position, gauge codes along +Z.
+    #[inline(always)]
+    fn fault_checks(
+        &mut self,
+        read: Result<i32, Fault>,
+        dac: &mut impl AmplifierDac,
+    ) -> Option<i32> {
         let code = match read {
             Ok(c) => c,
             Err(f) => {
                 self.trip(f);
                 self.hold_safe(dac);
-                return;
+                return None;
             }
         };
         if self.amplifier_must_be_off() {
             self.hold_safe(dac);
-            return;
+            return None;
         }
         if self.dac_clamped && self.fault.is_none() {
             // The fault that clamped the converter was cleared: release the
@@ -275,15 +301,20 @@ impl LoopState {
             if dac.release_clamp().is_err() {
                 self.trip(Fault::Bus(Device::AmplifierDac));
                 self.hold_safe(dac);
-                return;
+                return None;
             }
             self.dac_clamped = false;
             self.dac_zeroed = true;
         }
         let y = if self.gauge_reversed { -code } else { code };
         self.position = y;
+        Some(y)
+    }
 
-        // Spindle angle.
+    /// Sense: the spindle angle (`None` before the estimator is
+    /// referenced, or without a spindle); its fault latches.
+    #[inline(always)]
+    fn sense_angle(&mut self, input: &TickInput) -> Option<SpindleAngle> {
         let est = match (&mut self.spindle, input.spindle) {
             (Estimator::Encoder(e), SpindleReading::Encoder(s)) => {
                 let est = e.tick(s.count, s.edge_ticks, input.now);
@@ -295,7 +326,7 @@ impl LoopState {
             }
             _ => None,
         };
-        let phi = match est {
+        match est {
             Some(e) => {
                 if let Some(f) = e.fault {
                     self.trip(f);
@@ -303,28 +334,37 @@ impl LoopState {
                 Some(e.angle)
             }
             None => None,
-        };
+        }
+    }
 
-        // The command and its analytic rates: the expansion made below the
-        // tick, stepped to this angle (`crate::ahead`).
+    /// Reference: the command and its analytic rates at `phi` (the
+    /// expansion made below the tick, stepped to this angle:
+    /// `crate::handoff::ahead`), the next angle request posted, and the
+    /// operator's target added; a latched fault ramps to null instead.
+    /// Also the tick's angle step and what came from below the tick.
+    #[inline(always)]
+    fn reference(
+        &mut self,
+        sh: &Shared,
+        phi: Option<SpindleAngle>,
+    ) -> (Reference, i32, Option<Ahead>) {
         let dphi = self.sp.dphi(phi);
         let (rate_dphi, alpha_q4) = self.sp.advance(phi, dphi);
         let fresh = sh
-            .ahead
+            .ahead()
             .latest()
             .filter(|a| self.ticks.wrapping_sub(a.tick) <= MAX_AGE);
         let command = phi.and_then(|p| self.command_at(sh, fresh.as_ref(), p, rate_dphi, alpha_q4));
         self.command_live = command.is_some();
         let table = setpoint(command.as_ref(), rate_dphi);
         if let Some(p) = phi {
-            sh.ahead.post(self.ticks, p, dphi, alpha_q4);
+            sh.ahead().post(self.ticks, p, dphi, alpha_q4);
         }
         let (table_code, slope, accel) = (table.code, table.velocity_q16, table.accel_q16);
         self.table_code = table_code;
         self.ff_q16 = slope;
         self.accel_q16 = accel;
-        let faulted = self.fault.is_some();
-        let reference = if faulted {
+        let reference = if self.fault.is_some() {
             // RampToNull: the loop stays closed and ramps to null.
             Reference::default()
         } else {
@@ -350,6 +390,25 @@ impl LoopState {
             }
         };
         self.last_target = self.target;
+        (reference, dphi, fresh)
+    }
+
+    /// Control: the servo's update on the gauge and the reference, the
+    /// learning frozen where the command is null or faulted; the learner's
+    /// sample handed to the priority below.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn control(
+        &mut self,
+        sh: &Shared,
+        input: &TickInput,
+        y: i32,
+        reference: Reference,
+        phi: Option<SpindleAngle>,
+        dphi: i32,
+        fresh: Option<Ahead>,
+    ) -> ServoOutput {
+        let faulted = self.fault.is_some();
         let out = self.servo.update(
             &ServoInput {
                 gauge_code: y,
@@ -359,7 +418,7 @@ impl LoopState {
                     Some(Freeze::Fault)
                 } else if self.coeff_null
                     || self.gen.is_none()
-                    || (phi.is_some() && command.is_none())
+                    || (phi.is_some() && !self.command_live)
                 {
                     Some(Freeze::Null)
                 } else {
@@ -368,12 +427,19 @@ impl LoopState {
                 amplifier_tripped: input.amplifier_fault,
                 correction_ahead: fresh.map(|a| a.correction),
             },
-            &sh.learned,
+            sh.learned(),
         );
         if let Some(s) = &out.learn {
-            // The learner runs below this priority (`crate::learning`).
-            sh.learn.push(s);
+            // The learner runs below this priority (`crate::firmware::learning`).
+            sh.learn_queue().push(s);
         }
+        out
+    }
+
+    /// Output: the servo's fault latched (the amplifier held safe where it
+    /// must be off), zero volts once while disarmed, else the DAC code.
+    #[inline(always)]
+    fn output(&mut self, out: &ServoOutput, dac: &mut impl AmplifierDac) {
         if let Some(f) = out.fault {
             self.trip(f);
             if self.amplifier_must_be_off() {
@@ -452,7 +518,8 @@ impl LoopState {
         // runs between its take and this copy), copied once per set: the
         // only use of them in the tick.
         if sh
-            .take_coefficients(&mut self.fallback_seen, &mut self.fallback)
+            .coefficients()
+            .take(&mut self.fallback_seen, &mut self.fallback)
             .is_err()
             || self.fallback.null
         {
@@ -478,10 +545,10 @@ impl LoopState {
     /// Operator requests posted in [`Shared`].
     #[inline(always)]
     pub(crate) fn take_requests(&mut self, sh: &Shared, amplifier_fault: bool) {
-        if sh.requests.load(Ordering::Relaxed) == 0 {
+        if !sh.requests_pending() {
             return;
         }
-        let r = sh.requests.swap(0, Ordering::Acquire);
+        let r = sh.take_requests();
         if r & Request::Disarm.bit() != 0 {
             self.servo.disarm();
         }
@@ -593,7 +660,7 @@ impl LoopState {
     }
     /// Whether the last coefficient set is the null command (X in the
     /// null zone), or none has arrived. The values are the handler's below
-    /// the tick ([`crate::ahead::AheadState::coefficients`]).
+    /// the tick ([`crate::firmware::learning::AheadState::coefficients`]).
     pub fn command_null(&self) -> bool {
         self.coeff_null
     }

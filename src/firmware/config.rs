@@ -4,12 +4,9 @@
 use crate::command::CommandGen;
 use crate::servo::ServoConfig;
 use crate::spindle::{EncoderConfig, TachConfig};
-use crate::table::{CoeffTable, TableError, MAX_TERMS};
+use crate::table::{CoeffTable, TableError};
 use crate::units::SpindleAngle;
 use crate::xpos::CountConfig;
-
-/// Columns a coefficient set can hold.
-pub(crate) const COLS: usize = MAX_TERMS as usize;
 
 /// Where the spindle angle comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -50,6 +50,9 @@
 //! not changed since the last tick X is bit-identical, so skipping the
 //! re-interpolation then changes nothing but the cost.
 
+pub mod columns;
+pub mod legacy_output;
+
 use crate::hw::XLatchWord;
 use crate::safety::Fault;
 use crate::units::XInches;

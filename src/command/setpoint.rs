@@ -19,7 +19,7 @@
 //! its own Δφ ([`setpoint`]), and keeps the smoothing of Δφ
 //! ([`SetpointState::advance`]); the acceleration is formed below it, at
 //! the predicted angle with the step and Δ²φ the tick posts
-//! (`acceleration`, `crate::ahead`, where its error is bounded), or in
+//! (`acceleration`, `crate::command::expansion`, where its error is bounded), or in
 //! the tick with its own when it evaluates the command itself.
 //!
 //! # Formats
@@ -33,9 +33,9 @@
 //! derivative: 1.3e-4 codes per tick of velocity at 300 rpm (2.4e-6 µin
 //! per tick), plus the final shift's truncation of 1.5e-5.
 
-use crate::ahead::Expansion;
+use super::expansion::{rate_step, Expansion};
 #[cfg(test)]
-use crate::ahead::{FF_K, FF_K2};
+use super::expansion::{FF_K, FF_K2};
 #[cfg(test)]
 use crate::servo::fixed::mul_hi;
 use crate::servo::fixed::{sat_i32, ssat};
@@ -102,29 +102,6 @@ impl SetpointState {
         self.last_phi = None;
         self.dphi_q4 = None;
     }
-}
-
-/// The angle step the rates use: −2²⁶ ≤ Δφ < 2²⁶, 1/64 turn per tick
-/// (18 750 rpm at 20 kHz), far beyond any real spindle (one `SSAT`).
-#[inline(always)]
-pub(crate) fn rate_step(dphi: i32) -> i32 {
-    ssat::<27>(dphi)
-}
-
-/// The command's acceleration ∂²Z/∂φ²·Δφ² + ∂Z/∂φ·Δ²φ, Q16 codes per
-/// tick², from the scaled derivatives `p1`, `p2` of an [`Expansion`]
-/// (|p1| < 2²⁷, |p2| < 2²⁷), the step `dphi` (`rate_step`) and Δ²φ
-/// (Q4, |Δ²φ| ≤ 2²⁴). Formed below the tick at the predicted angle and
-/// step (`crate::ahead`), or in the tick at its own when it evaluates the
-/// command itself.
-#[inline(always)]
-pub(crate) fn acceleration(p1: i32, p2: i32, dphi: i32, alpha_q4: i32) -> i32 {
-    // ∂²Z/∂φ²·Δφ²: < 2²⁷, then < 2³⁰, then < 2³³ before saturation.
-    let q2 = i64::from(p2) * i64::from(dphi);
-    let a2 = (((q2 >> 23) as i32 as i64) * i64::from(dphi)) >> 23;
-    // ∂Z/∂φ·Δ²φ: < 2²⁷ · 2²⁴ >> 20 = 2³¹ before saturation.
-    let a1 = (i64::from(p1) * i64::from(alpha_q4)) >> 20;
-    ssat::<25>(sat_i32(a2 + a1))
 }
 
 /// The table's setpoint from the command's expansion at the tick's angle

@@ -49,6 +49,8 @@
 //! * harmonic: column 0 is `C_0`, then `C_k, S_k` pairs for k = 1.. :
 //!   `Z = C_0 + Σ_k C_k cos kφ + S_k sin kφ` (eq 2-17); the column count is odd.
 
+pub mod interp;
+
 use crate::units::XInches;
 use crc::{Crc, CRC_32_ISO_HDLC};
 use fixed::types::I8F24;

@@ -5,15 +5,16 @@
 //! X mode the X count, taken periodically at this priority, re-interpolated
 //! and published the same way; index pulses published as they come.
 
-use crate::coeffcache::{fast_and_terms, fast_columns, general_columns, IntervalCache};
-use crate::command::{CommandGen, LegacyOutput};
-use crate::config::{FirmwareConfig, XMode};
-use crate::handoff::{Shared, NULL_META};
+use crate::command::CommandGen;
+use crate::firmware::config::{FirmwareConfig, XMode};
+use crate::handoff::coeffs::NULL_META;
+use crate::handoff::Shared;
 use crate::hw::{BusError, CoefficientDac, XLatchWord};
 use crate::safety::{Device, Fault};
 use crate::units::XInches;
+use crate::xpos::columns::{fast_and_terms, fast_columns, general_columns, IntervalCache};
+use crate::xpos::legacy_output::LegacyOutput;
 use crate::xpos::{CountX, LegacyConfig, LegacyX, XEvent};
-use core::sync::atomic::{fence, Ordering};
 
 /// A quad DAC that is not there (the coefficient-output mode is off).
 #[derive(Clone, Copy, Debug, Default)]
@@ -101,9 +102,7 @@ impl EventState {
         let u = match lx.on_interrupt(word, now) {
             Ok(XEvent::Update(u)) => u,
             Ok(XEvent::Ignored) => {
-                // One writer: a load and a store, no read-modify-write loop.
-                let n = sh.x_ignored.load(Ordering::Relaxed);
-                sh.x_ignored.store(n.wrapping_add(1), Ordering::Relaxed);
+                sh.count_x_ignored();
                 return Ok(XEvent::Ignored);
             }
             Err(f) => {
@@ -111,8 +110,7 @@ impl EventState {
                 return Err(f);
             }
         };
-        let n = sh.x_accepted.load(Ordering::Relaxed);
-        sh.x_accepted.store(n.wrapping_add(1), Ordering::Relaxed);
+        sh.count_x_accepted();
         if let Err(f) = self.publish(sh, u.x, u.null) {
             sh.raise(f);
             return Err(f);
@@ -163,30 +161,25 @@ impl EventState {
     #[inline(always)]
     pub(crate) fn publish(&mut self, sh: &Shared, x: XInches, null: bool) -> Result<(), Fault> {
         let g_next = self.coeff_gen.wrapping_add(1);
-        let which = (g_next & 1) as usize;
-        let slot = &sh.coeff[which];
-        slot.seq.store(g_next, Ordering::Relaxed);
-        fence(Ordering::Release);
-        slot.x.store(x.to_bits(), Ordering::Relaxed);
         let terms = usize::from(self.terms);
-        let live = match self.gen.as_ref() {
-            Some(g) if !null => {
-                if self.fast {
-                    fast_columns(g, &mut self.cache, terms, slot, x)?
-                } else {
-                    general_columns(g, terms, slot, x)?
+        sh.coefficients().publish(g_next, x, |values| {
+            let live = match self.gen.as_ref() {
+                Some(g) if !null => {
+                    if self.fast {
+                        fast_columns(g, &mut self.cache, terms, values, x)?
+                    } else {
+                        general_columns(g, terms, values, x)?
+                    }
                 }
-            }
-            _ => false,
-        };
-        let meta = if live {
-            u32::from(self.terms)
-        } else {
-            NULL_META
-        };
-        slot.meta.store(meta, Ordering::Relaxed);
+                _ => false,
+            };
+            Ok(if live {
+                u32::from(self.terms)
+            } else {
+                NULL_META
+            })
+        })?;
         self.coeff_gen = g_next;
-        sh.coeff_gen.store(g_next, Ordering::Release);
         Ok(())
     }
 }
