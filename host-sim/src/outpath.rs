@@ -71,7 +71,10 @@ mod tests {
         let e = check_file("--svg", Path::new("/nonexistent-dir-7f3a/l.svg")).unwrap_err();
         let m = format!("{e:#}");
         assert!(m.contains("--svg /nonexistent-dir-7f3a/l.svg"), "{m}");
-        assert!(m.contains("directory /nonexistent-dir-7f3a does not exist"), "{m}");
+        assert!(
+            m.contains("directory /nonexistent-dir-7f3a does not exist"),
+            "{m}"
+        );
     }
 
     #[test]

@@ -179,7 +179,12 @@ fn csv_name(s: &str) -> String {
 
 /// The CSV behind a plot: series sharing the x column when their x agree,
 /// else one `x,y` pair of columns per series.
-pub(crate) fn write_csv(dir: &Path, name: &str, x_label: &str, series: &[Series]) -> anyhow::Result<()> {
+pub(crate) fn write_csv(
+    dir: &Path,
+    name: &str,
+    x_label: &str,
+    series: &[Series],
+) -> anyhow::Result<()> {
     use std::fmt::Write as _;
     let path = dir.join(format!("{name}.csv"));
     let shared = series.windows(2).all(|w| {

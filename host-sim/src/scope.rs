@@ -394,8 +394,11 @@ pub fn write(dir: &Path, name: &str, fig: &Figure) -> anyhow::Result<()> {
     draw(SVGBackend::new(&svg, (WIDTH, h)).into_drawing_area(), fig)
         .with_context(|| format!("writing {}", svg.display()))?;
     let png = dir.join(format!("{name}.png"));
-    draw(BitMapBackend::new(&png, (WIDTH, h)).into_drawing_area(), fig)
-        .with_context(|| format!("writing {}", png.display()))?;
+    draw(
+        BitMapBackend::new(&png, (WIDTH, h)).into_drawing_area(),
+        fig,
+    )
+    .with_context(|| format!("writing {}", png.display()))?;
     let all: Vec<Series> = fig
         .panels
         .iter()
@@ -420,7 +423,8 @@ mod tests {
 
     #[test]
     fn wrapping_keeps_every_word_and_the_width() {
-        let t = "stalled loop: the loop tick stops for 5 ms while the amplifier holds its last output";
+        let t =
+            "stalled loop: the loop tick stops for 5 ms while the amplifier holds its last output";
         let lines = wrap(t, 30);
         assert!(lines.iter().all(|l| l.chars().count() <= 30), "{lines:?}");
         assert_eq!(lines.join(" "), t);

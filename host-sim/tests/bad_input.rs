@@ -72,7 +72,13 @@ fn output_paths_are_checked_before_the_work_and_named() {
     assert!(e.contains("is a file"), "{e}");
     assert!(e.contains(file.to_str().unwrap()), "{e}");
 
-    let o = host_sim(&["bench", "--vcd", "/proc/zslide-no/x.vcd", "--seconds", "0.01"]);
+    let o = host_sim(&[
+        "bench",
+        "--vcd",
+        "/proc/zslide-no/x.vcd",
+        "--seconds",
+        "0.01",
+    ]);
     let e = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{e}");
     assert!(e.contains("--vcd /proc/zslide-no/x.vcd"), "{e}");
@@ -103,7 +109,12 @@ fn a_reader_that_stops_early_is_not_an_error() {
     // closing first makes the closed pipe certain, not a race).
     drop(child.stdout.take());
     let mut err = String::new();
-    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
     let status = child.wait().unwrap();
     assert!(
         !err.contains("Broken pipe") && !err.contains("panicked"),

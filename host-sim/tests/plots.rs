@@ -59,7 +59,10 @@ fn cut_writes_both_controllers_plots_as_png_svg_and_csv_and_a_vcd() {
     // Axis labels in words with units, not column names; the holes as
     // the option says them; φ over the whole turn (350° closes at 360°).
     let map = std::fs::read_to_string(dir.join("error_map.svg")).unwrap();
-    assert!(map.contains("φ, deg") && map.contains("holes open"), "error_map.svg");
+    assert!(
+        map.contains("φ, deg") && map.contains("holes open"),
+        "error_map.svg"
+    );
     assert!(!map.contains("holes Open"), "error_map.svg");
     let last = x7.lines().last().unwrap();
     assert!(last.starts_with("360,"), "{last}");

@@ -111,7 +111,13 @@ impl Tree {
             }
         }
         // The project's own crates are checked, not skipped.
-        for own in ["zslide", "host_sim", "zslide_plant", "zslide_replay", "xtask"] {
+        for own in [
+            "zslide",
+            "host_sim",
+            "zslide_plant",
+            "zslide_replay",
+            "xtask",
+        ] {
             t.external.remove(own);
         }
         for s in ["core", "std", "alloc", "cargo", "rustc", "libc"] {
@@ -208,7 +214,14 @@ pub fn check_span(t: &Tree, span: &str) -> Option<String> {
         if t.external.contains(segs[0]) {
             return None;
         }
-        let own = ["crate", "self", "super", "zslide", "host_sim", "zslide_plant"];
+        let own = [
+            "crate",
+            "self",
+            "super",
+            "zslide",
+            "host_sim",
+            "zslide_plant",
+        ];
         let segs: Vec<&str> = segs.into_iter().filter(|s| !own.contains(s)).collect();
         // A leading CamelCase segment is a type: defined here, or one of
         // another crate's the code uses (`Cell::take`, `Vec::remove`).
@@ -244,7 +257,8 @@ fn check_file(t: &Tree, s: &str) -> Option<String> {
     }
     let source = s.ends_with(".rs")
         || (s.ends_with(".md") && s[..s.len() - 3].chars().all(|c| c.is_ascii_uppercase()));
-    if source && is_ident(s.trim_end_matches(".rs").trim_end_matches(".md")) && !t.names.contains(s) {
+    if source && is_ident(s.trim_end_matches(".rs").trim_end_matches(".md")) && !t.names.contains(s)
+    {
         return Some(format!("`{s}`: no such file in the tree"));
     }
     None
@@ -349,7 +363,11 @@ pub fn check() -> Result<Vec<String>> {
     let mut out = Vec::new();
     for doc in crate::figures::docs()? {
         let text = fs::read_to_string(&doc).map_err(|e| format!("{}: {e}", doc.display()))?;
-        let rel = doc.strip_prefix(&base).unwrap_or(&doc).display().to_string();
+        let rel = doc
+            .strip_prefix(&base)
+            .unwrap_or(&doc)
+            .display()
+            .to_string();
         for (span, line) in spans(&text) {
             if let Some(e) = check_span(&t, &span) {
                 out.push(format!("{rel}:{line}: {e}"));
@@ -383,7 +401,9 @@ mod tests {
     #[test]
     fn a_renamed_type_or_item_is_found_and_a_present_one_passes() {
         let t = tree();
-        assert!(check_span(&t, "LoopConfig::at_rate").unwrap().contains("LoopConfig"));
+        assert!(check_span(&t, "LoopConfig::at_rate")
+            .unwrap()
+            .contains("LoopConfig"));
         assert_eq!(check_span(&t, "ServoConfig::at_rate"), None);
         assert!(check_span(&t, "ServoConfig::at_speed").is_some());
         assert_eq!(check_span(&t, "Fault::SignCheck"), None);
@@ -420,11 +440,20 @@ mod tests {
     #[test]
     fn commands_options_and_values_are_checked() {
         let t = tree();
-        assert_eq!(check_span(&t, "host-sim cut --rpm 360 --holes filled"), None);
+        assert_eq!(
+            check_span(&t, "host-sim cut --rpm 360 --holes filled"),
+            None
+        );
         assert_eq!(check_span(&t, "cargo sim -- --holes open"), None);
-        assert!(check_span(&t, "host-sim cut --holes plugged").unwrap().contains("plugged"));
-        assert!(check_span(&t, "host-sim cut --speed 3").unwrap().contains("--speed"));
-        assert!(check_span(&t, "host-sim drill --rpm 3").unwrap().contains("drill"));
+        assert!(check_span(&t, "host-sim cut --holes plugged")
+            .unwrap()
+            .contains("plugged"));
+        assert!(check_span(&t, "host-sim cut --speed 3")
+            .unwrap()
+            .contains("--speed"));
+        assert!(check_span(&t, "host-sim drill --rpm 3")
+            .unwrap()
+            .contains("drill"));
         assert_eq!(
             check_span(&t, "cargo run --release -p host-sim -- cut --rpm 5"),
             None

@@ -220,7 +220,8 @@ fn host_sim(release: bool) -> Result<PathBuf> {
         if release { "release" } else { "debug" }
     ));
     let mut c = cargo();
-    c.current_dir(root()).args(["build", "-q", "-p", "host-sim"]);
+    c.current_dir(root())
+        .args(["build", "-q", "-p", "host-sim"]);
     if release {
         c.arg("--release");
     }
@@ -251,7 +252,8 @@ fn run_cmd(bin: &Path, cmd: &str) -> Result<serde_json::Value> {
             String::from_utf8_lossy(&out.stderr).trim()
         ));
     }
-    serde_json::from_slice(&out.stdout).map_err(|e| format!("host-sim {}: JSON: {e}", args.join(" ")))
+    serde_json::from_slice(&out.stdout)
+        .map_err(|e| format!("host-sim {}: JSON: {e}", args.join(" ")))
 }
 
 /// Today's date (UTC), `YYYY-MM-DD`.
@@ -283,7 +285,10 @@ pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
     }
     let chosen: Vec<&Figure> = all.iter().filter(|f| !quick || f.quick()).collect();
     let bin = host_sim(!quick)?;
-    step(&format!("figures: {} marked, running their commands", chosen.len()));
+    step(&format!(
+        "figures: {} marked, running their commands",
+        chosen.len()
+    ));
     let mut runs: HashMap<String, serde_json::Value> = HashMap::new();
     let mut drift = Vec::new();
     let mut edits: HashMap<PathBuf, Vec<((usize, usize), String)>> = HashMap::new();
@@ -292,8 +297,7 @@ pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
         if !runs.contains_key(&cmd) {
             runs.insert(cmd.clone(), run_cmd(&bin, &cmd)?);
         }
-        let new = render(f, &runs[&cmd])
-            .map_err(|e| format!("{}:{}: {e}", rel(&f.doc), f.line))?;
+        let new = render(f, &runs[&cmd]).map_err(|e| format!("{}:{}: {e}", rel(&f.doc), f.line))?;
         if new != f.old {
             drift.push(format!(
                 "{}:{}: {} was {:?}, now {:?} (host-sim {cmd} --json, {})",
@@ -304,7 +308,10 @@ pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
                 new,
                 f.attr("path").unwrap_or_default()
             ));
-            edits.entry(f.doc.clone()).or_default().push((f.value_at, new));
+            edits
+                .entry(f.doc.clone())
+                .or_default()
+                .push((f.value_at, new));
         }
     }
     if !check {
@@ -398,7 +405,10 @@ mod tests {
         assert_eq!(render(&f[0], &j).unwrap(), "0.0");
         let mut g = f[1].clone();
         g.attrs.insert("plus".into(), "1".into());
-        assert_eq!(render(&g, &serde_json::json!({"lo": 26.2})).unwrap(), "+26.2");
+        assert_eq!(
+            render(&g, &serde_json::json!({"lo": 26.2})).unwrap(),
+            "+26.2"
+        );
     }
 
     #[test]
@@ -412,7 +422,11 @@ mod tests {
 
     #[test]
     fn a_marker_without_a_command_or_closing_comment_is_refused_with_its_line() {
-        let e = scan(Path::new("d.md"), "x\n<!-- fig path=\".a\" -->1<!-- /fig -->").unwrap_err();
+        let e = scan(
+            Path::new("d.md"),
+            "x\n<!-- fig path=\".a\" -->1<!-- /fig -->",
+        )
+        .unwrap_err();
         assert!(e.contains("d.md:2") && e.contains("cmd"), "{e}");
         let e = scan(Path::new("d.md"), "<!-- fig cmd=\"c\" path=\".a\" -->1").unwrap_err();
         assert!(e.contains("<!-- /fig -->"), "{e}");

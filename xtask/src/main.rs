@@ -713,7 +713,8 @@ fn region_len(memory_x: &std::path::Path, name: &str) -> Result<u64> {
     let n: u64 = if let Some(h) = num.strip_prefix("0x") {
         u64::from_str_radix(h, 16).map_err(|e| e.to_string())?
     } else {
-        num.parse().map_err(|e| format!("{}: {name} LENGTH {len}: {e}", memory_x.display()))?
+        num.parse()
+            .map_err(|e| format!("{}: {name} LENGTH {len}: {e}", memory_x.display()))?
     };
     Ok(n * unit)
 }

@@ -286,10 +286,7 @@ where
     .x_label_area_size(44)
     .y_label_area_size(80);
     let mut ch = b
-        .build_cartesian_2d(
-            (0u32..cycles as u32).into_segmented(),
-            (lo..hi).log_scale(),
-        )
+        .build_cartesian_2d((0u32..cycles as u32).into_segmented(), (lo..hi).log_scale())
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     ch.configure_mesh()
         .x_desc("correction cycle (0 = as loaded)")

@@ -117,10 +117,7 @@ where
         .margin(12)
         .x_label_area_size(44)
         .y_label_area_size(64)
-        .build_cartesian_2d(
-            0.0..360.0,
-            xs[0]..xs[xs.len() - 1],
-        )
+        .build_cartesian_2d(0.0..360.0, xs[0]..xs[xs.len() - 1])
         .map_err(err)?;
     let dphi = 2.0;
     let nphi = (360.0 / dphi) as usize;
@@ -162,7 +159,8 @@ where
     let (top, bottom) = (50i32, h as i32 - 70);
     let step = (bottom - top) / (2 * BANDS) as i32;
     let font = ("sans-serif", 13).into_font().color(&BLACK);
-    bar.draw_text("error, µin", &font, (6, top - 30)).map_err(err)?;
+    bar.draw_text("error, µin", &font, (6, top - 30))
+        .map_err(err)?;
     for k in 0..2 * BANDS {
         let y1 = bottom - step * k as i32;
         bar.draw(&Rectangle::new(
@@ -207,11 +205,21 @@ pub fn write(dir: &Path, grid: &CmmGrid, xs: &[f64], title: &str) -> anyhow::Res
     crate::plot::register_font();
     let size = (980, 560);
     let svg = dir.join("error_map.svg");
-    draw(SVGBackend::new(&svg, size).into_drawing_area(), grid, xs, title)
-        .with_context(|| format!("writing {}", svg.display()))?;
+    draw(
+        SVGBackend::new(&svg, size).into_drawing_area(),
+        grid,
+        xs,
+        title,
+    )
+    .with_context(|| format!("writing {}", svg.display()))?;
     let png = dir.join("error_map.png");
-    draw(BitMapBackend::new(&png, size).into_drawing_area(), grid, xs, title)
-        .with_context(|| format!("writing {}", png.display()))?;
+    draw(
+        BitMapBackend::new(&png, size).into_drawing_area(),
+        grid,
+        xs,
+        title,
+    )
+    .with_context(|| format!("writing {}", png.display()))?;
     let series: Vec<Series> = xs
         .iter()
         .enumerate()
@@ -256,7 +264,13 @@ mod tests {
 
     #[test]
     fn a_cell_next_to_a_hole_point_is_unmeasured() {
-        let g = grid(|p, x| if p == 40.0 && x == 3.0 { None } else { Some(1.0) });
+        let g = grid(|p, x| {
+            if p == 40.0 && x == 3.0 {
+                None
+            } else {
+                Some(1.0)
+            }
+        });
         assert_eq!(interpolate(&g, &XS, 41.0, 3.1), None);
         assert_eq!(interpolate(&g, &XS, 30.0, 3.0), Some(1.0));
     }
