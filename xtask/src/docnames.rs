@@ -419,7 +419,7 @@ mod tests {
             types: t.types.clone(),
             ..Tree::default()
         };
-        t2.add_code("pub const DEFAULT_TABLE: &[u8] = &[];\nlet c = Cell::new(0);\n");
+        t2.add_code("pub const DEFAULT_TABLE: &[u8] = &[];\nlet c = Cell::new(0);\nc.take();\n");
         assert_eq!(check_span(&t2, "zslide::DEFAULT_TABLE"), None);
         assert_eq!(check_span(&t2, "Cell::take"), None);
         assert!(check_span(&t2, "Interp::columns").is_some());
