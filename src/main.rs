@@ -10,7 +10,7 @@
 //! | 0x00 | `TIM3` | loop tick, 20 kHz, TIM3 CC2 | `LoopState::loop_tick`: gauge, spindle angle, command, loop, DAC; watchdog |
 //! | 0x10 | `EXTI2` | legacy X half-mil interrupt, PG2 | `EventState::x_event` on the latched word |
 //! | 0x10 | `TIM2` | spindle index, TIM2 CH1 capture (PA0) | `Shared::index_event` with the captured time and count |
-//! | 0x20 | `TIM7` | pended by the loop tick (TIM7 itself unused) | `LearnState::run`: the command ahead of the next tick, then the learning on the tick's samples |
+//! | 0x20 | `TIM7` | pended by the loop tick (TIM7 itself unused) | `LearnState::run`: the learning on the tick's samples, then the command ahead of the next tick |
 //! | thread | `main` loop | - | background: host link (`zslide::link`, RTT), status and fault logging, arm button, watchdog |
 //!
 //! Each handler owns its part of the firmware outright (moved in once,

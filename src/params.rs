@@ -51,7 +51,9 @@ impl Param {
     pub fn get(&self, d: &ServoDesign) -> f64 {
         field_get(self.id, d)
     }
-    fn set(&self, d: &mut ServoDesign, v: f64) {
+    /// Writes `v` into `d` unchecked ([`set`] checks); for tools that
+    /// rebuild a refused design to say which values broke it.
+    pub fn set(&self, d: &mut ServoDesign, v: f64) {
         field_set(self.id, d, v);
     }
 }

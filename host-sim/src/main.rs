@@ -1,82 +1,30 @@
-//! `host-sim`: the simulator's and the coefficient tools' command line.
-use clap::{Parser, Subcommand};
-use host_sim::cmd;
-
-#[derive(Parser)]
-#[command(
-    name = "host-sim",
-    version,
-    about = "Z-slide machine simulator and coefficient tools"
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Coefficient tables: Table 2-2 (sin-power form) or a Fourier expansion at one X.
-    Coeffs(cmd::coeffs::Args),
-    /// Accuracy of the firmware command path against the exact surface.
-    Accuracy(cmd::accuracy::Args),
-    /// The smallest harmonic table meeting a part file's bound, and its error split.
-    PartTable(cmd::parttable::Args),
-    /// Feasibility of a part on the machine before cutting (exit 1 with the reasons if not).
-    Plan(cmd::plan::Args),
-    /// Z command from the firmware's fixed-point path for `x_in,phi_deg` lines on stdin.
-    Zcmd(cmd::zcmd::Args),
-    /// Appendix C block diagrams (CSMP studies C-1 .. C-6) simulated.
-    Csmp(cmd::csmp::Args),
-    /// Closed-loop tracking of a spindle-synchronous sinusoid.
-    Track(cmd::track::Args),
-    /// Frequency response of a loop of the simulated machine (signal analyser).
-    Response(cmd::response::Args),
-    /// The simulated finishing cut and its CMM measurement.
-    Cut(cmd::cut::Args),
-    /// Automatic centring (Y-1594).
-    Center(cmd::center::Args),
-    /// Fault injection campaign.
-    Faults(cmd::faults::Args),
-    /// Hours of machine time with shop-floor disturbances, a summary per hour.
-    Soak(cmd::soak::Args),
-    /// Cost of one plant step and of one simulated second at the loop rate.
-    Bench(cmd::bench::Args),
-    /// A board's decoded defmt trace log as a VCD with the simulator's signal names.
-    Trace2vcd(cmd::trace2vcd::Args),
-    /// The simulated machine behind the firmware's link, in real time, for
-    /// `zslide --connect ADDR ...`.
-    Serve(cmd::serve::Args),
-    /// Record the runs the target replays bit-exact (`cargo xtask qemu`).
-    ReplayRecord(cmd::replay::Args),
-}
+//! `host-sim`: the simulator's and the coefficient tools' command line
+//! (the parser: `host_sim::cli`).
+use clap::FromArgMatches;
+use host_sim::cli::{self, Cli};
 
 /// Errors go to stderr as one readable chain ("what: because"), exit code 1,
 /// with no backtrace even when `RUST_BACKTRACE` is set: a bad input line or
 /// a refused geometry is a message for the user, not a crash.
 fn main() {
-    if let Err(e) = run(Cli::parse().command) {
+    // A reader that stops early (`host-sim coeffs | head -1`) is not an
+    // error: Rust ignores SIGPIPE, so `println!` would panic on the closed
+    // pipe; the default action ends the process quietly, as `cat` does.
+    #[cfg(unix)]
+    restore_sigpipe();
+    let matches = cli::command().get_matches();
+    let parsed = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    if let Err(e) = cli::run(parsed.command) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
 }
 
-fn run(command: Command) -> anyhow::Result<()> {
-    match command {
-        Command::Coeffs(a) => cmd::coeffs::run(a),
-        Command::Serve(a) => cmd::serve::run(a),
-        Command::Accuracy(a) => cmd::accuracy::run(a),
-        Command::Zcmd(a) => cmd::zcmd::run(a),
-        Command::PartTable(a) => cmd::parttable::run(a),
-        Command::Plan(a) => cmd::plan::run(a),
-        Command::Csmp(a) => cmd::csmp::run(a),
-        Command::Track(a) => cmd::track::run(a),
-        Command::Response(a) => cmd::response::run(a),
-        Command::Cut(a) => cmd::cut::run(a),
-        Command::Center(a) => cmd::center::run(a),
-        Command::Faults(a) => cmd::faults::run(a),
-        Command::Soak(a) => cmd::soak::run(a),
-        Command::Bench(a) => cmd::bench::run(a),
-        Command::Trace2vcd(a) => cmd::trace2vcd::run(a),
-        Command::ReplayRecord(a) => cmd::replay::run(a),
+#[cfg(unix)]
+fn restore_sigpipe() {
+    // SAFETY: resetting one signal's disposition to its default at start-up,
+    // before any thread exists; no handler code runs.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

@@ -60,17 +60,25 @@ where
         (x0, x1, y0, y1) = (0.0, 1.0, -1.0, 1.0);
     }
     let pad = ((y1 - y0) * 0.08).max(1e-3);
+    // Room above the data for the legend (upper right), so that it never
+    // hides a curve.
+    let legend_room = (y1 - y0).max(1e-3) * 0.07 * series.len() as f64;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 20))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad + legend_room))
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let (xspan, yspan) = (x1 - x0, y1 - y0 + 2.0 * pad + legend_room);
     chart
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
+        .x_label_formatter(&|v| crate::scope::tick_label(*v, xspan))
+        .y_label_formatter(&|v| crate::scope::tick_label(*v, yspan))
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     for (k, s) in series.iter().enumerate() {
@@ -99,6 +107,7 @@ where
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
@@ -153,21 +162,29 @@ pub fn write_images(
     Ok(())
 }
 
+/// A column name from a label: `φ, deg` → `phi_deg`, `error, µin` →
+/// `error_uin` (ASCII, one `_` between words).
 fn csv_name(s: &str) -> String {
-    s.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '.' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
+    let ascii = s.replace('φ', "phi").replace('µ', "u").replace('−', "-");
+    let mut out = String::new();
+    for c in ascii.chars() {
+        if c.is_ascii_alphanumeric() || c == '.' {
+            out.push(c);
+        } else if !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    out.trim_matches('_').to_string()
 }
 
 /// The CSV behind a plot: series sharing the x column when their x agree,
 /// else one `x,y` pair of columns per series.
-fn write_csv(dir: &Path, name: &str, x_label: &str, series: &[Series]) -> anyhow::Result<()> {
+pub(crate) fn write_csv(
+    dir: &Path,
+    name: &str,
+    x_label: &str,
+    series: &[Series],
+) -> anyhow::Result<()> {
     use std::fmt::Write as _;
     let path = dir.join(format!("{name}.csv"));
     let shared = series.windows(2).all(|w| {

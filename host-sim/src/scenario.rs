@@ -626,7 +626,7 @@ impl ScenarioFile {
         let servo_design = self.servo.design(self.loop_.rate_hz, slide_model);
         let servo = servo_design
             .config()
-            .map_err(|e| anyhow::anyhow!("servo.{}", e.reason()))?;
+            .map_err(|e| anyhow::anyhow!("servo.{}", servo_design.refusal(e)))?;
         Ok(Scenario {
             file: self.clone(),
             rig,

@@ -161,7 +161,15 @@ fn servo_section_sets_the_loop_and_refuses_a_bad_field_by_name() {
     assert!(sc30.servo.kp_q24 > sc.servo.kp_q24);
     let bad = text.replace("bandwidth_hz = 45.0", "bandwidth_hz = 5000.0");
     let e = format!("{:#}", parse(&bad, "bad").unwrap_err());
-    assert!(e.contains("servo.bandwidth_hz"), "{e}");
+    assert!(e.contains("servo.bandwidth_hz = 5000"), "{e}");
+    // Below rate_hz / 20 but above the fast bandwidth (150 Hz): that
+    // relation and both values are named, not the rate's.
+    let above_fast = text.replace("bandwidth_hz = 45.0", "bandwidth_hz = 160.0");
+    let e = format!("{:#}", parse(&above_fast, "bad").unwrap_err());
+    assert!(
+        e.contains("bandwidth_fast_hz = 150") && e.contains("bandwidth_hz = 160"),
+        "{e}"
+    );
     let unknown = text.replace("damping = 0.9", "dampng = 0.9");
     let e = format!("{:#}", parse(&unknown, "typo").unwrap_err());
     assert!(e.contains("dampng"), "{e}");

@@ -177,6 +177,7 @@ fn gauge_noise_moves_the_slide_less_than_a_quarter_of_its_rms_at_null() {
             ..track_10hz()
         },
     );
+    eprintln!("at null: {r:?}");
     assert!(r.rms_uin <= 0.25 * 10.0, "{r:?}");
 }
 
@@ -227,6 +228,11 @@ fn tracking_holds_within_twice_nominal_over_plant_variations() {
             }
         }
     }
+    eprintln!(
+        "worst / nominal peak: {:.2} ({}; nominal {nominal:?})",
+        worst.0 / nominal.peak_uin,
+        worst.1
+    );
     assert!(
         worst.0 <= 2.0 * nominal.peak_uin,
         "nominal {:?}; worst {}",

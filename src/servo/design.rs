@@ -222,7 +222,7 @@ impl ServoDesign {
         }
         let w = core::f64::consts::TAU * self.bandwidth_hz;
         if !(self.bandwidth_fast_hz >= self.bandwidth_hz && self.bandwidth_fast_hz < fs / 20.0) {
-            return Err(E::Bandwidth);
+            return Err(E::BandwidthFast);
         }
         let wf = core::f64::consts::TAU * self.bandwidth_fast_hz;
         let q24 = (1u64 << 24) as f64;
@@ -480,6 +480,8 @@ pub enum DesignError {
     CurrentLimit,
     FollowingError,
     SignCheck,
+    /// Last, so that the variants before keep their wire numbers.
+    BandwidthFast,
 }
 
 impl DesignError {
@@ -488,7 +490,10 @@ impl DesignError {
         match self {
             Self::Rate => "rate_hz: must be 1000..=200000",
             Self::Slide => "slide model: every constant must be positive and finite",
-            Self::Bandwidth => "bandwidth_hz: must be > 0 and below rate_hz / 20 (bandwidth_fast_hz between it and rate_hz / 20)",
+            Self::Bandwidth => "bandwidth_hz: must be > 0 and below rate_hz / 20",
+            Self::BandwidthFast => {
+                "bandwidth_fast_hz: must be at least bandwidth_hz and below rate_hz / 20"
+            }
             Self::Damping => "damping: must be in (0, 5]",
             Self::Observer => "observer_hz: must be > 0 and below rate_hz / 10",
             Self::ObserverFast => "observer_fast_hz in [observer_hz, rate_hz / 10), observer_switch_uin in (0, 10000], observer_hold_ms in [0, 10000]",

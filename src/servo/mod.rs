@@ -41,6 +41,7 @@ pub mod filters;
 pub(crate) mod fixed;
 pub mod limits;
 pub mod observer;
+pub mod refusal;
 pub mod repetitive;
 
 pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};

@@ -26,8 +26,10 @@
 //! error with exit status 2, never ignored.
 
 mod cycles;
+mod docnames;
 mod elf;
 mod faultpath;
+mod figures;
 mod fuzz;
 mod isr_cost;
 mod link;
@@ -97,6 +99,10 @@ enum Cmd {
     /// The QEMU table-region runs and the host-link end-to-end test of
     /// `cargo xtask test`, alone.
     LinkTest,
+    /// Rerun the commands behind the figures marked in README.md and
+    /// docs/*.md and rewrite them (`--check`: list what drifted, exit 1);
+    /// also checks the names the docs cite exist.
+    Figures(figures::Args),
     /// Import cycles between the modules of every crate (part of `test`).
     Cycles,
     /// Mutation testing of the core's safety-relevant modules
@@ -115,6 +121,7 @@ fn main() -> ExitCode {
         Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
         Cmd::QemuLink(args) => link::run_session(&args),
         Cmd::LinkTest => cmd_link_test(),
+        Cmd::Figures(args) => figures::run(&args),
         Cmd::Cycles => cycles::run(),
         Cmd::Mutants(args) => mutants::run(&args),
     };
@@ -685,31 +692,49 @@ fn check_no_panic() -> Result<()> {
     }
 }
 
+/// LENGTH of region `name` in a linker `memory.x`, bytes (`1792K`, `3M`,
+/// or a number): the percentages of `size` are of the region the image is
+/// linked into, read from the file that defines it.
+fn region_len(memory_x: &std::path::Path, name: &str) -> Result<u64> {
+    let text = fs::read_to_string(memory_x).map_err(|e| format!("{}: {e}", memory_x.display()))?;
+    let line = text
+        .lines()
+        .find(|l| l.split(':').next().is_some_and(|n| n.trim() == name))
+        .ok_or_else(|| format!("{}: no {name} region", memory_x.display()))?;
+    let len = line
+        .split("LENGTH")
+        .nth(1)
+        .and_then(|r| r.split('=').nth(1))
+        .map(str::trim)
+        .ok_or_else(|| format!("{}: {name} has no LENGTH", memory_x.display()))?;
+    let (num, unit) = match len.chars().last() {
+        Some('K') => (&len[..len.len() - 1], 1024),
+        Some('M') => (&len[..len.len() - 1], 1024 * 1024),
+        _ => (len, 1),
+    };
+    let n: u64 = if let Some(h) = num.strip_prefix("0x") {
+        u64::from_str_radix(h, 16).map_err(|e| e.to_string())?
+    } else {
+        num.parse()
+            .map_err(|e| format!("{}: {name} LENGTH {len}: {e}", memory_x.display()))?
+    };
+    Ok(n * unit)
+}
+
 fn print_sizes() -> Result<()> {
     step("image sizes");
-    for (name, path, flash_total, ram_total) in [
-        (
-            "NUCLEO-H743ZI2 (zslide-fw)",
-            board_elf(),
-            2048 * 1024,
-            128 * 1024,
-        ),
-        (
-            "NUCLEO-H743ZI2 (zslide-centre)",
-            centre_elf(),
-            2048 * 1024,
-            128 * 1024,
-        ),
-        (
-            "QEMU mps2-an386 (zslide-qemu)",
-            qemu_elf(),
-            3072 * 1024,
-            4096 * 1024,
-        ),
+    let board = root().join("memory.x");
+    let qemu = root().join("boards/qemu/memory.x");
+    for (name, path, memory_x) in [
+        ("NUCLEO-H743ZI2 (zslide-fw)", board_elf(), &board),
+        ("NUCLEO-H743ZI2 (zslide-centre)", centre_elf(), &board),
+        ("QEMU mps2-an386 (zslide-qemu)", qemu_elf(), &qemu),
     ] {
+        let flash_total = region_len(memory_x, "FLASH")?;
+        let ram_total = region_len(memory_x, "RAM")?;
         let s = elf::sizes(&path)?;
         eprintln!(
-            "{name}: flash {} B ({:.2} % of {} KiB), static RAM {} B ({:.2} % of {} KiB)  \
+            "{name}: flash {} B ({:.2} % of the {} KiB FLASH region), static RAM {} B ({:.2} % of {} KiB)  \
              [text+rodata {} B, data {} B, bss+uninit {} B]",
             s.flash(),
             100.0 * s.flash() as f64 / flash_total as f64,
@@ -802,6 +827,20 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
 
     step("host tests: cargo test --workspace");
     let results = host_tests()?;
+    // The docs' cheap figures (the full set: `cargo xtask figures --check`)
+    // and the names they cite: each figure and the name check count as tests.
+    let (figure_count, drift) = figures::figures(true, true)?;
+    let names = docnames::check()?;
+    for line in drift.iter().chain(&names) {
+        eprintln!("{line}");
+    }
+    let docs_passed = (figure_count - drift.len()) as u64 + u64::from(names.is_empty());
+    let docs_failed = drift.len() as u64 + u64::from(!names.is_empty());
+    let docs_line = format!(
+        "{figure_count} quick figures, {} drifted; cited names: {} not found",
+        drift.len(),
+        names.len()
+    );
 
     if firmware_possible {
         build_board()?;
@@ -902,11 +941,12 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         vcd_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
+    eprintln!("docs: {docs_line}");
     eprintln!("{}", modules.summary());
     eprintln!("{}", modules.biggest_line());
     // The cycle check is one test of the tally.
     let cycle_failed = u64::from(!modules.cycles.is_empty());
-    let code = if fuzz_failed > 0 || cycle_failed > 0 {
+    let code = if fuzz_failed > 0 || cycle_failed > 0 || docs_failed > 0 {
         1
     } else if missing.is_empty() {
         0
@@ -921,8 +961,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     // last libtest line above is a doc-test run that may count zero.
     eprintln!(
         "tests: {} passed, {} failed, {ignored} skipped",
-        passed + fuzz_passed + board_checks + (1 - cycle_failed),
-        failed + fuzz_failed + cycle_failed
+        passed + fuzz_passed + board_checks + (1 - cycle_failed) + docs_passed,
+        failed + fuzz_failed + cycle_failed + docs_failed
     );
     Ok(code)
 }

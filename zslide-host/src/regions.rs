@@ -144,8 +144,21 @@ pub fn parse_setting(s: &str) -> Result<(u16, f64)> {
 /// the boards' loop rate.
 pub fn param_block(entries: &[(u16, f64)]) -> Result<Vec<u8>> {
     let mut out = vec![0u8; params::HEADER_LEN + entries.len() * params::ENTRY_LEN];
-    let n = params::encode_block(entries, &ServoDesign::brief(LOOP_HZ), &mut out)
-        .map_err(|e| format!("parameter block refused: {e}"))?;
+    let base = ServoDesign::brief(LOOP_HZ);
+    let n = params::encode_block(entries, &base, &mut out).map_err(|e| match e {
+        // The design's rule with the values that break it (the block's
+        // values on the built-in design), not the rule alone.
+        params::ParamError::Design(de) => {
+            let mut d = base;
+            for &(id, v) in entries {
+                if let Some(p) = params::by_id(id) {
+                    p.set(&mut d, v);
+                }
+            }
+            format!("parameter block refused: {}", d.refusal(de))
+        }
+        e => format!("parameter block refused: {e}"),
+    })?;
     out.truncate(n);
     Ok(out)
 }

@@ -234,7 +234,12 @@ pub fn measure_against(
         fixed_point_max_uin: 0.0,
         x_max_in: x_max,
         table: TableInfo {
-            representation: format!("{:?}", t.representation()),
+            // The configuration file's words (`representation = "sin-power"`).
+            representation: match t.representation() {
+                zslide::table::Representation::SinPower => "sin-power",
+                zslide::table::Representation::Harmonic => "harmonic",
+            }
+            .to_string(),
             columns: t.terms(),
             nodes: t.node_count(),
             step_in: f64::from(h.dx_raw) / xs_scale,
@@ -285,7 +290,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.table.step_in,
             r.table.coeff_frac_bits
         );
-        println!("X range 0..{} in, {} samples", r.x_max_in, r.samples);
+        // X is an I8F24 value: 7.2 is 7.199999988 in binary, which says
+        // nothing to the reader; a micro-inch is far below the table's step.
+        println!(
+            "X range 0..{} in, {} samples",
+            trim_decimals(r.x_max_in, 6),
+            r.samples
+        );
         println!(
             "max error            {:.4} µin  (X = {:.5} in, φ = {:.3}°)",
             r.max_error_uin, r.worst_x_in, r.worst_phi_deg
@@ -294,4 +305,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("fixed-point share    {:.5} µin", r.fixed_point_max_uin);
     }
     Ok(())
+}
+
+/// `v` with `digits` decimals, trailing zeros dropped ("7.2", not "7.200000").
+fn trim_decimals(v: f64, digits: usize) -> String {
+    let s = format!("{v:.digits$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
 }

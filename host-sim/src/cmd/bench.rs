@@ -172,6 +172,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.seconds > 0.0 && loop_hz > 0,
         "need positive seconds and loop rate"
     );
+    if let Some(path) = &args.vcd {
+        crate::outpath::check_file("--vcd", path)?;
+    }
     if args.only_machine {
         let (mut mw, mut ms) =
             crate::fwrig::machine_with(sc.rig.clone(), &sc.machine, loop_hz as u32, sc.servo);
@@ -309,7 +312,10 @@ pub fn write_vcd(
         w.fw.set_target_code(1 << 16)
     });
     s.add(o);
-    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let file = std::io::BufWriter::new(
+        std::fs::File::create(path)
+            .map_err(|e| anyhow::anyhow!("--vcd {}: cannot be written: {e}", path.display()))?,
+    );
     let tr = crate::vcd::machine::attach(&mut s, file, 0, u64::MAX)?;
     s.run_until(&mut w, 250_000_000);
     crate::vcd::machine::detach(&mut s, tr)?;

@@ -120,9 +120,13 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let s = setup(&a)?;
+    if let Some(dir) = &a.out {
+        crate::outpath::check_dir("--out", dir)?;
+    }
     let o = centring::run(&s)?;
     if let Some(dir) = &a.out {
-        write_plots(dir, &o).with_context(|| format!("writing plots to {}", dir.display()))?;
+        write_plots(dir, &o, s.level_in)
+            .with_context(|| format!("writing plots to {}", dir.display()))?;
     }
     if a.json {
         let v = serde_json::json!({
@@ -170,10 +174,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             ),
         }
     }
+    // A refused run is a failed run for scripts too (the report above
+    // stays: it says where the sequence stopped).
+    if let Some(r) = &o.refusal {
+        anyhow::bail!(
+            "centring refused after {:.2} s ({r}); the part is not centred, residual {:.6} in",
+            o.time_s,
+            o.final_residual_in
+        );
+    }
     Ok(())
 }
 
-fn write_plots(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
+fn write_plots(dir: &Path, o: &Outcome, level_in: f64) -> anyhow::Result<()> {
     use std::fmt::Write as _;
     std::fs::create_dir_all(dir)?;
     let mut csv =
@@ -202,20 +215,23 @@ fn write_plots(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
             .map_or(o.final_residual_in, |c| c.residual_before_in),
     ))
     .chain(o.cycles.iter().map(|c| (f64::from(c.cycle), c.residual_in)))
-    .map(|(n, r)| (n, r.max(1e-9)))
+    // µin: the residuals span 0.25 in to a few µin, a log axis in µin reads
+    // as whole numbers where inches would need nine decimals.
+    .map(|(n, r)| (n, (r * 1e6).max(1e-3)))
     .collect();
+    let level_uin = level_in * 1e6;
     {
         use plotters::prelude::*;
         crate::plot::register_font();
         let path = dir.join("center_residual.svg");
         let root = SVGBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_residual(&root, &residual)?;
+        plot_residual(&root, &residual, level_uin)?;
         let path = dir.join("center_slides.svg");
         let root = SVGBackend::new(&path, (800, 500)).into_drawing_area();
         plot_slides(&root, o)?;
         let path = dir.join("center_residual.png");
         let root = BitMapBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_residual(&root, &residual)?;
+        plot_residual(&root, &residual, level_uin)?;
         let path = dir.join("center_slides.png");
         let root = BitMapBackend::new(&path, (800, 500)).into_drawing_area();
         plot_slides(&root, o)?;
@@ -223,36 +239,104 @@ fn write_plots(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A log-axis tick: three significant digits, no exponent ("0.5", "12",
+/// "250000").
+fn log_tick(v: f64) -> String {
+    if v <= 0.0 || !v.is_finite() {
+        return String::new();
+    }
+    let digits = (2 - v.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.digits$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
 fn plot_residual<DB: plotters::prelude::DrawingBackend>(
     root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
     residual: &[(f64, f64)],
+    level_uin: f64,
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
     use plotters::prelude::*;
     root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let n = residual.len().max(2) as f64;
-    let lo = residual.iter().map(|p| p.1).fold(f64::INFINITY, f64::min) / 3.0;
-    let hi = residual.iter().map(|p| p.1).fold(0.0, f64::max) * 3.0;
+    let cycles = residual.len().saturating_sub(1).max(1);
+    let lo = residual
+        .iter()
+        .map(|p| p.1)
+        .chain([level_uin])
+        .fold(f64::INFINITY, f64::min)
+        / 3.0;
+    let hi = residual
+        .iter()
+        .map(|p| p.1)
+        .chain([level_uin])
+        .fold(0.0, f64::max)
+        * 3.0;
     let mut b = ChartBuilder::on(root);
-    b.margin(10);
+    b.margin(14);
     b.caption(
-        "residual off-centre after each correction cycle (in)",
-        ("sans-serif", 18),
+        "off-centre left after each correction cycle",
+        ("sans-serif", 20),
     )
-    .x_label_area_size(30)
-    .y_label_area_size(70);
+    .x_label_area_size(44)
+    .y_label_area_size(80);
     let mut ch = b
-        .build_cartesian_2d(0.0..n - 1.0, (lo..hi).log_scale())
+        .build_cartesian_2d((0u32..cycles as u32).into_segmented(), (lo..hi).log_scale())
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     ch.configure_mesh()
-        .x_desc("cycle")
+        .x_desc("correction cycle (0 = as loaded)")
+        .y_desc("residual off-centre, µin")
+        .x_labels(cycles + 1)
+        .x_label_formatter(&|v| match v {
+            SegmentValue::CenterOf(n) | SegmentValue::Exact(n) => n.to_string(),
+            SegmentValue::Last => String::new(),
+        })
+        .y_label_formatter(&|v| log_tick(*v))
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    ch.draw_series(LineSeries::new(residual.iter().copied(), &BLUE))
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    ch.draw_series(residual.iter().map(|&p| Circle::new(p, 4, BLUE.filled())))
+    let at = |n: f64| SegmentValue::CenterOf(n.round() as u32);
+    let level = RGBColor(200, 0, 0);
+    ch.draw_series(DashedLineSeries::new(
+        vec![
+            (SegmentValue::Exact(0), level_uin),
+            (SegmentValue::Last, level_uin),
+        ],
+        8,
+        5,
+        level.stroke_width(2).into(),
+    ))
+    .map_err(|e| anyhow::anyhow!("{e}"))?
+    .label(format!(
+        "level detector: centred below {} µin",
+        log_tick(level_uin)
+    ))
+    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], level.stroke_width(2)));
+    ch.draw_series(LineSeries::new(
+        residual.iter().map(|&(n, r)| (at(n), r)),
+        BLUE.stroke_width(2),
+    ))
+    .map_err(|e| anyhow::anyhow!("{e}"))?
+    .label("residual after the cycle")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    ch.draw_series(
+        residual
+            .iter()
+            .map(|&(n, r)| Circle::new((at(n), r), 4, BLUE.filled())),
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    ch.configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
@@ -281,14 +365,19 @@ where
     let pad = ((hi - lo) * 0.05).max(1e-6);
     let mut b = ChartBuilder::on(root);
     b.margin(10);
-    b.caption("slide positions (in)", ("sans-serif", 18))
-        .x_label_area_size(30)
-        .y_label_area_size(70);
+    b.caption("slide positions during the centring", ("sans-serif", 20))
+        .x_label_area_size(44)
+        .y_label_area_size(80);
     let mut ch = b
         .build_cartesian_2d(0.0..t1, lo - pad..hi + pad)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let span = hi - lo + 2.0 * pad;
     ch.configure_mesh()
-        .x_desc("t (s)")
+        .x_desc("time, s")
+        .y_desc("slide position, in")
+        .y_label_formatter(&|v| crate::scope::tick_label(*v, span))
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     ch.draw_series(LineSeries::new(
@@ -296,14 +385,14 @@ where
         &BLUE,
     ))
     .map_err(|e| anyhow::anyhow!("{e}"))?
-    .label("X'")
+    .label("X' slide")
     .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
     ch.draw_series(LineSeries::new(
         o.trace.iter().map(|p| (p.t_s, p.slide_y_in)),
         &RED,
     ))
     .map_err(|e| anyhow::anyhow!("{e}"))?
-    .label("Y'")
+    .label("Y' slide")
     .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
     ch.configure_series_labels()
         .border_style(BLACK)

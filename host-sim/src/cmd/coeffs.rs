@@ -75,15 +75,20 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let cfg = match &args.config {
+    // Range errors of a configuration name its file: the value is in it.
+    let mut spec = match &args.config {
         Some(p) => {
             let text =
                 std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            Config::from_toml(&text).with_context(|| format!("in {}", p.display()))?
+            Config::from_toml(&text)
+                .and_then(|c| Ok(c.to_spec()?))
+                .with_context(|| format!("table configuration {}", p.display()))?
         }
-        None => Config::default(),
+        None => Config::default().to_spec()?,
     };
-    let mut spec = cfg.to_spec()?;
+    if let Some(path) = &args.out {
+        crate::outpath::check_file("--out", path)?;
+    }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
 

@@ -7,7 +7,7 @@
 //! conventions: docs/CUT.md.
 
 use crate::cut::part::cmm_phi_deg;
-use crate::cut::plot::{column, error_map_series, write_plot, Series};
+use crate::cut::plot::{column, write_plot, Series};
 use crate::cut::{run_pass, Controller, CutOutcome, CutSpec, Extras, Holes};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -109,6 +109,10 @@ pub struct Summary {
     /// 36 rows (φ) × 7 columns (X), µin, positive = excess stock; null
     /// where the probe cannot measure (inside an open bolt hole).
     pub cmm_grid_uin: Vec<Vec<Option<f64>>>,
+    /// The brief's contour goal for the scenario (±µin; none for a
+    /// scenario file of one's own) and whether the band is within it.
+    pub contour_goal_uin: Option<f64>,
+    pub contour_goal_met: Option<bool>,
     pub depth_in: f64,
     pub feed_per_rev_in: f64,
     pub mean_force_lbf: f64,
@@ -142,6 +146,10 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         phi_deg: cmm_phi_deg(),
         x_in: spec.cmm_x(),
         cmm_grid_uin: o.grid.err_uin.clone(),
+        contour_goal_uin: contour_goal_uin(&spec.scenario.file.name),
+        contour_goal_met: contour_goal_uin(&spec.scenario.file.name)
+            .zip(band)
+            .map(|(g, (lo, hi))| lo >= -g && hi <= g),
         depth_in: spec.depth_in,
         feed_per_rev_in: spec.feed_per_rev_in,
         mean_force_lbf: o.mean_force_lbf,
@@ -217,8 +225,9 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
         *a += ds;
         pb.set_position(*a as u64);
     };
-    // The extras go to the outermost band (X = 7 in, where the slide moves
-    // most), or to the full pass.
+    // The VCD goes to the outermost band (X = 7 in, where the slide moves
+    // most), or to the full pass; every band keeps its trace, so that the
+    // plot can show the radius with the largest error.
     let outer = spec.cmm_x().len() as u64;
     let o = run_pass(
         spec,
@@ -226,7 +235,10 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
             if spec.full || st.index == outer {
                 extras.clone()
             } else {
-                Extras::default()
+                Extras {
+                    vcd: None,
+                    trace_s: extras.trace_s,
+                }
             }
         },
         &progress,
@@ -248,8 +260,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut extras = Extras::default();
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        crate::outpath::check_dir("--out", dir)?;
         extras.vcd = Some((dir.join("window.vcd"), 0.0, 0.25));
         extras.trace_s = 0.5;
     }
@@ -288,6 +299,24 @@ fn print_table(s: &Summary) {
     }
 }
 
+/// The brief's contour goal (§6), µin either side: the same for both parts.
+pub fn contour_goal_uin(scenario: &str) -> Option<f64> {
+    match scenario {
+        "legacy-hw" => Some(30.0),
+        "modern-hw" => Some(5.0),
+        _ => None,
+    }
+}
+
+/// The 1983 part cut the same way (chapter 5): the open holes were the
+/// first part, the filled holes the second.
+fn part_1983(holes: Holes) -> &'static str {
+    match holes {
+        Holes::Open => "1983, first part, holes open: -600 .. +600",
+        Holes::Filled => "1983, second part, holes filled: -500 .. +900",
+    }
+}
+
 fn opt(v: Option<f64>) -> String {
     v.map_or("-".to_string(), |v| format!("{v:.1}"))
 }
@@ -306,16 +335,16 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         s.depth_in,
         s.feed_per_rev_in * 1e6
     );
-    // Brief §6: ±30 µin on the 1983 machine, ±5 µin with the modern gauge.
-    let goal = match s.scenario.as_str() {
-        "legacy-hw" => "; goal ±30",
-        "modern-hw" => "; goal ±5",
-        _ => "",
-    };
     println!(
-        "contour error      {} .. {} µin (1983, second part: -500 .. +900{goal})",
+        "contour error      {} .. {} µin{} ({})",
         opt(s.contour_error_min_uin),
-        opt(s.contour_error_max_uin)
+        opt(s.contour_error_max_uin),
+        match (s.contour_goal_uin, s.contour_goal_met) {
+            (Some(g), Some(true)) => format!(": goal ±{g} µin met"),
+            (Some(g), Some(false)) => format!(": goal ±{g} µin MISSED"),
+            _ => String::new(),
+        },
+        part_1983(s.holes)
     );
     let by_x: Vec<String> = s
         .finish_rms_by_x_uin
@@ -356,26 +385,47 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
     );
 }
 
+/// "holes open" / "holes filled", as the option is written.
+fn holes_words(h: Holes) -> &'static str {
+    match h {
+        Holes::Open => "holes open",
+        Holes::Filled => "holes filled",
+    }
+}
+
+/// The CMM column (index into the spec's radii) with the largest |error|.
+fn worst_column(grid: &crate::cut::part::CmmGrid) -> Option<usize> {
+    let mut worst: Option<(usize, f64)> = None;
+    for row in &grid.err_uin {
+        for (j, v) in row.iter().enumerate() {
+            if let Some(v) = v {
+                if worst.is_none_or(|(_, w)| v.abs() > w) {
+                    worst = Some((j, v.abs()));
+                }
+            }
+        }
+    }
+    worst.map(|(j, _)| j)
+}
+
 fn write_outputs(
     dir: &std::path::Path,
     args: &Args,
     spec: &CutSpec,
     o: &CutOutcome,
 ) -> anyhow::Result<()> {
-    let title = format!(
-        "{} {} {} rpm, holes {:?}: CMM error (µin, + = excess stock)",
+    let what = format!(
+        "{}, {}, {} rpm, {}",
         spec.scenario.file.name,
         spec.controller.name(),
         spec.rpm,
-        spec.holes
+        holes_words(spec.holes)
     );
-    write_plot(
+    crate::cut::errmap::write(
         dir,
-        "error_map",
-        &title,
-        "phi_deg",
-        "error_uin",
-        &error_map_series(&o.grid),
+        &o.grid,
+        &spec.cmm_x(),
+        &format!("{what}: CMM contour error (+ = excess stock)"),
     )?;
     // X = 7 in for both controllers (the other one run the same way).
     let j7 = spec.cmm_x().len() - 1;
@@ -399,37 +449,56 @@ fn write_outputs(
         dir,
         "error_x7",
         &format!(
-            "{} {} rpm: error at X = {} in (µin)",
+            "{}, {} rpm, {}: contour error at X = {} in",
             spec.scenario.file.name,
             spec.rpm,
+            holes_words(spec.holes),
             spec.cmm_x()[j7]
         ),
-        "phi_deg",
-        "error_uin",
+        "φ, deg",
+        "error, µin (+ = excess stock)",
         &x7,
     )?;
-    let t0 = o.trace.first().map_or(0.0, |p| p.0);
-    let fe = Series {
-        label: "following_error_uin".into(),
-        points: o.trace.iter().map(|p| ((p.0 - t0) * 1e3, p.1)).collect(),
+    // The trace of the band with the largest error (the bands are the CMM
+    // radii in order; a full pass keeps one trace, at its first radius).
+    let (x_in, trace) = match worst_column(&o.grid) {
+        Some(j) if !spec.full && o.traces.get(j).is_some_and(|t| !t.is_empty()) => {
+            (spec.cmm_x()[j], &o.traces[j])
+        }
+        _ => (spec.cmm_x()[j7], &o.trace),
     };
-    let force = Series {
-        label: "force_lbf_x100".into(),
-        points: o
-            .trace
-            .iter()
-            .map(|p| ((p.0 - t0) * 1e3, p.2 * 100.0))
-            .collect(),
-    };
-    write_plot(
+    let t0 = trace.first().map_or(0.0, |p| p.0);
+    let ms = |p: &(f64, f64, f64)| (p.0 - t0) * 1e3;
+    let panels = [
+        crate::scope::Panel::analog(
+            "following error",
+            "µin",
+            vec![Series {
+                label: "tool − exact command".into(),
+                points: trace.iter().map(|p| (ms(p), p.1)).collect(),
+            }],
+        ),
+        crate::scope::Panel::analog(
+            "cutting force",
+            "lbf",
+            vec![Series {
+                label: "force on the tool (+Z: out of the part)".into(),
+                points: trace.iter().map(|p| (ms(p), p.2)).collect(),
+            }],
+        ),
+    ];
+    crate::scope::write(
         dir,
         "following_error",
-        &format!(
-            "following error at X = {} in (µin) and cutting force (lbf × 100)",
-            spec.cmm_x()[j7]
-        ),
-        "t_ms",
-        "uin",
-        &[fe, force],
+        &crate::scope::Figure {
+            title: &format!("following error and cutting force at X = {x_in} in"),
+            subtitle: &format!(
+                "{what}; the radius with the largest CMM error, tick by tick over {:.0} ms of the recording",
+                trace.last().map_or(0.0, ms)
+            ),
+            x_label: "time, ms",
+            panels: &panels,
+            markers: &[],
+        },
     )
 }

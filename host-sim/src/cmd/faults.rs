@@ -3,7 +3,7 @@
 //! table as CSV. Bound and rows: docs/SAFETY.md ("Fault campaign").
 
 use crate::faults::{campaign_at, spec_at, Case, Inject, Outcome, Row};
-use crate::plot::{write_plot, Series};
+use crate::scope::{Figure, Marker, Panel, Series};
 use anyhow::Context;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -126,6 +126,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         args.fault.clone()
     };
+    if let Some(dir) = &args.out {
+        crate::outpath::check_dir("--out", dir)?;
+    }
     let wall0 = std::time::Instant::now();
     let at = Inject {
         after_turns: args.after_turns,
@@ -134,7 +137,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out = campaign_at(&spec, &cases, args.seed, at)?;
     let wall_s = wall0.elapsed().as_secs_f64();
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         write_csv(&dir.join("faults.csv"), &out)?;
         for o in &out {
             write_trace(dir, o)?;
@@ -397,42 +399,82 @@ fn write_trace(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
             .map(|x| ((x.t_ns as f64 * 1e-9 - t_inj) * 1e3, f(x)))
             .collect()
     };
-    let series = [
-        Series {
-            label: "tool - exact command, µin (< 0: into the part)".into(),
-            points: pts(&|x| x.err_in * 1e6),
-        },
-        Series {
-            label: "firmware command, µin".into(),
-            points: pts(&|x| x.command_in * 1e6),
-        },
-        Series {
-            label: "loop reference (command + learned correction), µin".into(),
-            points: pts(&|x| x.reference_in * 1e6),
-        },
-        Series {
-            label: "slide position, µin".into(),
-            points: pts(&|x| x.z_in * 1e6),
-        },
-        Series {
-            label: "DAC output (amplifier input), V × 100".into(),
-            points: pts(&|x| x.dac_v * 100.0),
-        },
-        Series {
-            label: "fault latched (0 / 500)".into(),
-            points: pts(&|x| if x.fault { 500.0 } else { 0.0 }),
-        },
-        Series {
-            label: "amplifier enabled (0 / 400)".into(),
-            points: pts(&|x| if x.amp_enabled { 400.0 } else { 0.0 }),
-        },
+    let dig = |f: &dyn Fn(&crate::faults::Sample) -> bool| -> Vec<(f64, bool)> {
+        o.trace
+            .iter()
+            .step_by(step)
+            .map(|x| ((x.t_ns as f64 * 1e-9 - t_inj) * 1e3, f(x)))
+            .collect()
+    };
+    let one = |label: &str, points| Series {
+        label: label.into(),
+        points,
+    };
+    // One panel per quantity and unit: the excursion (µin) is read against
+    // its own scale, not against the command's 60 000-90 000 µin.
+    let err = pts(&|x| x.err_in * 1e6);
+    let (lo, hi) = err
+        .iter()
+        .fold((0.0f64, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let mut err_panel = Panel::analog(
+        "tool − exact command",
+        "µin",
+        vec![one("tool − exact command (< 0: into the part)", err)],
+    );
+    // After a ramp to null or a disabled amplifier the tool leaves the
+    // part and this error grows to thousands of µin; the safety question
+    // is how far it went *into* the part first, so the scale is kept to
+    // that, and what went off it is said.
+    let top = (5.0 * lo.abs()).max(25.0);
+    if hi > 1.5 * top {
+        let pad = 0.08 * (top - lo);
+        err_panel = err_panel.limited(
+            lo - pad,
+            top,
+            format!(
+                "off scale above {top:.0} µin: up to {hi:.0} µin, the tool out of the part after the reaction"
+            ),
+        );
+    }
+    let panels = [
+        err_panel,
+        Panel::analog(
+            "position",
+            "µin",
+            vec![
+                one("firmware command", pts(&|x| x.command_in * 1e6)),
+                one("slide position", pts(&|x| x.z_in * 1e6)),
+            ],
+        ),
+        Panel::analog(
+            "learned correction",
+            "µin",
+            vec![one(
+                "loop reference − command",
+                pts(&|x| (x.reference_in - x.command_in) * 1e6),
+            )],
+        ),
+        Panel::analog(
+            "DAC output",
+            "V",
+            vec![one("DAC output (amplifier input)", pts(&|x| x.dac_v))],
+        ),
+        Panel::digital("fault latched", dig(&|x| x.fault)),
+        Panel::digital("amplifier enabled", dig(&|x| x.amp_enabled)),
     ];
-    write_plot(
+    let markers = [Marker {
+        x: 0.0,
+        label: "fault injected".into(),
+    }];
+    crate::scope::write(
         dir,
         &format!("fault_{}", o.row.fault),
-        &format!("{}: {}", o.row.fault, o.row.injection),
-        "ms after the injection",
-        "µin (see legend)",
-        &series,
+        &Figure {
+            title: &format!("fault: {}", o.row.fault),
+            subtitle: &o.row.injection,
+            x_label: "time after the injection, ms",
+            panels: &panels,
+            markers: &markers,
+        },
     )
 }

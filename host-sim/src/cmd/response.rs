@@ -182,6 +182,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "need 0 < f-min < f-max"
     );
     anyhow::ensure!(args.points >= 2, "need at least 2 points");
+    if let Some(p) = &args.csv {
+        crate::outpath::check_file("--csv", p)?;
+    }
+    if let Some(p) = &args.svg {
+        crate::outpath::check_file("--svg", p)?;
+    }
     let (sys, reference, name) = setup(args.which, args.ko, args.rigid);
     let amplitude = args.amplitude.unwrap_or(if args.which == Loop::Plant {
         0.001
@@ -440,7 +446,52 @@ pub struct Margins {
     pub peak_sensitivity_db: f64,
 }
 
+/// Margins read off the sweep, each crossing linearly interpolated between
+/// its two sweep points: the result moves with the sweep's resolution. The
+/// command uses [`margins_refined`].
 pub fn margins(pts: &[LoopPoint]) -> Margins {
+    margins_with(pts, None)
+}
+
+/// Margins whose crossings are found by bisection in log f between the two
+/// sweep points that bracket them, measuring the loop at each midpoint until
+/// the bracket is narrower than 0.01 %: the crossover and margins no longer
+/// depend on how many points the plot has (the sweep only has to bracket each
+/// crossing once).
+pub fn margins_refined(pts: &[LoopPoint], measure: &dyn Fn(f64) -> LoopPoint) -> Margins {
+    margins_with(pts, Some(measure))
+}
+
+/// `b`'s phase of L, degrees, unwrapped next to `a`'s (`pha`).
+fn phase_next_to(pha: f64, a: &LoopPoint, b: &LoopPoint) -> f64 {
+    let d = b.l().arg().to_degrees() - a.l().arg().to_degrees();
+    pha + d - 360.0 * (d / 360.0).round()
+}
+
+/// Narrows the bracket `(a, pha)`..`(b, phb)` of a crossing of `side` (true
+/// on a's side) by bisection in log f.
+fn bisect(
+    measure: &dyn Fn(f64) -> LoopPoint,
+    mut a: (LoopPoint, f64),
+    mut b: (LoopPoint, f64),
+    side: &dyn Fn(&LoopPoint, f64) -> bool,
+) -> ((LoopPoint, f64), (LoopPoint, f64)) {
+    for _ in 0..24 {
+        if b.0.f_hz / a.0.f_hz < 1.0001 {
+            break;
+        }
+        let m = measure((a.0.f_hz * b.0.f_hz).sqrt());
+        let phm = phase_next_to(a.1, &a.0, &m);
+        if side(&m, phm) {
+            a = (m, phm);
+        } else {
+            b = (m, phm);
+        }
+    }
+    (a, b)
+}
+
+fn margins_with(pts: &[LoopPoint], refine: Option<&dyn Fn(f64) -> LoopPoint>) -> Margins {
     let mut m = Margins {
         crossover_hz: None,
         phase_margin_deg: None,
@@ -453,26 +504,81 @@ pub fn margins(pts: &[LoopPoint]) -> Margins {
     };
     let ph = unwrap_deg(pts.iter().map(|p| p.l().arg().to_degrees()));
     for i in 1..pts.len() {
-        let (a, b) = (&pts[i - 1], &pts[i]);
-        let (ma, mb) = (a.l().norm().log10(), b.l().norm().log10());
+        let (a, b) = ((pts[i - 1], ph[i - 1]), (pts[i], ph[i]));
+        let (ma, mb) = (a.0.l().norm().log10(), b.0.l().norm().log10());
         if m.crossover_hz.is_none() && ma >= 0.0 && mb < 0.0 {
+            let above_one = |p: &LoopPoint, _: f64| p.l().norm() >= 1.0;
+            let (a, b) = match refine {
+                Some(f) => bisect(f, a, b, &above_one),
+                None => (a, b),
+            };
+            let (ma, mb) = (a.0.l().norm().log10(), b.0.l().norm().log10());
             let f = ma / (ma - mb);
-            m.crossover_hz = Some(a.f_hz * (b.f_hz / a.f_hz).powf(f));
-            m.phase_margin_deg = Some(180.0 + ph[i - 1] + f * (ph[i] - ph[i - 1]));
+            m.crossover_hz = Some(a.0.f_hz * (b.0.f_hz / a.0.f_hz).powf(f));
+            m.phase_margin_deg = Some(180.0 + a.1 + f * (b.1 - a.1));
         }
         // The gain margin is read above the crossover: below it the loop
         // (integral action in the observer, a type-3 loop at low
         // frequency) passes −180° with |L| ≫ 1, which is conditional
         // stability, not a margin.
-        let (pa, pb) = (ph[i - 1] + 180.0, ph[i] + 180.0);
-        let above = m.crossover_hz.is_some_and(|fc| a.f_hz >= fc);
+        let (pa, pb) = (a.1 + 180.0, b.1 + 180.0);
+        let above = m.crossover_hz.is_some_and(|fc| a.0.f_hz >= fc);
         if m.phase_crossover_hz.is_none() && above && (pa > 0.0) != (pb > 0.0) {
+            let positive = pa > 0.0;
+            let same_side = move |_: &LoopPoint, ph: f64| (ph + 180.0 > 0.0) == positive;
+            let (a, b) = match refine {
+                Some(f) => bisect(f, a, b, &same_side),
+                None => (a, b),
+            };
+            let (pa, pb) = (a.1 + 180.0, b.1 + 180.0);
+            let (ma, mb) = (a.0.l().norm().log10(), b.0.l().norm().log10());
             let f = pa / (pa - pb);
-            m.phase_crossover_hz = Some(a.f_hz * (b.f_hz / a.f_hz).powf(f));
+            m.phase_crossover_hz = Some(a.0.f_hz * (b.0.f_hz / a.0.f_hz).powf(f));
             m.gain_margin_db = Some(-20.0 * (ma + f * (mb - ma)));
         }
     }
+    if let Some(measure) = refine {
+        m.peak_sensitivity_db = refine_peak_s(pts, measure);
+    }
     m
+}
+
+/// The largest |S|, dB: the sweep's largest point, then a golden-section
+/// search in log f between its two neighbours (the peak of a sweep point
+/// alone moves with the resolution).
+fn refine_peak_s(pts: &[LoopPoint], measure: &dyn Fn(f64) -> LoopPoint) -> f64 {
+    let db = |p: &LoopPoint| 20.0 * p.s.norm().log10();
+    let Some(k) = (0..pts.len()).max_by(|&a, &b| db(&pts[a]).total_cmp(&db(&pts[b]))) else {
+        return f64::NEG_INFINITY;
+    };
+    let best = db(&pts[k]);
+    let (mut a, mut b) = (
+        pts[k.saturating_sub(1)].f_hz.ln(),
+        pts[(k + 1).min(pts.len() - 1)].f_hz.ln(),
+    );
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let at = |x: f64| db(&measure(x.exp()));
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (at(c), at(d));
+    for _ in 0..30 {
+        if (b - a).abs() < 1e-4 {
+            break;
+        }
+        if fc > fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = at(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = at(d);
+        }
+    }
+    best.max(fc).max(fd)
 }
 
 fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
@@ -482,7 +588,7 @@ fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
         .iter()
         .map(|&f| measure_digital(&sc, f, amp, args.rigid))
         .collect();
-    let m = margins(&pts);
+    let m = margins_refined(&pts, &|f| measure_digital(&sc, f, amp, args.rigid));
     let mut csv =
         String::from("f_hz,s_mag_db,s_phase_deg,t_mag_db,t_phase_deg,l_mag_db,l_phase_deg\n");
     for p in &pts {
@@ -537,6 +643,7 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 
 fn plot_sensitivities(path: &PathBuf, pts: &[LoopPoint], scenario: &str) -> anyhow::Result<()> {
     use plotters::prelude::*;
+    crate::plot::register_font();
     let root = SVGBackend::new(path, (900, 450)).into_drawing_area();
     root.fill(&WHITE)?;
     let f0 = pts.first().map_or(1.0, |p| p.f_hz);

@@ -24,6 +24,7 @@ pub mod cmm;
 pub mod engage;
 pub mod errors;
 pub mod frame;
+pub mod errmap;
 pub mod nominal;
 pub mod part;
 pub mod partcut;
@@ -514,6 +515,9 @@ pub struct CutOutcome {
     /// Tick-by-tick (t s, following error µin, force lbf) of the trace
     /// stretch.
     pub trace: Vec<(f64, f64, f64)>,
+    /// The same per stretch, in plan order (band k: CMM radius k; empty
+    /// where that stretch kept none).
+    pub traces: Vec<Vec<(f64, f64, f64)>>,
     pub simulated_s: f64,
     pub wall_s: f64,
     /// Σ of the stretches' own wall times (one core's work).
@@ -542,8 +546,10 @@ pub fn run_pass(
     let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
     let mut faults = Vec::new();
     let mut trace = Vec::new();
+    let mut traces = Vec::new();
     for r in results {
-        let r = r?;
+        let mut r = r?;
+        traces.push(std::mem::take(&mut r.log.trace));
         passes.merge(r.log.passes);
         sum_sq += r.log.fe_sum_sq;
         n += r.log.fe_n;
@@ -552,7 +558,7 @@ pub fn run_pass(
         simulated_s += r.simulated_s;
         cpu_s += r.wall_s;
         if trace.is_empty() {
-            trace = r.log.trace;
+            trace.clone_from(traces.last().expect("pushed above"));
         }
         for f in r.faults {
             if !faults.contains(&f) {
@@ -594,6 +600,7 @@ pub fn run_pass(
         following_error_peak_uin: peak * 1e6,
         mean_force_lbf: force / nf,
         trace,
+        traces,
         simulated_s,
         wall_s,
         cpu_s,

@@ -12,13 +12,19 @@
 use super::part::{cmm_phi_deg, CmmGrid, CMM_X_IN};
 pub use crate::plot::{write_plot, Series};
 
-/// Error against φ at one radius column of a grid (NaN where unmeasured).
+/// Error against φ at one radius column of a grid (NaN where unmeasured),
+/// closed at 360° with the 0° value (the same point of the part), so that
+/// the curve spans the whole turn.
 pub fn column(grid: &CmmGrid, j: usize) -> Vec<(f64, f64)> {
-    cmm_phi_deg()
+    let mut c: Vec<(f64, f64)> = cmm_phi_deg()
         .into_iter()
         .zip(&grid.err_uin)
         .map(|(phi, row)| (phi, row[j].unwrap_or(f64::NAN)))
-        .collect()
+        .collect();
+    if let Some(&(_, first)) = c.first() {
+        c.push((360.0, first));
+    }
+    c
 }
 
 /// The error map: one curve per CMM radius.
