@@ -28,7 +28,9 @@
 //! wrong never falls back to them: the firmware latches
 //! `Fault::Parameters` and keeps the amplifier off.
 
-use crate::servo::design::{DesignError, ServoConfig, ServoDesign};
+use crate::safety::DesignError;
+pub use crate::safety::{ParamError, Value};
+use crate::servo::design::{ServoConfig, ServoDesign};
 
 pub const MAGIC: [u8; 4] = *b"ZSPB";
 pub const FORMAT_VERSION: u16 = 1;
@@ -305,71 +307,6 @@ pub fn by_id(id: u16) -> Option<&'static Param> {
 /// slide model's with its part: `motor_kf_lbf_per_a`, ...).
 pub fn by_name(name: &str) -> Option<&'static Param> {
     PARAMS.iter().find(|p| p.name == name)
-}
-
-/// An `f64` carried by its bits, so that errors holding one stay `Eq`.
-#[derive(Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct Value(pub u64);
-
-// defmt sends the f64 and the host formats it: no float formatting code in
-// the image (`core::fmt` of an f64 costs about 20 KiB of flash).
-#[cfg(target_os = "none")]
-impl defmt::Format for Value {
-    fn format(&self, f: defmt::Formatter) {
-        defmt::write!(f, "{=f64}", self.get())
-    }
-}
-
-impl Value {
-    pub fn new(v: f64) -> Self {
-        Self(v.to_bits())
-    }
-    pub fn get(self) -> f64 {
-        f64::from_bits(self.0)
-    }
-}
-
-impl core::fmt::Debug for Value {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "{}", self.get())
-    }
-}
-
-/// Why a parameter, or a parameter block, is refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum ParamError {
-    /// No parameter has this id.
-    Unknown(u16),
-    /// The value lies outside the parameter's limits (or is not finite).
-    OutOfRange {
-        id: u16,
-        value: Value,
-    },
-    /// A whole-number parameter given a fraction.
-    NotInteger {
-        id: u16,
-        value: Value,
-    },
-    /// Each value is within its limits but the design refuses them
-    /// together (its reason names the fields and the rule).
-    Design(DesignError),
-    /// The block is shorter than its header or its entries.
-    BlockTruncated {
-        needed: u32,
-        got: u32,
-    },
-    BlockMagic,
-    BlockVersion(u16),
-    BlockReserved,
-    /// More entries than there are parameters.
-    BlockTooMany(u16),
-    BlockCrc {
-        stored: u32,
-        computed: u32,
-    },
-    /// The same parameter twice in one block.
-    BlockDuplicate(u16),
 }
 
 impl core::fmt::Display for ParamError {

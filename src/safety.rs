@@ -1,7 +1,6 @@
 //! Faults and their reactions. Every fault the machine can detect has a name
 //! here, a defined reaction, and leaves the slide in a safe state.
 
-use crate::params::ParamError;
 use crate::table::TableError;
 
 /// A converter chip on a bus, for bus-error faults.
@@ -168,4 +167,98 @@ impl core::fmt::Display for Fault {
             _ => f.write_str(self.reason()),
         }
     }
+}
+
+// What a refused configuration carries (`Fault::Parameters`), defined here
+// below the modules that refuse it (`params`, `servo::design`), so that the
+// faults depend on nothing above them. Their words are with them:
+// `ParamError`'s `Display` in `params`, `DesignError::reason` in
+// `servo::design`.
+
+/// An `f64` carried by its bits, so that errors holding one stay `Eq`.
+#[derive(Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Value(pub u64);
+
+// defmt sends the f64 and the host formats it: no float formatting code in
+// the image (`core::fmt` of an f64 costs about 20 KiB of flash).
+#[cfg(target_os = "none")]
+impl defmt::Format for Value {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "{=f64}", self.get())
+    }
+}
+
+impl Value {
+    pub fn new(v: f64) -> Self {
+        Self(v.to_bits())
+    }
+    pub fn get(self) -> f64 {
+        f64::from_bits(self.0)
+    }
+}
+
+impl core::fmt::Debug for Value {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}", self.get())
+    }
+}
+
+/// Why a parameter, or a parameter block, is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ParamError {
+    /// No parameter has this id.
+    Unknown(u16),
+    /// The value lies outside the parameter's limits (or is not finite).
+    OutOfRange {
+        id: u16,
+        value: Value,
+    },
+    /// A whole-number parameter given a fraction.
+    NotInteger {
+        id: u16,
+        value: Value,
+    },
+    /// Each value is within its limits but the design refuses them
+    /// together (its reason names the fields and the rule).
+    Design(DesignError),
+    /// The block is shorter than its header or its entries.
+    BlockTruncated {
+        needed: u32,
+        got: u32,
+    },
+    BlockMagic,
+    BlockVersion(u16),
+    BlockReserved,
+    /// More entries than there are parameters.
+    BlockTooMany(u16),
+    BlockCrc {
+        stored: u32,
+        computed: u32,
+    },
+    /// The same parameter twice in one block.
+    BlockDuplicate(u16),
+}
+
+/// A design parameter out of its range (named for the `[servo]` field).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DesignError {
+    Rate,
+    Slide,
+    Bandwidth,
+    Damping,
+    Observer,
+    ObserverFast,
+    GainRange,
+    HumNotch,
+    ModeNotch,
+    Learning,
+    Slew,
+    CommandLimit,
+    CurrentLimit,
+    FollowingError,
+    SignCheck,
+    /// Last, so that the variants before keep their wire numbers.
+    BandwidthFast,
 }

@@ -426,4 +426,4 @@ fn mul_small(a: i32, b: i32) -> i32 {
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::panic)]
-mod tests;
+pub(crate) mod tests;

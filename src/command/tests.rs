@@ -4,7 +4,8 @@ use crate::table::{Geometry, TableHeader};
 use std::vec;
 use std::vec::Vec;
 
-fn table(repr: Representation, terms: u8, payload: &[i32], nodes: u32) -> Vec<u8> {
+/// A table image of `payload` (also the legacy output's tests').
+pub(crate) fn table(repr: Representation, terms: u8, payload: &[i32], nodes: u32) -> Vec<u8> {
     let h = TableHeader {
         representation: repr,
         terms,
@@ -25,7 +26,7 @@ fn table(repr: Representation, terms: u8, payload: &[i32], nodes: u32) -> Vec<u8
     out
 }
 
-fn q30(v: f64) -> i32 {
+pub(crate) fn q30(v: f64) -> i32 {
     (v * 2f64.powi(30)).round() as i32
 }
 
@@ -205,63 +206,6 @@ fn null_zone_and_outside_table() {
         g.z(XInches::from_f64(-1e-6), phi),
         Err(Fault::XOutsideTable)
     );
-}
-
-/// The interval-cached legacy output gives exactly the frames of the
-/// stateless one, across interval changes in both directions.
-#[test]
-fn legacy_output_cache_is_exact() {
-    use crate::xpos::legacy_output::LegacyOutput;
-    use crate::xpos::{half_mils_to_x, XUpdate};
-    let nodes = 6u32;
-    let mut harm = Vec::new();
-    let mut pow = Vec::new();
-    for n in 0..nodes as i32 {
-        harm.extend([
-            q30(-1e-5) * n,
-            7,
-            q30(2e-4) * n,
-            q30(-1.3e-3) * n,
-            5,
-            3,
-            q30(4e-6) * n,
-        ]);
-        pow.extend([
-            q30(-1e-5) * n,
-            q30(2e-4) * n,
-            q30(-1.3e-3) * n,
-            q30(4e-6) * n,
-        ]);
-    }
-    for (img, repr) in [
-        (table(Representation::Harmonic, 7, &harm, nodes), "harmonic"),
-        (table(Representation::SinPower, 4, &pow, nodes), "sin-power"),
-    ] {
-        let g = CommandGen::new(CoeffTable::parse(&img).unwrap());
-        let mut out = LegacyOutput::new();
-        let sweep = (0..2000u32).chain((0..2000u32).rev()).step_by(7);
-        for (k, hm) in sweep.enumerate() {
-            let u = XUpdate {
-                half_mils: hm,
-                x: half_mils_to_x(hm),
-                update: (k % 16) as u8,
-                null: hm > 1990,
-            };
-            assert_eq!(out.frame(&g, &u), g.legacy_frame(&u), "{repr} at {hm}");
-        }
-    }
-}
-
-#[test]
-fn legacy_codes_follow_table_3_1() {
-    use crate::xpos::legacy_output::legacy_dac_code;
-    assert_eq!(legacy_dac_code(0), 32768);
-    // +0.010 in is full scale (one LSB past the top code), -0.010 in is code 0.
-    assert_eq!(legacy_dac_code(q30(0.010)), 65535);
-    assert_eq!(legacy_dac_code(q30(-0.010)), 0);
-    // 1 µin = 3.2768 LSB; C02 at X = 7.2 in (Table 2-2) = -0.0048855 in.
-    assert_eq!(legacy_dac_code(q30(1e-6)), 32771);
-    assert_eq!(legacy_dac_code(q30(-0.0048855)), 32768 - 16009);
 }
 
 mod prop {

@@ -461,28 +461,10 @@ fn invert3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     Some(r)
 }
 
-/// A design parameter out of its range (named for the `[servo]` field).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum DesignError {
-    Rate,
-    Slide,
-    Bandwidth,
-    Damping,
-    Observer,
-    ObserverFast,
-    GainRange,
-    HumNotch,
-    ModeNotch,
-    Learning,
-    Slew,
-    CommandLimit,
-    CurrentLimit,
-    FollowingError,
-    SignCheck,
-    /// Last, so that the variants before keep their wire numbers.
-    BandwidthFast,
-}
+/// A design parameter out of its range: `crate::safety::DesignError`,
+/// named where the faults are (a refused parameter block latches
+/// `Fault::Parameters`).
+pub use crate::safety::DesignError;
 
 impl DesignError {
     /// The `[servo]` field (or group) at fault and its limit, in words.
