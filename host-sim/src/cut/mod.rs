@@ -589,7 +589,13 @@ pub fn run_pass(
                 );
             }
             let (surf, _) = spec.surface()?;
-            cmm::read(&grid, &surf, gain, &cmm::CmmLevels::renault(), spec.scenario.rig.seed)
+            cmm::read(
+                &grid,
+                &surf,
+                gain,
+                &cmm::CmmLevels::renault(),
+                spec.scenario.rig.seed,
+            )
         }
     };
     let nf = n.max(1) as f64;
