@@ -16,6 +16,7 @@ pub mod machine;
 pub mod outpath;
 pub mod part;
 pub mod plant;
+pub mod error_levels;
 pub mod plot;
 pub mod replay;
 pub mod scenario;

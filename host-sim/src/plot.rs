@@ -75,8 +75,8 @@ where
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
-        .x_label_formatter(&|v| crate::scope::tick_label(*v, xspan))
-        .y_label_formatter(&|v| crate::scope::tick_label(*v, yspan))
+        .x_label_formatter(&|v| tick_label(*v, xspan))
+        .y_label_formatter(&|v| tick_label(*v, yspan))
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
         .draw()
@@ -244,4 +244,23 @@ pub(crate) fn write_csv(
     }
     std::fs::write(&path, out).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// Tick labels with the digits the span needs, no binary noise.
+pub fn tick_label(v: f64, span: f64) -> String {
+    let digits = if span >= 50.0 {
+        0
+    } else if span >= 5.0 {
+        1
+    } else if span >= 0.5 {
+        2
+    } else {
+        (-(span.log10().floor()) as usize + 2).min(9)
+    };
+    let s = format!("{v:.digits$}");
+    if s.starts_with('-') && s.trim_start_matches(['-', '0', '.']).is_empty() {
+        s[1..].to_string()
+    } else {
+        s
+    }
 }

@@ -61,7 +61,7 @@ pub struct ScenarioFile {
     /// Error sources beyond the loop and their levels (`cut::errors`);
     /// absent fields are 0 (off).
     #[serde(default)]
-    pub errors: crate::cut::errors::ErrorLevels,
+    pub errors: crate::error_levels::ErrorLevels,
 }
 
 /// `[servo]`: the loop's gains, filters, learning and limits, in physical

@@ -5,6 +5,7 @@
 //! sits beside the data, never on it. Used by `faults --out` and
 //! `cut --out`; `crate::plot` draws the single-axis plots.
 
+use crate::plot::tick_label;
 use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -200,25 +201,6 @@ fn y_range(panel: &Panel) -> (f64, f64) {
     let span = (hi - lo).max(1e-9 + 1e-6 * lo.abs().max(hi.abs()));
     let pad = span * 0.08;
     (lo - pad, hi + pad)
-}
-
-/// Tick labels with the digits the span needs, no binary noise.
-pub fn tick_label(v: f64, span: f64) -> String {
-    let digits = if span >= 50.0 {
-        0
-    } else if span >= 5.0 {
-        1
-    } else if span >= 0.5 {
-        2
-    } else {
-        (-(span.log10().floor()) as usize + 2).min(9)
-    };
-    let s = format!("{v:.digits$}");
-    if s.starts_with('-') && s.trim_start_matches(['-', '0', '.']).is_empty() {
-        s[1..].to_string()
-    } else {
-        s
-    }
 }
 
 fn draw_panel<DB: DrawingBackend>(

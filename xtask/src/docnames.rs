@@ -361,7 +361,7 @@ pub fn check() -> Result<Vec<String>> {
         &<crate::Cli as clap::CommandFactory>::command(),
     );
     let mut out = Vec::new();
-    for doc in crate::figures::docs()? {
+    for doc in docs()? {
         let text = fs::read_to_string(&doc).map_err(|e| format!("{}: {e}", doc.display()))?;
         let rel = doc
             .strip_prefix(&base)
@@ -375,6 +375,19 @@ pub fn check() -> Result<Vec<String>> {
         }
     }
     Ok(out)
+}
+
+/// The documents that may hold figures.
+pub fn docs() -> Result<Vec<PathBuf>> {
+    let mut v = vec![root().join("README.md")];
+    let mut d: Vec<PathBuf> = fs::read_dir(root().join("docs"))
+        .map_err(|e| format!("docs/: {e}"))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "md"))
+        .collect();
+    d.sort();
+    v.extend(d);
+    Ok(v)
 }
 
 #[cfg(test)]

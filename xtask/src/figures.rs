@@ -201,19 +201,6 @@ pub fn render(f: &Figure, json: &serde_json::Value) -> std::result::Result<Strin
     Ok(text)
 }
 
-/// The documents that may hold figures.
-pub fn docs() -> Result<Vec<PathBuf>> {
-    let mut v = vec![root().join("README.md")];
-    let mut d: Vec<PathBuf> = fs::read_dir(root().join("docs"))
-        .map_err(|e| format!("docs/: {e}"))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "md"))
-        .collect();
-    d.sort();
-    v.extend(d);
-    Ok(v)
-}
-
 fn host_sim(release: bool) -> Result<PathBuf> {
     step(&format!(
         "building host-sim ({})",
@@ -278,7 +265,7 @@ fn today() -> String {
 pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
     let mut all = Vec::new();
     let mut texts = HashMap::new();
-    for doc in docs()? {
+    for doc in crate::docnames::docs()? {
         let text = fs::read_to_string(&doc).map_err(|e| format!("{}: {e}", doc.display()))?;
         all.extend(scan(&doc, &text)?);
         texts.insert(doc, text);

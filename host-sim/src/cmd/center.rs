@@ -375,7 +375,7 @@ where
     ch.configure_mesh()
         .x_desc("time, s")
         .y_desc("slide position, in")
-        .y_label_formatter(&|v| crate::scope::tick_label(*v, span))
+        .y_label_formatter(&|v| crate::plot::tick_label(*v, span))
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
         .draw()

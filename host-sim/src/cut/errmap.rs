@@ -169,11 +169,11 @@ where
         ))
         .map_err(err)?;
         let edge = -lim + 2.0 * lim * k as f64 / (2 * BANDS) as f64;
-        bar.draw_text(&crate::scope::tick_label(edge, lim), &font, (46, y1 - 7))
+        bar.draw_text(&crate::plot::tick_label(edge, lim), &font, (46, y1 - 7))
             .map_err(err)?;
     }
     bar.draw_text(
-        &crate::scope::tick_label(lim, lim),
+        &crate::plot::tick_label(lim, lim),
         &font,
         (46, bottom - step * (2 * BANDS) as i32 - 7),
     )

@@ -1,0 +1,130 @@
+//! The scenario's `[errors]` section: the levels of the error sources
+//! beyond the loop (issue 21). Data only, so that the scenario reads it
+//! without reaching into the cut; their mechanisms are `cut::errors`.
+
+use serde::Deserialize;
+
+/// `[errors]` of a scenario: the levels of the sources. Every field is
+/// optional (absent = 0: the source is off).
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ErrorLevels {
+    /// Gauge scale error ε (fraction; + = reads high): the loop drives the
+    /// reading to the command, so the tool runs at Z/(1+ε) and leaves
+    /// −ε·Z.
+    pub gauge_scale_error: f64,
+    /// Gauge nonlinearity: peak deviation from its line at full range
+    /// (±0.010 in), µin, a quadratic bow `n (z/range)²`.
+    pub gauge_nonlinearity_uin: f64,
+    /// Gauge zero drift, µin per hour (+: reads high, the tool runs low).
+    pub gauge_drift_uin_per_h: f64,
+    /// X-zero error, in: the interferometer reads X + δ (the zero was set
+    /// by hand at the axis, chapter 5); the command is Z(X + δ).
+    pub x_zero_error_in: f64,
+    /// Spindle axial error motion, synchronous part: amplitude, µin, at
+    /// `spindle_sync_per_rev` per revolution (part frame).
+    pub spindle_sync_uin: f64,
+    pub spindle_sync_per_rev: u32,
+    /// Spindle axial error motion, asynchronous part: RMS, µin (first-order
+    /// noise of `spindle_async_bw_hz`).
+    pub spindle_async_uin: f64,
+    pub spindle_async_bw_hz: f64,
+    /// Mains hum at the power amplifier's input, mV peak, and its
+    /// frequency (chapter 6: ≥ 20 mV of noise reached the amplifier).
+    pub amp_hum_mv: f64,
+    pub amp_hum_frequency_hz: f64,
+    /// Tool nose recession by wear, µin per 1000 in of cut length.
+    pub tool_wear_uin_per_kin: f64,
+    /// Thermal drift of the tool against the part along +Y_t, µin per hour
+    /// of the pass.
+    pub thermal_drift_uin_per_h: f64,
+}
+
+impl ErrorLevels {
+    /// Range checks naming the field.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        let checks: [(&str, f64, f64, f64); 13] = [
+            (
+                "errors.gauge_scale_error",
+                self.gauge_scale_error,
+                -0.2,
+                0.2,
+            ),
+            (
+                "errors.gauge_nonlinearity_uin",
+                self.gauge_nonlinearity_uin,
+                -1000.0,
+                1000.0,
+            ),
+            (
+                "errors.gauge_drift_uin_per_h",
+                self.gauge_drift_uin_per_h,
+                -1000.0,
+                1000.0,
+            ),
+            ("errors.x_zero_error_in", self.x_zero_error_in, -0.1, 0.1),
+            (
+                "errors.spindle_sync_uin",
+                self.spindle_sync_uin,
+                0.0,
+                1000.0,
+            ),
+            (
+                "errors.spindle_sync_per_rev",
+                f64::from(self.spindle_sync_per_rev),
+                0.0,
+                64.0,
+            ),
+            (
+                "errors.spindle_async_uin",
+                self.spindle_async_uin,
+                0.0,
+                1000.0,
+            ),
+            (
+                "errors.spindle_async_bw_hz",
+                self.spindle_async_bw_hz,
+                0.0,
+                5000.0,
+            ),
+            ("errors.amp_hum_mv", self.amp_hum_mv, 0.0, 1000.0),
+            (
+                "errors.amp_hum_frequency_hz",
+                self.amp_hum_frequency_hz,
+                0.0,
+                5000.0,
+            ),
+            (
+                "errors.tool_wear_uin_per_kin",
+                self.tool_wear_uin_per_kin,
+                0.0,
+                100.0,
+            ),
+            (
+                "errors.thermal_drift_uin_per_h",
+                self.thermal_drift_uin_per_h,
+                -1000.0,
+                1000.0,
+            ),
+            (
+                "errors.spindle_async_bw_hz (needed with spindle_async_uin > 0)",
+                if self.spindle_async_uin > 0.0 {
+                    self.spindle_async_bw_hz
+                } else {
+                    1.0
+                },
+                1e-3,
+                5000.0,
+            ),
+        ];
+        for (f, v, lo, hi) in checks {
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                anyhow::bail!("{f} = {v} is out of range [{lo}, {hi}]");
+            }
+        }
+        if self.amp_hum_mv > 0.0 && self.amp_hum_frequency_hz <= 0.0 {
+            anyhow::bail!("errors.amp_hum_frequency_hz must be > 0 when errors.amp_hum_mv > 0");
+        }
+        Ok(())
+    }
+}
