@@ -29,6 +29,7 @@ pub mod nominal;
 pub mod part;
 pub mod partcut;
 pub mod plot;
+pub mod rectgrid;
 pub mod run;
 pub mod sign;
 
