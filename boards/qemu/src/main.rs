@@ -59,6 +59,7 @@ use zslide::firmware::{
     EventState, Firmware, FirmwareConfig, LearnState, LoopState, NoCoefficientDac, Request, Shared,
     SpindleMode, SpindleReading, TickInput, XMode,
 };
+use zslide::handoff::handover::Handover;
 use zslide::hw::EncoderSample;
 use zslide::link::proto::{
     CaptureState, Reply, Request as HostRequest, SpindleSource, Trigger, XSource,
@@ -237,11 +238,10 @@ struct Summary {
 
 /// Everything the loop-tick handler owns.
 ///
-/// `repr(C)`, the loop's state first: `loop_tick` is specialised to this
-/// static's address, and a field more than 4 KiB into it (the 40 KiB plant
-/// was laid out first) needs its offset built in a register (`movw`) on
-/// every access; within the first 4 KiB the offset is the load's own
-/// 12-bit immediate.
+/// `repr(C)`, the loop's state first: a field more than 4 KiB into it (the
+/// 40 KiB plant was laid out first) needs its offset built in a register
+/// (`movw`) on every access; within the first 4 KiB the offset is the
+/// load's own 12-bit immediate.
 #[repr(C)]
 struct Run {
     lp: LoopState,
@@ -270,9 +270,11 @@ struct Events {
 }
 
 static SHARED: Shared = Shared::new();
-/// Hands the parts to the handlers once, before their interrupts are unmasked.
-static RUN_HANDOVER: Mutex<Cell<Option<Run>>> = Mutex::new(Cell::new(None));
-static EVENTS_HANDOVER: Mutex<Cell<Option<Events>>> = Mutex::new(Cell::new(None));
+/// Hands the parts to the handlers once, before their interrupts are
+/// unmasked: each is one `.bss` value (`cortex_m::singleton!`) handed over by
+/// reference, as on the NUCLEO (`zslide::handoff::handover`).
+static RUN_HANDOVER: Handover<Run> = Handover::new();
+static EVENTS_HANDOVER: Handover<Events> = Handover::new();
 static RESULT: Mutex<Cell<Option<Summary>>> = Mutex::new(Cell::new(None));
 static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
 /// DAC writes of the boot (`Ad5791::init`), before any loop tick.
@@ -295,13 +297,10 @@ const FAULT_AT: u32 = 3_000;
 
 #[interrupt]
 fn TIMER0() {
-    static mut RUN: Option<Run> = None;
+    static mut RUN: Option<&'static mut Run> = None;
     TIMER0_LOOP.clear_interrupt();
     let n = ISR_COUNT.fetch_add(1, Ordering::Relaxed) + 1;
-    if RUN.is_none() {
-        *RUN = critical_section::with(|cs| RUN_HANDOVER.borrow(cs).take());
-    }
-    let Some(run) = RUN.as_mut() else {
+    let Some(run) = RUN_HANDOVER.claim(RUN) else {
         return;
     };
     WORLD_TICK.store(n, Ordering::Release);
@@ -385,12 +384,9 @@ fn TIMER0() {
 /// events (with scripted duplicates) and index pulses.
 #[interrupt]
 fn TIMER1() {
-    static mut EVENTS: Option<Events> = None;
+    static mut EVENTS: Option<&'static mut Events> = None;
     TIMER1_EVENTS.clear_interrupt();
-    if EVENTS.is_none() {
-        *EVENTS = critical_section::with(|cs| EVENTS_HANDOVER.borrow(cs).take());
-    }
-    let Some(e) = EVENTS.as_mut() else {
+    let Some(e) = EVENTS_HANDOVER.claim(EVENTS) else {
         return;
     };
     // A link session keeps the spindle turning (index pulses) forever.
@@ -549,7 +545,10 @@ fn main() -> ! {
     // The boot's own writes (the init's): the refused-parameters check
     // counts the loop's writes after them.
     BOOT_DAC_WRITES.store(Dac::writes(), Ordering::Relaxed);
-    let plant = Plant::new(f64::from(START_CODE) / zslide::codes::GAUGE_CODES_PER_INCH, LOOP_HZ);
+    let plant = Plant::new(
+        f64::from(START_CODE) / zslide::codes::GAUGE_CODES_PER_INCH,
+        LOOP_HZ,
+    );
     defmt::info!(
         "plant: slide at {=i32} codes (0.001 in = 52429), zslide-plant Model 15 with the 3150 Hz mode, modern gauge; spindle {=u32} rpm, {=u32} counts/turn; X from {=u32} half-mils, one every {=u32} ticks",
         plant.gauge_code(),
@@ -575,14 +574,14 @@ fn main() -> ! {
         next_index: 0,
         generation: 0,
     };
-    critical_section::with(|cs| {
-        RUN_HANDOVER.borrow(cs).set(Some(run));
-        EVENTS_HANDOVER.borrow(cs).set(Some(events));
-    });
+    // `None` only on a second run of this code, which cannot happen (main
+    // never returns); that handler would then stay idle.
+    RUN_HANDOVER.give(cortex_m::singleton!(: Run = run));
+    EVENTS_HANDOVER.give(cortex_m::singleton!(: Events = events));
 
     // SAFETY: unmasking can break a critical section that relies on masking
     // these interrupts; none does: the handlers share data with `main` only
-    // through `critical_section::Mutex` and atomics, and with each other
+    // through the hand-over and `RESULT` (critical-section cells) and atomics, and with each other
     // only through `SHARED` (atomics).
     unsafe {
         let mut cp = cortex_m::Peripherals::steal();
