@@ -58,13 +58,7 @@ impl AngleLog {
 
     /// The angles of `grid`'s cut points.
     pub fn of_grid(grid: &RectGrid) -> Self {
-        let a: Vec<f64> = grid
-            .points
-            .iter()
-            .flatten()
-            .filter(|p| p.cut)
-            .map(|p| p.phi_turns)
-            .collect();
+        let a: Vec<f64> = grid.cut_points().map(|p| p.phi_turns).collect();
         Self::new(&a)
     }
 
@@ -287,13 +281,7 @@ pub fn write_csv(dir: &std::path::Path, m: &RectMeasured) -> anyhow::Result<()> 
 /// `half` either side, overlapping ones merged (one stretch cuts a radius
 /// once: two simulations of the same X would be two different parts).
 pub fn windows(grid: &RectGrid, half: f64) -> Vec<(f64, f64)> {
-    let mut r: Vec<f64> = grid
-        .points
-        .iter()
-        .flatten()
-        .filter(|p| p.cut)
-        .map(|p| p.radius_in)
-        .collect();
+    let mut r: Vec<f64> = grid.cut_points().map(|p| p.radius_in).collect();
     r.sort_by(f64::total_cmp);
     let mut out: Vec<(f64, f64)> = Vec::new();
     for x in r {

@@ -43,6 +43,11 @@ pub struct RectGrid {
 }
 
 impl RectGrid {
+    /// The points inside the cut range.
+    pub fn cut_points(&self) -> impl Iterator<Item = &GridPoint> {
+        self.points.iter().flatten().filter(|p| p.cut)
+    }
+
     /// The grid of `--grid NX,NY`.
     pub fn parse(arg: &str, x_min: f64, x_null: f64) -> anyhow::Result<Self> {
         let side = |v: Option<&str>| v.and_then(|v| v.trim().parse::<usize>().ok());
