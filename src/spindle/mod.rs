@@ -28,9 +28,10 @@
 //! phase at the index is independent of the interrupt latency and speed.
 //! The same index checks apply in turns instead of counts.
 //!
-//! Speed band: a revolution period outside `[min_rpm, max_rpm]`, or no
-//! encoder edge for longer than four counts take at `min_rpm`, is
-//! [`Fault::SpindleSpeed`].
+//! Speed band: a revolution period outside `[min_rpm, max_rpm]`, or (an
+//! encoder) one count taking longer than a count's time at `min_rpm` and a
+//! quarter (`count_limit_ticks`; at-read stamps: also the 20 ms baseline's
+//! rate below one count in that time), is [`Fault::SpindleSpeed`].
 
 mod encoder;
 mod tach;
