@@ -68,3 +68,24 @@ impl Perturbation {
         Ok(())
     }
 }
+
+/// Sets servo parameters `NAME=VALUE` (`zslide::params`) in the
+/// scenario's design, checked as the firmware checks a set.
+pub fn set_params(sc: &mut Scenario, sets: &[String]) -> anyhow::Result<()> {
+    for s in sets {
+        let (name, value) = s
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--param {s:?}: expected NAME=VALUE"))?;
+        let p = zslide::params::by_name(name.trim())
+            .ok_or_else(|| anyhow::anyhow!("--param {s:?}: no servo parameter {name:?}"))?;
+        let v: f64 = value
+            .trim()
+            .parse()
+            .map_err(|e| anyhow::anyhow!("--param {s:?}: {e}"))?;
+        let (design, cfg) = zslide::params::set(&sc.servo_design, p.id, v)
+            .map_err(|e| anyhow::anyhow!("--param {s:?}: {e}"))?;
+        sc.servo_design = design;
+        sc.servo = cfg;
+    }
+    Ok(())
+}
