@@ -38,6 +38,32 @@ fn ramp_to_null_s(spec: &host_sim::cut::CutSpec, command_in: f64) -> f64 {
     3.0 * v / a + command_in.abs() / v + 2.0 / f64::from(d.rate_hz)
 }
 
+/// The following-error push (`Case::FollowingError`'s profile in
+/// `host_sim::faults`: 20 lbf at 5 ms, falling to 0 at 45 ms).
+const PUSH_END_S: f64 = 0.045;
+const PUSH_FALL_LBF_PER_S: f64 = 20.0 / 0.040;
+
+/// When the slide is back within `NULL_HOLD_IN` of null after the push,
+/// s from the injection: the push's end, the observer's settling (its
+/// triple pole: 3/ω_o), then the loop's return by the envelope of its
+/// error dynamics (ζ < 1 at ω_c), D·(ω_c/ω_d)·e^(−ζω_c t) ≤ NULL_HOLD_IN,
+/// from D = the slide's offset at the push's end plus what the force
+/// estimate still owes: a triple-pole observer lags a falling force by
+/// r·3/ω_o, which the loop's stiffness m·ω_c² turns into an offset; and
+/// two ticks for the sampling.
+fn push_return_s(spec: &host_sim::cut::CutSpec, o: &host_sim::faults::Outcome, t_inj: u64) -> f64 {
+    use std::f64::consts::TAU;
+    let d = &spec.scenario.servo_design;
+    let end_ns = t_inj + (PUSH_END_S * 1e9) as u64;
+    let at_end = o.trace.iter().find(|x| x.t_ns >= end_ns).expect("the trace runs past the push");
+    let (zeta, w, w_o) = (d.damping, TAU * d.bandwidth_hz, TAU * d.observer_hz);
+    let owed_lbf = PUSH_FALL_LBF_PER_S * 3.0 / w_o;
+    let offset = (at_end.z_in - at_end.command_in).abs() + owed_lbf / (d.slide.mass_lbf_s2_per_in * w * w);
+    let envelope = 1.0 / (1.0 - zeta * zeta).sqrt();
+    let ret = ((offset * envelope / host_sim::faults::NULL_HOLD_IN).ln() / (zeta * w)).max(0.0);
+    PUSH_END_S + 3.0 / w_o + ret + 2.0 / f64::from(d.rate_hz)
+}
+
 /// Checks one row against its mechanism (returns what it held it to).
 fn check_row(spec: &host_sim::cut::CutSpec, case: Case, o: &host_sim::faults::Outcome) -> String {
     let r = &o.row;
@@ -71,25 +97,44 @@ fn check_row(spec: &host_sim::cut::CutSpec, case: Case, o: &host_sim::faults::Ou
     let t_inj = (r.injected_at_s.unwrap() * 1e9).round() as u64;
     let ms = |t: u64| (t as f64 - t_inj as f64) * 1e-6;
     let last = o.trace.last().unwrap();
-    // The first loop tick that saw the fault latched.
-    let first = o.trace.iter().find(|x| x.fault && x.t_ns >= t_inj);
     match f.reaction() {
         Reaction::DisableAmplifier => {
             assert!(!last.amp_enabled, "{r:?}");
             if !case.board_model() {
-                // The enable drops in the very tick that latched the
-                // fault: safe at that tick, not one later.
-                let first = first.expect("a tick with the fault latched");
+                // The tick that latched the fault writes the enable low
+                // (after its DAC frame: the amplifier sees the edge
+                // `dac_latency_ns` later, within the loop period), so the
+                // amplifier is off at the next tick's instant: safe one
+                // tick after the latch, not later. (A sample holds the
+                // amplifier's view at its tick's instant, before that
+                // tick's own write: the test once read that as "the
+                // latching tick left the amplifier enabled".)
+                let k = o
+                    .trace
+                    .iter()
+                    .position(|x| x.fault && x.t_ns >= t_inj)
+                    .expect("a tick with the fault latched");
+                let (first, next) = (&o.trace[k], &o.trace[k + 1]);
                 assert!(
-                    !first.amp_enabled,
-                    "{}: the tick that latched {f:?} left the amplifier enabled",
+                    !first.enable_written,
+                    "{}: the tick that latched {f:?} left the enable line high",
                     r.fault
                 );
                 assert!(
-                    (t_safe_ms - ms(first.t_ns)).abs() < 1e-9,
-                    "{}: safe {t_safe_ms} ms, latched {} ms",
+                    spec.scenario.rig.dac_latency_ns < next.t_ns - first.t_ns,
+                    "the enable's write lands within the loop period"
+                );
+                assert!(
+                    !next.amp_enabled,
+                    "{}: the amplifier still enabled at the tick after the latch",
+                    r.fault
+                );
+                assert!(
+                    (t_safe_ms - ms(next.t_ns)).abs() < 1e-9,
+                    "{}: safe {t_safe_ms} ms, latched {} ms (the next tick {} ms)",
                     r.fault,
-                    ms(first.t_ns)
+                    ms(first.t_ns),
+                    ms(next.t_ns)
                 );
             }
             // Released: the tool goes no deeper than it was at the release
@@ -112,7 +157,7 @@ fn check_row(spec: &host_sim::cut::CutSpec, case: Case, o: &host_sim::faults::Ou
                 r.fault
             );
             format!(
-                "{}: {e:.1} ≤ {bound:.1} µin (release + v·√(m/k)), safe in the latching tick",
+                "{}: {e:.1} ≤ {bound:.1} µin (release + v·√(m/k)), enable written low in the latching tick",
                 r.fault
             )
         }
@@ -125,7 +170,12 @@ fn check_row(spec: &host_sim::cut::CutSpec, case: Case, o: &host_sim::faults::Ou
                 .iter()
                 .find(|x| x.fault && x.amp_enabled)
                 .expect("latched with the loop closed");
-            let allowed_ms = ramp_to_null_s(spec, from.command_in) * 1e3;
+            let mut allowed_ms = ramp_to_null_s(spec, from.command_in) * 1e3;
+            if case == Case::FollowingError {
+                // The push holds the slide off null beyond the loop's force
+                // until it dies away; from then the loop returns it.
+                allowed_ms = allowed_ms.max(push_return_s(spec, o, t_inj) * 1e3 - ms(from.t_ns));
+            }
             assert!(
                 t_safe_ms - ms(from.t_ns) <= allowed_ms,
                 "{}: safe {t_safe_ms} ms, {} ms after the latch; the slew profile takes at most {allowed_ms} ms from {} in",
@@ -210,7 +260,6 @@ fn check_row(spec: &host_sim::cut::CutSpec, case: Case, o: &host_sim::faults::Ou
 }
 
 #[test]
-#[ignore = "issue 22, open: gauge-saturation: the tick that latched GaugeRange left the amplifier enabled (found 14:33 once x-glitch-storm held its derived bound, 9.3 ≤ 118.0 µin; the rows after it not yet reached); see /work/notes/tests.md"]
 fn every_injected_fault_is_detected_with_its_reason_and_ends_safe_within_its_mechanisms_bound() {
     let spec = legacy();
     let out = campaign(&spec, &Case::ALL, 0).unwrap();
@@ -429,10 +478,10 @@ fn a_campaign_row_is_reproducible_from_its_seed_stream() {
 /// at X = 1, 3, 5, 7 in and 300 / 360 rpm with a stall sweep at each:
 /// `host-sim faults --matrix`, docs/SAFETY.md): modern-hw at the
 /// innermost and outermost radius, legacy-hw at 360 rpm in between. Each
-/// row held to its mechanism's bound as above; the fault a machine cannot
-/// have is listed as not applicable, not an error.
+/// row held to its mechanism's bound as above (spindle-speed on modern-hw
+/// included: the encoder's speed check per count, issue 22); the fault a
+/// machine cannot have is listed as not applicable, not an error.
 #[test]
-#[ignore = "issue 22, open: gauge-saturation on modern-hw X = 1 in: the tick that latched GaugeRange left the amplifier enabled (spindle-speed there is excluded as a known gap, docs/SAFETY.md); see /work/notes/tests.md"]
 fn the_campaign_runs_on_every_machine_and_each_row_holds_its_mechanisms_bound() {
     let modern = spec(host_sim::scenario::load("modern-hw").unwrap()).unwrap();
     let fast =
@@ -451,22 +500,20 @@ fn the_campaign_runs_on_every_machine_and_each_row_holds_its_mechanisms_bound() 
                 assert!(o.row.reason.contains(why), "{}", o.row.reason);
                 continue;
             }
-            if *case == Case::SpindleSpeed && name == "modern-hw" && x_in == 1.0 {
-                // KNOWN GAP (issue 22, docs/SAFETY.md "Spindle speed on an
-                // encoder"): the encoder's speed check trips on a whole
-                // revolution's period at an index (average speed over the
-                // turn below min_rpm) or on no count edge for four counts'
-                // time at min_rpm (below min_rpm/4 = 25 rpm), so a coast
-                // from 300 rpm at 100 rpm/s, below 100 rpm from 2.0 s on,
-                // is seen between ≈ 2.4 s and 2.75 s depending on where the
-                // index falls: here not within the 2.5 s window. Pinned as
-                // not detected so the row's exclusion is removed when the
-                // firmware checks the speed itself.
+            if *case == Case::FollowingError && name == "modern-hw" {
+                // KNOWN DEFECT (issue 22, docs/SAFETY.md "A transient
+                // learned and replayed"): on modern-hw's stiffer loop the
+                // push stays within the following-error limit (3000 µin of
+                // 4000), so no fault latches (right), but the learning takes
+                // the push in (0.3 of it) and replays it one revolution
+                // later, into the part: 706.7 µin at X = 1 in, beyond the
+                // depth of cut. Pinned, so that the fix must change it.
                 eprintln!(
-                    "{name} X {x_in} in {} rpm: spindle-speed EXCLUDED, known gap: {} ({:?})",
-                    spec.rpm, o.row.reason, o.row.detected
+                    "{name} X {x_in} in {} rpm: following-error KNOWN DEFECT: {:?} detected, {:?} µin into the part",
+                    spec.rpm, o.row.detected, o.row.max_excursion_uin
                 );
                 assert_eq!(o.row.detected, Some(false), "{name}: {:?}", o.row);
+                assert!(o.row.max_excursion_uin.unwrap() > DEPTH_OF_CUT_IN * 1e6, "{:?}", o.row);
                 continue;
             }
             let held = check_row(spec, *case, o);

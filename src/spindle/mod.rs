@@ -28,9 +28,10 @@
 //! phase at the index is independent of the interrupt latency and speed.
 //! The same index checks apply in turns instead of counts.
 //!
-//! Speed band: a revolution period outside `[min_rpm, max_rpm]`, or no
-//! encoder edge for longer than four counts take at `min_rpm`, is
-//! [`Fault::SpindleSpeed`].
+//! Speed band: a revolution period outside `[min_rpm, max_rpm]`, or (an
+//! encoder) one count taking longer than a count's time at `min_rpm` and a
+//! quarter (`count_limit_ticks`; at-read stamps: also the 20 ms baseline's
+//! rate below one count in that time), is [`Fault::SpindleSpeed`].
 
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
@@ -101,8 +102,12 @@ pub struct EncoderAngle {
     last_now: u32,
     have_sample: bool,
     last_index_edge: Option<u32>,
-    /// No edge for this many ticks means the spindle is below `min_rpm`.
+    /// No edge for this many ticks: the count in progress is slower than
+    /// `min_rpm` allows ([`count_limit_ticks`]).
     stall_ticks: u32,
+    /// `AtRead`: the slowest baseline rate in the band, Q32 counts per
+    /// tick (one count in `stall_ticks`).
+    min_rate_q32: u64,
     min_period: u32,
     max_period: u32,
 }
@@ -110,6 +115,22 @@ pub struct EncoderAngle {
 fn period_ticks(ticks_per_s: u32, rpm: u32) -> u32 {
     let p = u64::from(ticks_per_s) * 60 / u64::from(rpm.max(1));
     p.min(u64::from(u32::MAX)) as u32
+}
+
+/// The longest one count may take before the spindle is below its band:
+/// a count's time at `min_rpm` (`max_period`/CPR) and a quarter more, for
+/// the width error of a quadrature count (an edge's phase error up to
+/// ±22.5° electrical of the 90° state), so the check trips below
+/// 4/5·`min_rpm` over a single count. It was four counts (below
+/// `min_rpm`/4), which let a coast-down run below the band, down to 25 of
+/// modern-hw's 100 rpm, for up to 0.75 s before a whole revolution's
+/// average tripped (issue 22). With at-read stamps the edge time is the
+/// read (never before the edge), so the time since it is never longer
+/// than the truth (never early) but quantised to the loop period; there
+/// the 20 ms baseline's rate is held to the same limit.
+fn count_limit_ticks(max_period: u32, counts_per_rev: u32) -> u32 {
+    let per_count = u64::from(max_period) / u64::from(counts_per_rev.max(1));
+    (per_count + per_count / 4).clamp(1, u64::from(u32::MAX)) as u32
 }
 
 /// Whether a revolution at `min_rpm` fits the 32-bit clock: a longer one
@@ -178,6 +199,7 @@ impl EncoderAngle {
         let per_count_q32 = (((1u128 << 64) + u128::from(cfg.counts_per_rev / 2))
             / u128::from(cfg.counts_per_rev)) as u64;
         let max_period = period_ticks(cfg.ticks_per_s, cfg.min_rpm);
+        let stall_ticks = count_limit_ticks(max_period, cfg.counts_per_rev);
         Some(Self {
             cfg,
             per_count_q32,
@@ -193,7 +215,8 @@ impl EncoderAngle {
             last_now: 0,
             have_sample: false,
             last_index_edge: None,
-            stall_ticks: (max_period / cfg.counts_per_rev).saturating_mul(4).max(1),
+            stall_ticks,
+            min_rate_q32: (1u64 << 32) / u64::from(stall_ticks),
             min_period: period_ticks(cfg.ticks_per_s, cfg.max_rpm),
             max_period,
         })
@@ -224,6 +247,13 @@ impl EncoderAngle {
                 let q = (dc.unsigned_abs() << 32)
                     .checked_div(u64::from(span))
                     .unwrap_or(0);
+                if q < self.min_rate_q32 {
+                    // Below the band over the baseline: single counts,
+                    // stamped at the read, cannot show it (the time since
+                    // a stamp is quantised to the loop period, longer
+                    // than a count's time near `min_rpm`).
+                    fault = Some(Fault::SpindleSpeed);
+                }
                 let q = q.min(1 << 40) as i64;
                 self.recip = if dc < 0 { -q } else { q };
                 self.base_count = count;

@@ -486,3 +486,72 @@ mod prop {
         }
     }
 }
+
+/// A spindle coasting down from 300 rpm at 100 rpm/s (a failed drive,
+/// the campaign's `spindle-speed` row) on a 10 000-count encoder with a
+/// 100 rpm floor: by the kinematics θ(t) = 5t − t²/1.2 turns, count k's
+/// edge is at the root of θ(t) = k/CPR. A count slower than
+/// 1.25 × 60/(min_rpm·CPR) s is a speed below 80 rpm: the fault must
+/// latch between 81 and 79 rpm (2.19..2.21 s), never above 81 rpm, for
+/// captured stamps and (by the 20 ms baseline's rate, at most a baseline
+/// and a tick later) for stamps taken at the read. Before, the check was four counts' time (25 rpm, 2.75 s) or
+/// a whole revolution's average at an index (2.31-2.65 s).
+#[test]
+fn a_coasting_spindle_is_a_speed_fault_as_it_leaves_the_band_not_a_revolution_later() {
+    const CPR: u32 = 10_000;
+    const CLOCK: f64 = 100e6;
+    const TICK_S: f64 = 50e-6;
+    // Time of count k's edge, s (the coast's root).
+    let edge_s = |k: u64| {
+        let turns = k as f64 / f64::from(CPR);
+        (5.0 - (25.0 - 4.0 * turns / 1.2).sqrt()) * 0.6
+    };
+    let rpm_at = |t: f64| 300.0 - 100.0 * t;
+    for stamps in [EdgeStamps::Captured, EdgeStamps::AtRead] {
+        let mut e = EncoderAngle::new(EncoderConfig {
+            counts_per_rev: CPR,
+            ticks_per_s: CLOCK as u32,
+            min_rpm: 100,
+            max_rpm: 450,
+            index_tolerance_counts: 2,
+            index_angle: SpindleAngle(0),
+            edge_stamps: stamps,
+        })
+        .unwrap();
+        let (mut k, mut stamp, mut tripped) = (0u64, 0u32, None);
+        e.on_index(0, 0).unwrap();
+        for n in 1..(2.6 / TICK_S) as u64 {
+            let t = n as f64 * TICK_S;
+            let now = (t * CLOCK) as u32;
+            let before = k;
+            while edge_s(k + 1) <= t {
+                k += 1;
+                if k % u64::from(CPR) == 0 {
+                    let at = (edge_s(k) * CLOCK) as u32;
+                    if let Err(f) = e.on_index(k as u32, at) {
+                        tripped.get_or_insert((t, f));
+                    }
+                }
+            }
+            if k != before {
+                stamp = match stamps {
+                    EdgeStamps::Captured => (edge_s(k) * CLOCK) as u32,
+                    EdgeStamps::AtRead => now,
+                };
+            }
+            if let Some(f) = e.tick(k as u32, stamp, now).fault {
+                tripped.get_or_insert((t, f));
+            }
+        }
+        let (t, f) = tripped.unwrap_or_else(|| panic!("{stamps:?}: never tripped in 2.6 s"));
+        assert_eq!(f, Fault::SpindleSpeed, "{stamps:?} at {t} s");
+        // At-read stamps: the 20 ms baseline's rate, up to a baseline and
+        // a tick after the speed left (2 rpm of the coast).
+        let late = if stamps == EdgeStamps::AtRead { 0.02 + TICK_S } else { 0.0 };
+        assert!(
+            rpm_at(t) < 81.0 && rpm_at(t - late) > 79.0,
+            "{stamps:?}: tripped at {t} s, {} rpm (the band's floor 100, the count check's 80)",
+            rpm_at(t)
+        );
+    }
+}

@@ -33,8 +33,11 @@ pub const MODULES: [Module; 5] = [
     Module {
         name: "looptick",
         files: &["**/looptick.rs", "**/looptick/*.rs"],
+        // Mutants are named `file:line:col: replace LoopState::f ...`, so a
+        // function is matched by its path, not by `fn f` (which matched
+        // nothing: the loop tick and its fault steps went unmutated).
         re: Some(
-            "trip|clear_fault|amplifier_must_be_off|hold_safe|take_requests|amplifier_enable|fn loop_tick",
+            "trip|clear_fault|amplifier_must_be_off|hold_safe|take_requests|amplifier_enable|LoopState::(loop_tick|sense_gauge|fault_checks|output) ",
         ),
         what: "the loop tick's fault reactions: latch, clamp, clear, arm",
     },
@@ -53,7 +56,7 @@ pub const MODULES: [Module; 5] = [
     Module {
         name: "params",
         files: &["**/params.rs", "**/params/*.rs"],
-        re: Some("load_region|at_boot|check|limits|fn set"),
+        re: Some("load_region|at_boot|check|limits|[ :]set "),
         what: "the servo parameter block: parse, limits, design",
     },
 ];

@@ -42,8 +42,8 @@ pub struct Args {
     pub stall_sweep: Option<u32>,
     /// Instead of one campaign: every fault on legacy-hw and modern-hw at
     /// X = 1, 3, 5, 7 in, at each scenario's speed and at 360 rpm, with a
-    /// stall sweep of `--phases` instants at each point; prints the worst
-    /// excursion per fault (docs/SAFETY.md).
+    /// stall sweep of `--phases` instants at each point; prints, per fault
+    /// and machine, the outcome and the worst excursion (docs/SAFETY.md).
     #[arg(long, conflicts_with_all = ["fault", "out", "after_turns", "stall_sweep", "x_in", "rpm"])]
     pub matrix: bool,
     /// Stall instants a revolution at each point of `--matrix`.
@@ -58,16 +58,26 @@ pub const MATRIX_RPM: [Option<f64>; 2] = [None, Some(360.0)];
 
 fn run_matrix(args: &Args) -> anyhow::Result<()> {
     let wall0 = std::time::Instant::now();
-    let worst = crate::faults::matrix::run(
-        &MATRIX_SCENARIOS,
-        &MATRIX_X_IN,
-        &MATRIX_RPM,
-        args.phases,
-        args.seed,
-    )?;
+    // Each machine on its own (the same runs as both together): a row per
+    // fault and machine, and the worst over both.
+    let mut per: Vec<(&str, Vec<crate::faults::matrix::Worst>)> = Vec::new();
+    for name in MATRIX_SCENARIOS {
+        let w = crate::faults::matrix::run(
+            &[name],
+            &MATRIX_X_IN,
+            &MATRIX_RPM,
+            args.phases,
+            args.seed,
+        )?;
+        per.push((name, w));
+    }
     let wall_s = wall0.elapsed().as_secs_f64();
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&worst)?);
+        let doc: Vec<_> = per
+            .iter()
+            .map(|(name, w)| serde_json::json!({ "scenario": name, "faults": w }))
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
     println!(
@@ -77,25 +87,34 @@ fn run_matrix(args: &Args) -> anyhow::Result<()> {
         args.phases,
         args.seed
     );
-    println!("| fault | runs | n/a | all detected, safe | worst into the part, µin | where | slowest to safe, ms | where |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| fault | machine | runs | n/a | all detected, safe | worst into the part, µin | where | slowest to safe, ms | where |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     let at = |p: &Option<crate::faults::matrix::Point>| {
-        p.as_ref().map_or("-".into(), |p| {
-            format!("{}, X {} in, {} rpm", p.scenario, p.x_in, p.rpm)
-        })
+        p.as_ref()
+            .map_or("-".into(), |p| format!("X {} in, {} rpm", p.x_in, p.rpm))
     };
-    for w in &worst {
-        println!(
-            "| {} | {} | {} | {} | {:.1} | {} | {:.2} | {} |",
-            w.fault,
-            w.runs,
-            w.not_applicable,
-            w.all_detected_and_safe,
-            w.worst_excursion_uin,
-            at(&w.worst_at),
-            w.slowest_safe_ms,
-            at(&w.slowest_at)
-        );
+    for k in 0..Case::ALL.len() {
+        for (name, worst) in &per {
+            let w = &worst[k];
+            if w.runs == 0 {
+                println!(
+                    "| {} | {name} | 0 | {} | not applicable | - | - | - | - |",
+                    w.fault, w.not_applicable
+                );
+                continue;
+            }
+            println!(
+                "| {} | {name} | {} | {} | {} | {:.1} | {} | {:.2} | {} |",
+                w.fault,
+                w.runs,
+                w.not_applicable,
+                w.all_detected_and_safe,
+                w.worst_excursion_uin,
+                at(&w.worst_at),
+                w.slowest_safe_ms,
+                at(&w.slowest_at)
+            );
+        }
     }
     Ok(())
 }

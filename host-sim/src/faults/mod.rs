@@ -267,8 +267,11 @@ pub struct Sample {
     /// Slide carriage velocity, in/s.
     pub velocity_in_s: f64,
     pub fault: bool,
-    /// The enable line as the amplifier sees it.
+    /// The enable line as the amplifier sees it at the tick's instant
+    /// (before the tick's own write, which lands `dac_latency_ns` later).
     pub amp_enabled: bool,
+    /// The enable line as this tick's handler left it.
+    pub enable_written: bool,
 }
 
 /// A row and its trace (from `BEFORE_NS` before the injection).
@@ -475,6 +478,7 @@ fn simulate(
                 velocity_in_s: w.rig.slide.velocity_in_s(),
                 fault: w.fw.fault().is_some(),
                 amp_enabled: w.rig.amp.enabled(),
+                enable_written: w.rig.enable.state.borrow().enable,
             });
         }));
     }
