@@ -141,7 +141,7 @@ impl Excitation {
 
     /// This tick's DAC codes (0 once done).
     #[inline(always)]
-    pub fn next(&mut self) -> i32 {
+    pub fn sample(&mut self) -> i32 {
         if self.left == 0 {
             return 0;
         }
@@ -180,7 +180,7 @@ impl LoopState {
             self.excite.stop();
             return code;
         }
-        code.saturating_add(self.excite.next())
+        code.saturating_add(self.excite.sample())
             .clamp(CODE_MIN, CODE_MAX)
     }
 
@@ -200,8 +200,8 @@ mod tests {
         let mut e = Excitation::OFF;
         // 1024 ticks per period at step 2^22.
         e.start(1 << 22, 10_000, 2048);
-        let v: heapless::Vec<i32, 2048> = (0..2048).map(|_| e.next()).collect();
-        assert_eq!(e.next(), 0, "stops after its ticks");
+        let v: heapless::Vec<i32, 2048> = (0..2048).map(|_| e.sample()).collect();
+        assert_eq!(e.sample(), 0, "stops after its ticks");
         assert_eq!(v[0], 0);
         assert!(
             (v[256] - 10_000).abs() <= 1,

@@ -144,7 +144,7 @@ fn excite(c: &mut Client, step: u32, amplitude: u32, ticks: u32) -> Result<()> {
     }
 }
 
-/// Waits `ms` of the machine's time (its loop ticks, as the status counts
+/// Waits `ticks` of the machine's loop ticks (as its status counts
 /// them: a simulated machine may run faster or slower than the wall).
 fn wait_ticks(c: &mut Client, ticks: u32) -> Result<()> {
     let t0 = c.status()?.state.ticks;
