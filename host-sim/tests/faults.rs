@@ -55,10 +55,15 @@ fn push_return_s(spec: &host_sim::cut::CutSpec, o: &host_sim::faults::Outcome, t
     use std::f64::consts::TAU;
     let d = &spec.scenario.servo_design;
     let end_ns = t_inj + (PUSH_END_S * 1e9) as u64;
-    let at_end = o.trace.iter().find(|x| x.t_ns >= end_ns).expect("the trace runs past the push");
+    let at_end = o
+        .trace
+        .iter()
+        .find(|x| x.t_ns >= end_ns)
+        .expect("the trace runs past the push");
     let (zeta, w, w_o) = (d.damping, TAU * d.bandwidth_hz, TAU * d.observer_hz);
     let owed_lbf = PUSH_FALL_LBF_PER_S * 3.0 / w_o;
-    let offset = (at_end.z_in - at_end.command_in).abs() + owed_lbf / (d.slide.mass_lbf_s2_per_in * w * w);
+    let offset =
+        (at_end.z_in - at_end.command_in).abs() + owed_lbf / (d.slide.mass_lbf_s2_per_in * w * w);
     let envelope = 1.0 / (1.0 - zeta * zeta).sqrt();
     let ret = ((offset * envelope / host_sim::faults::NULL_HOLD_IN).ln() / (zeta * w)).max(0.0);
     PUSH_END_S + 3.0 / w_o + ret + 2.0 / f64::from(d.rate_hz)
@@ -513,7 +518,11 @@ fn the_campaign_runs_on_every_machine_and_each_row_holds_its_mechanisms_bound() 
                     spec.rpm, o.row.detected, o.row.max_excursion_uin
                 );
                 assert_eq!(o.row.detected, Some(false), "{name}: {:?}", o.row);
-                assert!(o.row.max_excursion_uin.unwrap() > DEPTH_OF_CUT_IN * 1e6, "{:?}", o.row);
+                assert!(
+                    o.row.max_excursion_uin.unwrap() > DEPTH_OF_CUT_IN * 1e6,
+                    "{:?}",
+                    o.row
+                );
                 continue;
             }
             let held = check_row(spec, *case, o);

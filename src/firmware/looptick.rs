@@ -113,6 +113,8 @@ pub struct LoopState {
     pub(crate) dac_clamped: bool,
     /// The DAC holds code 0 (disarmed).
     pub(crate) dac_zeroed: bool,
+    /// Identification's sine on the DAC (`super::excite`).
+    pub(crate) excite: super::excite::Excitation,
 }
 
 /// |ΔX| between two coefficient sets beyond which the learned table no
@@ -151,6 +153,7 @@ impl LoopState {
             clear_refused: None,
             dac_clamped: false,
             dac_zeroed: false,
+            excite: super::excite::Excitation::OFF,
         }
     }
 
@@ -462,8 +465,13 @@ impl LoopState {
             return;
         }
         self.dac_zeroed = false;
-        match dac.write(out.dac_code) {
-            Ok(()) => self.output = out.dac_code,
+        let code = if self.excite.active() {
+            self.excited(out.dac_code)
+        } else {
+            out.dac_code
+        };
+        match dac.write(code) {
+            Ok(()) => self.output = code,
             Err(_) => {
                 self.trip(Fault::Bus(Device::AmplifierDac));
                 self.hold_safe(dac);
