@@ -547,7 +547,11 @@ fn a_coasting_spindle_is_a_speed_fault_as_it_leaves_the_band_not_a_revolution_la
         assert_eq!(f, Fault::SpindleSpeed, "{stamps:?} at {t} s");
         // At-read stamps: the 20 ms baseline's rate, up to a baseline and
         // a tick after the speed left (2 rpm of the coast).
-        let late = if stamps == EdgeStamps::AtRead { 0.02 + TICK_S } else { 0.0 };
+        let late = if stamps == EdgeStamps::AtRead {
+            0.02 + TICK_S
+        } else {
+            0.0
+        };
         assert!(
             rpm_at(t) < 81.0 && rpm_at(t - late) > 79.0,
             "{stamps:?}: tripped at {t} s, {} rpm (the band's floor 100, the count check's 80)",

@@ -62,13 +62,8 @@ fn run_matrix(args: &Args) -> anyhow::Result<()> {
     // fault and machine, and the worst over both.
     let mut per: Vec<(&str, Vec<crate::faults::matrix::Worst>)> = Vec::new();
     for name in MATRIX_SCENARIOS {
-        let w = crate::faults::matrix::run(
-            &[name],
-            &MATRIX_X_IN,
-            &MATRIX_RPM,
-            args.phases,
-            args.seed,
-        )?;
+        let w =
+            crate::faults::matrix::run(&[name], &MATRIX_X_IN, &MATRIX_RPM, args.phases, args.seed)?;
         per.push((name, w));
     }
     let wall_s = wall0.elapsed().as_secs_f64();
