@@ -22,15 +22,14 @@ mod board;
 
 #[cfg(target_os = "none")]
 mod app {
-    use core::cell::Cell;
     use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, Ordering};
 
     use cortex_m::peripheral::NVIC;
     use cortex_m_rt::{entry, exception, ExceptionFrame};
-    use critical_section::Mutex;
     use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI3, SPI4};
     use zslide::centring::{Centring, Config, Event, Inputs, LoopDesign, Method, State};
     use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686};
+    use zslide::handoff::handover::Handover;
     use zslide::hw::{Encoder, GaugeAdc};
     use zslide::safety::{Device, Fault};
     use zslide::spindle::{EdgeStamps, EncoderConfig};
@@ -205,10 +204,9 @@ mod app {
 
     static EVENTS: Events = Events::new();
     /// The tick's state is one `.bss` value (`cortex_m::singleton!`) handed
-    /// over by reference: as an `Option<Tick>` static its `None` is
-    /// niche-encoded nonzero, which put the 5.8 KiB state in `.data` twice
-    /// (the handler's and this cell's), each with its flash initialiser.
-    static TICK_HANDOVER: Mutex<Cell<Option<&'static mut Tick>>> = Mutex::new(Cell::new(None));
+    /// over by reference (`zslide::handoff::handover`: as an `Option<Tick>`
+    /// static the 5.8 KiB state was in `.data` twice).
+    static TICK_HANDOVER: Handover<Tick> = Handover::new();
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The level detector's setting, µin, for the log.
     static LEVEL_UIN: AtomicI32 = AtomicI32::new(0);
@@ -278,7 +276,7 @@ mod app {
         // `None` only on a second run of this code, which cannot happen
         // (main never returns); the tick would then stay idle.
         let tick = cortex_m::singleton!(: Tick = tick);
-        critical_section::with(|cs| TICK_HANDOVER.borrow(cs).set(tick));
+        TICK_HANDOVER.give(tick);
         timers::start_watchdog(&dp.IWDG, &dp.DBGMCU);
         timers::start_loop_timer_at(&dp.TIM3, TICK_HZ);
         // SAFETY: every datum shared with the handler is an atomic or
@@ -406,10 +404,7 @@ mod app {
     fn TIM3() {
         static mut TICK: Option<&'static mut Tick> = None;
         timers::ack_loop_tick();
-        if TICK.is_none() {
-            *TICK = critical_section::with(|cs| TICK_HANDOVER.borrow(cs).take());
-        }
-        let Some(t) = TICK.as_mut() else {
+        let Some(t) = TICK_HANDOVER.claim(TICK) else {
             return;
         };
         TICKS.store(

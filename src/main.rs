@@ -24,18 +24,17 @@ mod board;
 
 #[cfg(target_os = "none")]
 mod app {
-    use core::cell::Cell;
     use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
     use cortex_m::peripheral::NVIC;
     use cortex_m_rt::{entry, exception, ExceptionFrame};
-    use critical_section::Mutex;
     use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI3, SPI4};
     use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686, ad5791::Ad5791};
     use zslide::firmware::{
         EventState, Firmware, FirmwareConfig, LearnState, LoopState, Request, Shared, SpindleMode,
         SpindleReading, TickInput, XMode,
     };
+    use zslide::handoff::handover::Handover;
     use zslide::hw::{Encoder, XLatch};
     use zslide::link::proto::{SpindleSource, XSource};
     use zslide::link::station::{Station, StationConfig};
@@ -110,20 +109,13 @@ mod app {
         generation: u32,
     }
 
-    // `Cell`, not `RefCell`: a `RefCell` borrow inside a handler links the
-    // "already borrowed" panic into it (`cargo xtask no-panic` found one in
-    // TIM3 and EXTI2); `Cell::take`/`set`/`get` under the critical section
-    // move the value whole and cannot fail.
     static SHARED: Shared = Shared::new();
     // Each handler's state is one `.bss` value (`cortex_m::singleton!`)
-    // handed over by reference: as an `Option<T>` static (the handler's
-    // and the cell's) a niche-encoded nonzero `None` put the state in
-    // `.data` twice, each copy with its flash initialiser (8.7 KiB for the
-    // X handler's slope table).
-    static LOOP_HANDOVER: Mutex<Cell<Option<&'static mut Loop>>> = Mutex::new(Cell::new(None));
-    static X_HANDOVER: Mutex<Cell<Option<&'static mut XHandler>>> = Mutex::new(Cell::new(None));
-    static LEARN_HANDOVER: Mutex<Cell<Option<&'static mut LearnState>>> =
-        Mutex::new(Cell::new(None));
+    // handed over by reference (`zslide::handoff::handover`, the QEMU
+    // board's way too).
+    static LOOP_HANDOVER: Handover<Loop> = Handover::new();
+    static X_HANDOVER: Handover<XHandler> = Handover::new();
+    static LEARN_HANDOVER: Handover<LearnState> = Handover::new();
     static TICKS: AtomicU32 = AtomicU32::new(0);
     /// The amplifier is enabled (the loop armed), for the arm button.
     static ARMED: AtomicBool = AtomicBool::new(false);
@@ -238,11 +230,9 @@ mod app {
             generation: 0,
         });
         let learn = cortex_m::singleton!(: LearnState = learn);
-        critical_section::with(|cs| {
-            LOOP_HANDOVER.borrow(cs).set(lp);
-            X_HANDOVER.borrow(cs).set(x);
-            LEARN_HANDOVER.borrow(cs).set(learn);
-        });
+        LOOP_HANDOVER.give(lp);
+        X_HANDOVER.give(x);
+        LEARN_HANDOVER.give(learn);
 
         board::configure_exti(&dp.SYSCFG, &dp.EXTI);
         timers::start_watchdog(&dp.IWDG, &dp.DBGMCU);
@@ -362,10 +352,7 @@ mod app {
     fn TIM3() {
         static mut LOOP: Option<&'static mut Loop> = None;
         timers::ack_loop_tick();
-        if LOOP.is_none() {
-            *LOOP = critical_section::with(|cs| LOOP_HANDOVER.borrow(cs).take());
-        }
-        let Some(l) = LOOP.as_mut() else {
+        let Some(l) = LOOP_HANDOVER.claim(LOOP) else {
             return;
         };
         trace::emit(Event::LoopEnter, timers::now_ticks());
@@ -401,10 +388,7 @@ mod app {
         board::ack_exti(2);
         let word = board::LatchPins.read();
         let now = timers::now_ticks();
-        if X.is_none() {
-            *X = critical_section::with(|cs| X_HANDOVER.borrow(cs).take());
-        }
-        if let Some(x) = X.as_mut() {
+        if let Some(x) = X_HANDOVER.claim(X) {
             trace::emit(Event::XEnter, now);
             // Faults reach the loop tick through SHARED.
             let _ = x.ev.x_event(&SHARED, word, now, &mut x.quad);
@@ -422,10 +406,7 @@ mod app {
     #[interrupt]
     fn TIM7() {
         static mut LEARN: Option<&'static mut LearnState> = None;
-        if LEARN.is_none() {
-            *LEARN = critical_section::with(|cs| LEARN_HANDOVER.borrow(cs).take());
-        }
-        if let Some(l) = LEARN.as_mut() {
+        if let Some(l) = LEARN_HANDOVER.claim(LEARN) {
             l.run(&SHARED);
         }
     }

@@ -5,7 +5,8 @@
 //! from the built-in default ([`ServoDesign::brief`]); the integer
 //! configuration the loop runs ([`ServoConfig`]) is then designed from it
 //! in the background, never in an interrupt. Every parameter has a name,
-//! a unit and limits ([`PARAMS`]); a value outside them, or a set of values
+//! a unit and limits ([`PARAMS`], generated from the one parameter table,
+//! `servo::parameters`); a value outside them, or a set of values
 //! the design refuses as a whole (a bandwidth above a twentieth of the
 //! loop rate, say), is refused with the reason in words ([`ParamError`]).
 //!
@@ -60,243 +61,62 @@ impl Param {
     }
 }
 
-// The table and the two accessors from one list, so that they cannot
-// disagree. Accessors are `match`es, not function pointers: an indirect
-// call in the link's service would make `cargo xtask no-panic` assume it
-// reaches every function whose address the image holds.
-macro_rules! params {
-    ($(($id:literal, $name:literal, $unit:literal, $min:expr, $max:expr, $kind:ident, $($field:ident).+)),+ $(,)?) => {
-        pub const PARAMS: [Param; [$($id),+].len()] = [
+// The table and the two accessors from the one parameter table
+// (`servo::parameters`), so that they cannot disagree. Accessors are
+// `match`es, not function pointers: an indirect call in the link's service
+// would make `cargo xtask no-panic` assume it reaches every function whose
+// address the image holds.
+macro_rules! param_table {
+    (
+        design { $(($id:literal, $name:ident, $ty:ident, $unit:literal, $default:expr,
+            $min:expr, $max:expr, $doc:literal)),+ $(,)? }
+        slide { $(($sid:literal, $sname:ident, $sfield:ident, $sty:ident, $sunit:literal,
+            $sdefault:expr, $smin:expr, $smax:expr, $sdoc:literal)),+ $(,)? }
+    ) => {
+        /// Every settable parameter, in id order (`servo::parameters`).
+        pub const PARAMS: [Param; [$($id),+, $($sid),+].len()] = [
             $(Param {
                 id: $id,
-                name: $name,
+                name: stringify!($name),
                 unit: $unit,
                 min: $min,
                 max: $max,
-                integer: params!(@integer $kind),
-            }),+
+                integer: param_table!(@integer $ty),
+            },)+
+            $(Param {
+                id: $sid,
+                name: stringify!($sname),
+                unit: $sunit,
+                min: $smin,
+                max: $smax,
+                integer: param_table!(@integer $sty),
+            },)+
         ];
 
         fn field_get(id: u16, d: &ServoDesign) -> f64 {
             match id {
-                $($id => params!(@get $kind, d.$($field).+),)+
+                $($id => param_table!(@get $ty, d.$name),)+
+                $($sid => param_table!(@get $sty, d.slide.$sfield),)+
                 _ => f64::NAN,
             }
         }
 
         fn field_set(id: u16, d: &mut ServoDesign, v: f64) {
             match id {
-                $($id => params!(@set $kind, d.$($field).+, v),)+
+                $($id => param_table!(@set $ty, d.$name, v),)+
+                $($sid => param_table!(@set $sty, d.slide.$sfield, v),)+
                 _ => {}
             }
         }
     };
-    (@integer real) => { false };
-    (@integer whole) => { true };
-    (@get real, $e:expr) => { $e };
-    (@get whole, $e:expr) => { f64::from($e) };
-    (@set real, $e:expr, $v:ident) => { $e = $v };
-    (@set whole, $e:expr, $v:ident) => { $e = $v as u32 };
+    (@integer f64) => { false };
+    (@integer u32) => { true };
+    (@get f64, $e:expr) => { $e };
+    (@get u32, $e:expr) => { f64::from($e) };
+    (@set f64, $e:expr, $v:ident) => { $e = $v };
+    (@set u32, $e:expr, $v:ident) => { $e = $v as u32 };
 }
-
-// Every settable parameter. The ids are the wire and block format: never
-// renumber one, only add. The limits are the design's own where it has
-// static ones (`ServoDesign::config`), narrowed to the machine where the
-// brief sets a bound (the amplifier's 8 A, the gauge's ±0.010 in); the
-// design's rate-dependent checks (bandwidth below rate/20, observer below
-// rate/10, notch below Nyquist) run on top, with their own reasons.
-params![
-    (1, "bandwidth_hz", "Hz", 1.0, 1000.0, real, bandwidth_hz),
-    (2, "damping", "", 0.1, 5.0, real, damping),
-    (
-        3,
-        "bandwidth_fast_hz",
-        "Hz",
-        1.0,
-        1000.0,
-        real,
-        bandwidth_fast_hz
-    ),
-    (4, "observer_hz", "Hz", 1.0, 2000.0, real, observer_hz),
-    (
-        5,
-        "observer_fast_hz",
-        "Hz",
-        1.0,
-        2000.0,
-        real,
-        observer_fast_hz
-    ),
-    (
-        6,
-        "observer_switch_uin",
-        "uin",
-        1.0,
-        10_000.0,
-        real,
-        observer_switch_uin
-    ),
-    (
-        7,
-        "observer_hold_ms",
-        "ms",
-        0.0,
-        10_000.0,
-        real,
-        observer_hold_ms
-    ),
-    (8, "hum_notch_hz", "Hz", 1.0, 9_999.0, real, hum_notch_hz),
-    (9, "hum_notch_q", "(0 = off)", 0.0, 100.0, real, hum_notch_q),
-    (10, "mode_notch_hz", "Hz", 1.0, 9_999.0, real, mode_notch_hz),
-    (
-        11,
-        "mode_notch_q",
-        "(0 = off)",
-        0.0,
-        100.0,
-        real,
-        mode_notch_q
-    ),
-    (
-        12,
-        "learning_gain",
-        "per rev (0 = off)",
-        0.0,
-        0.95,
-        real,
-        learning_gain
-    ),
-    (
-        13,
-        "learning_lead_bins",
-        "bins of 1/256 rev",
-        3.0,
-        32.0,
-        whole,
-        learning_lead_bins
-    ),
-    (
-        14,
-        "learning_q_shift",
-        "",
-        1.0,
-        3.0,
-        whole,
-        learning_q_shift
-    ),
-    (
-        15,
-        "slew_in_per_s",
-        "in/s",
-        0.001,
-        10.0,
-        real,
-        slew_in_per_s
-    ),
-    (
-        16,
-        "slew_accel_in_per_s2",
-        "in/s^2",
-        0.01,
-        1000.0,
-        real,
-        slew_accel_in_per_s2
-    ),
-    (
-        17,
-        "command_limit_in",
-        "in",
-        0.0001,
-        0.010,
-        real,
-        command_limit_in
-    ),
-    (18, "current_limit_a", "A", 0.1, 8.0, real, current_limit_a),
-    (
-        19,
-        "current_limit_ms",
-        "ms",
-        0.1,
-        1000.0,
-        real,
-        current_limit_ms
-    ),
-    (
-        20,
-        "following_error_in",
-        "in",
-        0.000_001,
-        0.010,
-        real,
-        following_error_in
-    ),
-    (
-        21,
-        "following_error_ms",
-        "ms",
-        0.0,
-        1000.0,
-        real,
-        following_error_ms
-    ),
-    (
-        22,
-        "sign_check_v",
-        "V (0 = no check)",
-        0.0,
-        2.0,
-        real,
-        sign_check_v
-    ),
-    (23, "sign_check_ms", "ms", 0.1, 20.0, real, sign_check_ms),
-    (
-        24,
-        "motor_kf_lbf_per_a",
-        "lbf/A",
-        0.1,
-        100.0,
-        real,
-        slide.kf_lbf_per_a
-    ),
-    (
-        25,
-        "motor_kb_v_s_per_in",
-        "V s/in",
-        0.01,
-        10.0,
-        real,
-        slide.kb_v_s_per_in
-    ),
-    (26, "coil_r_ohm", "ohm", 0.1, 100.0, real, slide.r_ohm),
-    (
-        27,
-        "mass_lbf_s2_per_in",
-        "lbf s^2/in",
-        0.001,
-        1.0,
-        real,
-        slide.mass_lbf_s2_per_in
-    ),
-    (
-        28,
-        "air_film_b_lbf_s_per_in",
-        "lbf s/in",
-        0.01,
-        1000.0,
-        real,
-        slide.b_lbf_s_per_in
-    ),
-    (29, "amp_gain", "V/V", 0.1, 100.0, real, slide.amp_gain),
-    (
-        30,
-        "gauge_v_per_in",
-        "V/in",
-        1.0,
-        100_000.0,
-        real,
-        slide.gauge_v_per_in
-    ),
-];
+crate::servo_parameters!(param_table);
 
 /// The parameter with wire id `id`.
 pub fn by_id(id: u16) -> Option<&'static Param> {

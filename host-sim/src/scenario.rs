@@ -64,73 +64,38 @@ pub struct ScenarioFile {
     pub errors: crate::error_levels::ErrorLevels,
 }
 
-/// `[servo]`: the loop's gains, filters, learning and limits, in physical
-/// units (see `docs/TUNING.md`). Every field is optional.
-#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct ServoSection {
-    pub bandwidth_hz: Option<f64>,
-    pub damping: Option<f64>,
-    pub bandwidth_fast_hz: Option<f64>,
-    pub observer_hz: Option<f64>,
-    pub observer_fast_hz: Option<f64>,
-    pub observer_switch_uin: Option<f64>,
-    pub observer_hold_ms: Option<f64>,
-    pub hum_notch_hz: Option<f64>,
-    pub hum_notch_q: Option<f64>,
-    pub mode_notch_hz: Option<f64>,
-    pub mode_notch_q: Option<f64>,
-    pub learning_gain: Option<f64>,
-    pub learning_lead_bins: Option<u32>,
-    pub learning_q_shift: Option<u32>,
-    pub slew_in_per_s: Option<f64>,
-    pub slew_accel_in_per_s2: Option<f64>,
-    pub command_limit_in: Option<f64>,
-    pub current_limit_a: Option<f64>,
-    pub current_limit_ms: Option<f64>,
-    pub following_error_in: Option<f64>,
-    pub following_error_ms: Option<f64>,
-    pub sign_check_v: Option<f64>,
-    pub sign_check_ms: Option<f64>,
-}
-
-impl ServoSection {
-    /// The design: the firmware's defaults at `rate_hz` for the slide the
-    /// scenario describes, overridden field by field.
-    pub fn design(&self, rate_hz: u32, slide: SlideModel) -> ServoDesign {
-        let mut d = ServoDesign::brief(rate_hz);
-        d.slide = slide;
-        macro_rules! set {
-            ($($f:ident),*) => {$( if let Some(v) = self.$f { d.$f = v; } )*};
+// `[servo]` from the firmware's one parameter table
+// (`zslide::servo::parameters`): a key per design field, nothing restated.
+macro_rules! servo_section {
+    (
+        design { $(($id:literal, $name:ident, $ty:ident, $unit:literal, $default:expr,
+            $min:expr, $max:expr, $doc:literal)),+ $(,)? }
+        slide { $($slide:tt)* }
+    ) => {
+        /// `[servo]`: the loop's gains, filters, learning and limits, in physical
+        /// units (see `docs/TUNING.md`). Every field is optional. The slide
+        /// model's parameters come from `[motor]` instead.
+        #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+        #[serde(deny_unknown_fields)]
+        pub struct ServoSection {
+            $(#[doc = $doc] pub $name: Option<$ty>,)+
         }
-        set!(
-            bandwidth_hz,
-            damping,
-            bandwidth_fast_hz,
-            observer_hz,
-            observer_fast_hz,
-            observer_switch_uin,
-            observer_hold_ms,
-            hum_notch_hz,
-            hum_notch_q,
-            mode_notch_hz,
-            mode_notch_q,
-            learning_gain,
-            learning_lead_bins,
-            learning_q_shift,
-            slew_in_per_s,
-            slew_accel_in_per_s2,
-            command_limit_in,
-            current_limit_a,
-            current_limit_ms,
-            following_error_in,
-            following_error_ms,
-            sign_check_v,
-            sign_check_ms
-        );
-        d
-    }
+
+        impl ServoSection {
+            /// The design: the firmware's defaults at `rate_hz` for the slide the
+            /// scenario describes, overridden field by field.
+            pub fn design(&self, rate_hz: u32, slide: SlideModel) -> ServoDesign {
+                let mut d = ServoDesign::brief(rate_hz);
+                d.slide = slide;
+                $(if let Some(v) = self.$name {
+                    d.$name = v;
+                })+
+                d
+            }
+        }
+    };
 }
+zslide::servo_parameters!(servo_section);
 
 /// Voice-coil motor and slide (chapter 4).
 #[derive(Clone, Debug, Deserialize, PartialEq)]

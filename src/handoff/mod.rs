@@ -38,7 +38,8 @@
 //! `firmware::Firmware` bundles the three for single-threaded users (host tests,
 //! `host-sim`): its methods call the parts with its own [`Shared`]. The
 //! boards take the parts apart (`Firmware::into_parts`) and give each
-//! handler its own, with a `static` [`Shared`].
+//! handler its own through a [`handover::Handover`] (once, at boot), with a
+//! `static` [`Shared`].
 //!
 //! * Operator requests (arm, disarm, clear a fault; [`Request`]) are bits of
 //!   one atomic word any priority may set; the loop tick takes them all at
@@ -55,6 +56,7 @@
 
 pub mod ahead;
 pub(crate) mod coeffs;
+pub mod handover;
 pub mod learn;
 pub(crate) mod seqlock;
 

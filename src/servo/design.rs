@@ -33,39 +33,70 @@ use super::observer::ObserverCoeffs;
 /// Amplifier-DAC codes per volt.
 pub const DAC_CODES_PER_V: f64 = 524_288.0 / 10.0;
 
-/// The physical slide as the loop's model sees it (the brief's numbers,
-/// chapter 4; inch units as in `docs/PLANT.md`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SlideModel {
-    /// Motor force constant, lbf/A.
-    pub kf_lbf_per_a: f64,
-    /// Back-EMF constant, V·s/in.
-    pub kb_v_s_per_in: f64,
-    /// Coil resistance, Ω.
-    pub r_ohm: f64,
-    /// Moving mass, lbf·s²/in.
-    pub mass_lbf_s2_per_in: f64,
-    /// Air-film viscous friction, lbf·s/in.
-    pub b_lbf_s_per_in: f64,
-    /// Amplifier voltage gain, V/V.
-    pub amp_gain: f64,
-    /// Gauge sensitivity, V/in (1000: 1 V per mil).
-    pub gauge_v_per_in: f64,
+// The slide model's and the design's fields and defaults, from the one
+// parameter table (`super::parameters`).
+macro_rules! design_types {
+    (
+        design { $(($id:literal, $name:ident, $ty:ident, $unit:literal, $default:expr,
+            $min:expr, $max:expr, $doc:literal)),+ $(,)? }
+        slide { $(($sid:literal, $sname:ident, $sfield:ident, $sty:ident, $sunit:literal,
+            $sdefault:expr, $smin:expr, $smax:expr, $sdoc:literal)),+ $(,)? }
+    ) => {
+        /// The physical slide as the loop's model sees it (the brief's numbers,
+        /// chapter 4; inch units as in `docs/PLANT.md`). Its fields are the
+        /// parameter table's `slide` part (`super::parameters`).
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        pub struct SlideModel {
+            $(#[doc = $sdoc] pub $sfield: $sty,)+
+        }
+
+        impl SlideModel {
+            /// The brief's slide: Model 15 motor (Kf 2.9 lbf/A, Kb 4.002 V·s/ft,
+            /// R 1.4 Ω), 6.25 lbm, B = 51.2 lbf·s/ft, ×10 amplifier, 1 V/mil gauge.
+            pub const BRIEF: Self = Self {
+                $($sfield: $sdefault,)+
+            };
+        }
+
+        /// Design parameters of the loop. Every field has a physical unit;
+        /// the `[servo]` section of a scenario file sets them. Besides the rate
+        /// and the slide, the fields are the parameter table's `design` part
+        /// (`super::parameters`).
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        pub struct ServoDesign {
+            /// Loop tick rate, Hz (≥ 20 kHz in the brief; the default design needs
+            /// ≥ 8 kHz: fast observer below rate / 10).
+            pub rate_hz: u32,
+            pub slide: SlideModel,
+            $(#[doc = $doc] pub $name: $ty,)+
+        }
+
+        impl ServoDesign {
+            /// The default loop for the brief's slide at `rate_hz`.
+            ///
+            /// Bandwidth and observer are set by the cut, not by the slide alone:
+            /// while cutting, the tool's engagement is a spring to the part (the
+            /// edge force on the nose's contact chord, ≈ 2200 lbf/in at 0.0003 in
+            /// depth, a 58 Hz spring-mass with the slide). A disturbance observer
+            /// at 40 Hz treats that spring as a slow disturbance and leaves a
+            /// lightly damped mode near 60 Hz (ζ 0.3; `docs/TUNING.md`); at 250 Hz
+            /// it cancels the spring across the band and the 45 Hz error dynamics
+            /// stay damped. The price is more gauge noise passed to the slide, and
+            /// a narrow hum notch (Q 20) so that its phase lag stays out of the
+            /// ≈ 95 Hz crossover (`docs/TUNING.md` has the figures).
+            pub const fn brief(rate_hz: u32) -> Self {
+                Self {
+                    rate_hz,
+                    slide: SlideModel::BRIEF,
+                    $($name: $default,)+
+                }
+            }
+        }
+    };
 }
+crate::servo_parameters!(design_types);
 
 impl SlideModel {
-    /// The brief's slide: Model 15 motor (Kf 2.9 lbf/A, Kb 4.002 V·s/ft,
-    /// R 1.4 Ω), 6.25 lbm, B = 51.2 lbf·s/ft, ×10 amplifier, 1 V/mil gauge.
-    pub const BRIEF: Self = Self {
-        kf_lbf_per_a: 2.9,
-        kb_v_s_per_in: 4.002 / 12.0,
-        r_ohm: 1.4,
-        mass_lbf_s2_per_in: 6.25 / 32.174 / 12.0,
-        b_lbf_s_per_in: 51.2 / 12.0,
-        amp_gain: 10.0,
-        gauge_v_per_in: 1000.0,
-    };
-
     /// K of P(s) = K/(s(s+a)), gauge codes per DAC code per s².
     pub fn gain_per_s2(&self) -> f64 {
         // DAC code → V → ×G motor V → Kf/R lbf → /M in/s² → gauge V; the
@@ -86,106 +117,7 @@ impl SlideModel {
     }
 }
 
-/// Design parameters of the loop. Every field has a physical unit; the
-/// `[servo]` section of a scenario file sets them.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ServoDesign {
-    /// Loop tick rate, Hz (≥ 20 kHz in the brief; the default design needs
-    /// ≥ 8 kHz: fast observer below rate / 10).
-    pub rate_hz: u32,
-    pub slide: SlideModel,
-    /// Natural frequency of the tracking-error dynamics, Hz.
-    pub bandwidth_hz: f64,
-    /// Damping ratio of the tracking-error dynamics.
-    pub damping: f64,
-    /// Natural frequency of the error dynamics while the fast observer is
-    /// on (a sudden force was seen), Hz.
-    pub bandwidth_fast_hz: f64,
-    /// Observer poles (triple, real), Hz.
-    pub observer_hz: f64,
-    /// Fast observer poles, Hz, used while |innovation| > `observer_switch_uin`
-    /// and for `observer_hold_ms` after.
-    pub observer_fast_hz: f64,
-    pub observer_switch_uin: f64,
-    pub observer_hold_ms: f64,
-    /// Measurement notch for the power-supply hum, Hz, and its Q (0 = off).
-    pub hum_notch_hz: f64,
-    pub hum_notch_q: f64,
-    /// Output notch for the coil-frame mode, Hz, and its Q (0 = off).
-    pub mode_notch_hz: f64,
-    pub mode_notch_q: f64,
-    /// Repetitive learning: fraction of a revolution's error learned per
-    /// revolution (0 = off, < 1).
-    pub learning_gain: f64,
-    /// Phase lead of the learning, in bins of 1/256 revolution (≥ 3: see
-    /// [`super::repetitive::MIN_LEAD`]).
-    pub learning_lead_bins: u32,
-    /// Q-filter: each pass smooths a bin with its neighbours by
-    /// `(t[j−1] − 2t[j] + t[j+1]) / 2^shift` (2 = [1 2 1]/4; larger = weaker).
-    pub learning_q_shift: u32,
-    /// Command slew limit, in/s, and its acceleration limit, in/s².
-    pub slew_in_per_s: f64,
-    pub slew_accel_in_per_s2: f64,
-    /// |command| limit, in.
-    pub command_limit_in: f64,
-    /// Estimated coil current limit, A (the board has no current sense:
-    /// the current is estimated from the DAC output and the back-EMF of the
-    /// estimated velocity).
-    pub current_limit_a: f64,
-    /// Time at the current limit before it is a fault, ms.
-    pub current_limit_ms: f64,
-    /// Following-error limit, in, and how long it may be exceeded, ms.
-    pub following_error_in: f64,
-    pub following_error_ms: f64,
-    /// Commissioning sign check at every arm: DAC pulse volts and duration
-    /// of each half of the doublet, ms (volts 0 = no check).
-    pub sign_check_v: f64,
-    pub sign_check_ms: f64,
-}
-
 impl ServoDesign {
-    /// The default loop for the brief's slide at `rate_hz`.
-    ///
-    /// Bandwidth and observer are set by the cut, not by the slide alone:
-    /// while cutting, the tool's engagement is a spring to the part (the
-    /// edge force on the nose's contact chord, ≈ 2200 lbf/in at 0.0003 in
-    /// depth, a 58 Hz spring-mass with the slide). A disturbance observer
-    /// at 40 Hz treats that spring as a slow disturbance and leaves a
-    /// lightly damped mode near 60 Hz (ζ 0.3; `docs/TUNING.md`); at 250 Hz
-    /// it cancels the spring across the band and the 45 Hz error dynamics
-    /// stay damped. The price is more gauge noise passed to the slide, and
-    /// a narrow hum notch (Q 20) so that its phase lag stays out of the
-    /// ≈ 95 Hz crossover (`docs/TUNING.md` has the figures).
-    pub const fn brief(rate_hz: u32) -> Self {
-        Self {
-            rate_hz,
-            slide: SlideModel::BRIEF,
-            bandwidth_hz: 45.0,
-            damping: 0.9,
-            bandwidth_fast_hz: 150.0,
-            observer_hz: 250.0,
-            observer_fast_hz: 800.0,
-            observer_switch_uin: 150.0,
-            observer_hold_ms: 20.0,
-            hum_notch_hz: 120.0,
-            hum_notch_q: 20.0,
-            mode_notch_hz: 3150.0,
-            mode_notch_q: 0.7,
-            learning_gain: 0.3,
-            learning_lead_bins: 3,
-            learning_q_shift: 2,
-            slew_in_per_s: 0.25,
-            slew_accel_in_per_s2: 20.0,
-            command_limit_in: 0.0095,
-            current_limit_a: 6.0,
-            current_limit_ms: 20.0,
-            following_error_in: 0.004,
-            following_error_ms: 2.0,
-            sign_check_v: 0.35,
-            sign_check_ms: 1.0,
-        }
-    }
-
     /// The integer configuration, or the first parameter out of range.
     // Every range test is written `!(in range)` so that a NaN is refused.
     #[allow(clippy::nonminimal_bool)]

@@ -41,6 +41,7 @@ pub mod filters;
 pub(crate) mod fixed;
 pub mod limits;
 pub mod observer;
+pub mod parameters;
 pub mod refusal;
 pub mod repetitive;
 

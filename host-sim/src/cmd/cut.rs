@@ -58,6 +58,16 @@ pub struct Args {
     /// The part's table image (with `--part`).
     #[arg(long, requires = "part")]
     pub table: Option<PathBuf>,
+    /// Measure the part on a rectangular grid of NX × NY points over the
+    /// square inscribed in the null circle instead of the polar CMM grid
+    /// (with `--part`; docs/PARTS.md).
+    #[arg(
+        long,
+        value_name = "NX,NY",
+        requires = "part",
+        conflicts_with = "budget"
+    )]
+    pub grid: Option<String>,
     /// Error sources beyond the loop at the scenario's `[errors]` levels
     /// (default: `all` for legacy-analog, the 1983 shop; `none` for
     /// digital, the loop's own contribution). docs/CUT.md.
@@ -121,10 +131,16 @@ pub struct Summary {
     pub command_sign: crate::cut::sign::CommandSign,
     /// How `cmm_grid_uin` was measured (`exact`, `cmm`).
     pub measure: crate::cut::cmm::Measure,
+    /// The rectangular grid (`--grid`), row by row: `{kind, nx, ny,
+    /// points: [{x_in, y_in, radius_in, phi_deg, error_uin, absent}]}`;
+    /// the polar fields above are then empty.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grid: Option<crate::cut::gridcut::RectMeasured>,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
-    let band = o.grid.band();
+    let band = o.rect.as_ref().map_or(o.grid.band(), |r| r.band());
+    let polar = o.rect.is_none();
     Summary {
         scenario: spec.scenario.file.name.clone(),
         part: spec.part.as_ref().map(|p| p.name.clone()),
@@ -136,16 +152,27 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         contour_error_max_uin: band.map(|b| b.1),
         following_error_rms_uin: o.following_error_rms_uin,
         following_error_peak_uin: o.following_error_peak_uin,
-        finish_rms_uin: o.grid.finish_rms_uin(),
-        finish_rms_by_x_uin: o.grid.finish_by_x_uin.clone(),
+        finish_rms_uin: o
+            .rect
+            .as_ref()
+            .map_or(o.grid.finish_rms_uin(), |r| r.finish_rms_uin()),
+        finish_rms_by_x_uin: if polar {
+            o.grid.finish_by_x_uin.clone()
+        } else {
+            vec![]
+        },
         simulated_s: o.simulated_s,
         wall_s: o.wall_s,
         real_time_factor: o.simulated_s / o.wall_s,
         cpu_s: o.cpu_s,
         faults: o.faults.clone(),
-        phi_deg: cmm_phi_deg(),
-        x_in: spec.cmm_x(),
-        cmm_grid_uin: o.grid.err_uin.clone(),
+        phi_deg: if polar { cmm_phi_deg() } else { vec![] },
+        x_in: if polar { spec.cmm_x() } else { vec![] },
+        cmm_grid_uin: if polar {
+            o.grid.err_uin.clone()
+        } else {
+            vec![]
+        },
         contour_goal_uin: contour_goal_uin(&spec.scenario.file.name),
         contour_goal_met: contour_goal_uin(&spec.scenario.file.name)
             .zip(band)
@@ -156,6 +183,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         errors: spec.errors,
         command_sign: spec.command_sign,
         measure: spec.measure,
+        grid: o.rect.clone(),
     }
 }
 
@@ -187,7 +215,14 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     );
     spec.z_offset_in = args.z_offset_uin * 1e-6;
     if let Some(path) = &args.part {
-        spec.part = Some(crate::cmd::parttable::part_cut(path, args.table.as_ref())?);
+        let part = crate::cmd::parttable::part_cut(path, args.table.as_ref())?;
+        if let Some(g) = &args.grid {
+            let (x_min, x_null) = (part.x_min, part.x_null);
+            spec.grid = Some(std::sync::Arc::new(crate::cut::rectgrid::RectGrid::parse(
+                g, x_min, x_null,
+            )?));
+        }
+        spec.part = Some(part);
     }
     if let Some(e) = args.errors {
         spec.errors = e;
@@ -272,7 +307,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
     } else {
-        print_table(&s);
+        match &s.grid {
+            Some(g) => print!("{}", crate::cut::gridcut::table(g)),
+            None => print_table(&s),
+        }
         print_summary(&s, &o);
     }
     Ok(())
@@ -421,6 +459,15 @@ fn write_outputs(
         spec.rpm,
         holes_words(spec.holes)
     );
+    if let Some(r) = &o.rect {
+        // A rectangular grid: its points as CSV, and the trace of the
+        // first band (the grid's innermost radii).
+        crate::cut::gridcut::write_csv(dir, r)?;
+        let x_in = crate::cut::plan(spec, 1.0)
+            .first()
+            .map_or(0.0, |st| 0.5 * (st.windows[0].0 + st.windows[0].1));
+        return write_trace(dir, &what, "the grid's innermost band", x_in, &o.trace);
+    }
     crate::cut::errmap::write(
         dir,
         &o.grid,
@@ -467,6 +514,23 @@ fn write_outputs(
         }
         _ => (spec.cmm_x()[j7], &o.trace),
     };
+    write_trace(
+        dir,
+        &what,
+        "the radius with the largest CMM error",
+        x_in,
+        trace,
+    )
+}
+
+/// The following error and the cutting force tick by tick at `x_in`.
+fn write_trace(
+    dir: &std::path::Path,
+    what: &str,
+    which: &str,
+    x_in: f64,
+    trace: &[(f64, f64, f64)],
+) -> anyhow::Result<()> {
     let t0 = trace.first().map_or(0.0, |p| p.0);
     let ms = |p: &(f64, f64, f64)| (p.0 - t0) * 1e3;
     let panels = [
@@ -493,7 +557,7 @@ fn write_outputs(
         &crate::scope::Figure {
             title: &format!("following error and cutting force at X = {x_in} in"),
             subtitle: &format!(
-                "{what}; the radius with the largest CMM error, tick by tick over {:.0} ms of the recording",
+                "{what}; {which}, tick by tick over {:.0} ms of the recording",
                 trace.last().map_or(0.0, ms)
             ),
             x_label: "time, ms",

@@ -5,7 +5,9 @@
 use super::fit::{columns_of, eval_columns};
 use super::generate::Generated;
 use super::spec::{SpecError, TableSpec};
+use crate::surface::Section;
 use std::f64::consts::PI;
+use zslide::table::Representation;
 
 /// Linear interpolation of node-major columns at X (f64 mirror of the
 /// firmware's fixed-point interpolation), clamped to the grid.
@@ -66,6 +68,45 @@ impl Default for Sampling {
     }
 }
 
+/// What the error split measures a table against: the exact section at
+/// X, its columns in the table's representation, and Z at φ (the
+/// paraboloid of a `TableSpec`, or a part of one's own: `part::table`).
+pub trait SectionSource {
+    type Section;
+    type Error;
+    fn section(&self, x: f64) -> Result<Self::Section, Self::Error>;
+    /// The section's exact columns in the table's representation and terms.
+    fn columns(&self, sec: &Self::Section) -> Vec<f64>;
+    fn z(&self, sec: &Self::Section, phi: f64) -> Result<f64, Self::Error>;
+}
+
+/// A table's nodes and columns as the split reads them.
+pub struct TableColumns<'a> {
+    pub representation: Representation,
+    /// Node X, in (uniform).
+    pub x: &'a [f64],
+    /// Exact and quantised columns, node-major.
+    pub exact: &'a [Vec<f64>],
+    pub quantised: &'a [Vec<f64>],
+}
+
+/// The paraboloid of a coeffgen spec.
+struct SpecSurface<'a>(&'a TableSpec);
+
+impl SectionSource for SpecSurface<'_> {
+    type Section = Section;
+    type Error = SpecError;
+    fn section(&self, x: f64) -> Result<Section, SpecError> {
+        Ok(self.0.surface.section(x)?)
+    }
+    fn columns(&self, sec: &Section) -> Vec<f64> {
+        columns_of(sec, self.0.representation, self.0.terms)
+    }
+    fn z(&self, sec: &Section, phi: f64) -> Result<f64, SpecError> {
+        Ok(sec.z(phi))
+    }
+}
+
 /// Measures the error split of a generated table over `[x_lo, x_hi]`.
 pub fn error_split(
     g: &Generated,
@@ -73,11 +114,32 @@ pub fn error_split(
     x_hi: f64,
     sampling: Sampling,
 ) -> Result<ErrorSplit, SpecError> {
-    let spec = &g.spec;
-    let rep = spec.representation;
     let quant: Vec<Vec<f64>> = (0..g.x.len()).map(|i| g.quantised(i)).collect();
-    let n_iv = g.x.len() - 1;
-    let dx = (g.x[n_iv] - g.x[0]) / n_iv as f64;
+    let table = TableColumns {
+        representation: g.spec.representation,
+        x: &g.x,
+        exact: &g.cols,
+        quantised: &quant,
+    };
+    split_of(&SpecSurface(&g.spec), &table, x_lo, x_hi, sampling)
+}
+
+/// The error split of `table` against `src` over `[x_lo, x_hi]`: at
+/// `sampling.per_interval` X an interval and `sampling.phi` φ a turn,
+/// truncation (exact columns vs Z), interpolation (interpolated exact vs
+/// exact columns), quantisation (interpolated quantised vs interpolated
+/// exact) and the total (interpolated quantised vs Z).
+pub fn split_of<S: SectionSource>(
+    src: &S,
+    table: &TableColumns,
+    x_lo: f64,
+    x_hi: f64,
+    sampling: Sampling,
+) -> Result<ErrorSplit, S::Error> {
+    let rep = table.representation;
+    let xs = table.x;
+    let n_iv = xs.len() - 1;
+    let dx = (xs[n_iv] - xs[0]) / n_iv as f64;
     let per = sampling.per_interval.max(2);
     let phis: Vec<f64> = (0..sampling.phi)
         .map(|j| 2.0 * PI * j as f64 / sampling.phi as f64)
@@ -98,19 +160,19 @@ pub fn error_split(
             if iv == n_iv && k > 0 {
                 break;
             }
-            let x = g.x[0] + (iv as f64 + k as f64 / per as f64) * dx;
+            let x = xs[0] + (iv as f64 + k as f64 / per as f64) * dx;
             if x < x_lo - 1e-12 || x > x_hi + 1e-12 {
                 continue;
             }
-            let sec = spec.surface.section(x)?;
-            let exact_cols = columns_of(&sec, rep, spec.terms);
-            let interp_cols = interpolate(&g.x, &g.cols, x);
-            let interp_q = interpolate(&g.x, &quant, x);
+            let sec = src.section(x)?;
+            let exact_cols = src.columns(&sec);
+            let interp_cols = interpolate(xs, table.exact, x);
+            let interp_q = interpolate(xs, table.quantised, x);
             let at_node = k == 0;
             let midway = 2 * k == per;
             let (mut z_lo, mut z_hi) = (f64::MAX, f64::MIN);
             for &phi in &phis {
-                let z = sec.z(phi);
+                let z = src.z(&sec, phi)?;
                 z_lo = z_lo.min(z);
                 z_hi = z_hi.max(z);
                 let s_exact = eval_columns(rep, &exact_cols, phi);

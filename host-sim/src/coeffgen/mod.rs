@@ -38,7 +38,10 @@ pub mod generate;
 pub mod pick;
 pub mod spec;
 
-pub use budget::{error_split, interpolate, quantization_bound_uin, ErrorSplit, Sampling};
+pub use budget::{
+    error_split, interpolate, quantization_bound_uin, split_of, ErrorSplit, Sampling,
+    SectionSource, TableColumns,
+};
 pub use fit::{
     columns_of, eval_columns, eval_sin_power, harmonics, harmonics_with, Harmonics, FOURIER_SAMPLES,
 };

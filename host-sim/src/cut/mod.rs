@@ -25,6 +25,7 @@ pub mod engage;
 pub mod errors;
 pub mod frame;
 pub mod errmap;
+pub mod gridcut;
 pub mod nominal;
 pub mod part;
 pub mod partcut;
@@ -99,6 +100,8 @@ pub struct CutSpec {
     pub command_sign: sign::CommandSign,
     /// How the grid is measured (`cmm`).
     pub measure: cmm::Measure,
+    /// A rectangular grid instead of the polar one (`cut --part --grid`).
+    pub grid: Option<std::sync::Arc<rectgrid::RectGrid>>,
 }
 
 impl CutSpec {
@@ -161,6 +164,7 @@ impl CutSpec {
             error_levels,
             command_sign: sign::CommandSign::Normal,
             measure: cmm::Measure::Exact,
+            grid: None,
         })
     }
 
@@ -256,14 +260,17 @@ impl Stretch {
 /// The stretches of the pass: one band per CMM radius, or the whole pass.
 pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
     let f = spec.feed_per_rev_in;
-    let windows: Vec<(f64, f64)> = spec
-        .cmm_x()
-        .iter()
-        .map(|&x| {
-            let xc = x / contact_gain;
-            (xc - spec.band_half_in, xc + spec.band_half_in)
-        })
-        .collect();
+    let windows: Vec<(f64, f64)> = match &spec.grid {
+        Some(g) => gridcut::windows(g, spec.band_half_in),
+        None => spec
+            .cmm_x()
+            .iter()
+            .map(|&x| {
+                let xc = x / contact_gain;
+                (xc - spec.band_half_in, xc + spec.band_half_in)
+            })
+            .collect(),
+    };
     if spec.full {
         return vec![Stretch {
             x_start_in: spec.x_start_in,
@@ -395,6 +402,7 @@ pub fn build_stretch(
     {
         let mut c = cutter.borrow_mut();
         c.nominal_sign = spec.command_sign.factor();
+        c.log.grid = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
         c.errors = spec.applied_levels().map(|l| {
             errors::ErrorState::new(
                 l,
@@ -525,6 +533,9 @@ pub struct CutOutcome {
     pub cpu_s: f64,
     pub faults: Vec<String>,
     pub stretches: usize,
+    /// The rectangular grid's measurement (`--grid`; the polar `grid` is
+    /// then unmeasured: no stretch is at its radii).
+    pub rect: Option<gridcut::RectMeasured>,
 }
 
 /// Runs the plan (stretches in parallel), measures the part.
@@ -534,6 +545,11 @@ pub fn run_pass(
     extras_for: impl Fn(&Stretch) -> Extras + Sync,
     progress: &(dyn Fn(f64) + Sync),
 ) -> anyhow::Result<CutOutcome> {
+    if spec.grid.is_some() && spec.part.is_none() {
+        bail!(
+            "a rectangular grid (--grid) measures a part of one's own (--part): the default part is measured on chapter 5's polar grid"
+        );
+    }
     let gain = spec.contact_gain()?;
     let stretches = plan(spec, gain);
     let wall0 = Instant::now();
@@ -543,6 +559,7 @@ pub fn run_pass(
         .collect();
     let wall_s = wall0.elapsed().as_secs_f64();
     let mut passes = PassLog::new();
+    let mut grid_log = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
     let (mut sum_sq, mut n, mut peak, mut force) = (0.0, 0u64, 0.0f64, 0.0);
     let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
     let mut faults = Vec::new();
@@ -552,6 +569,9 @@ pub fn run_pass(
         let mut r = r?;
         traces.push(std::mem::take(&mut r.log.trace));
         passes.merge(r.log.passes);
+        if let (Some(a), Some(b)) = (grid_log.as_mut(), r.log.grid.take()) {
+            a.merge(b);
+        }
         sum_sq += r.log.fe_sum_sq;
         n += r.log.fe_n;
         peak = peak.max(r.log.fe_peak);
@@ -579,6 +599,15 @@ pub fn run_pass(
         spec.feed_per_rev_in,
         |x, phi_deg| holes.over_hole(x, phi_deg / 360.0),
     );
+    let rect = spec.grid.as_deref().zip(grid_log.as_ref()).map(|(g, log)| {
+        gridcut::RectMeasured::measure(
+            g,
+            log,
+            spec.scenario.cutting.tool_radius_in,
+            spec.feed_per_rev_in,
+            |x, phi_deg| holes.over_hole(x, phi_deg / 360.0),
+        )
+    });
     let grid = match spec.measure {
         cmm::Measure::Exact => grid,
         cmm::Measure::Cmm => {
@@ -613,5 +642,6 @@ pub fn run_pass(
         cpu_s,
         faults,
         stretches: stretches.len(),
+        rect,
     })
 }

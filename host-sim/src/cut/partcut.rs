@@ -34,6 +34,8 @@ pub struct PartCut {
     pub table: &'static [u8],
     /// X beyond which the table nulls the slide, in.
     pub x_null: f64,
+    /// The table's first node, in (the cut range is `x_min ≤ X < x_null`).
+    pub x_min: f64,
     /// CMM radii (tool centre), in.
     pub cmm_x: Vec<f64>,
 }
@@ -58,6 +60,7 @@ impl PartCut {
             part,
             table: Box::leak(image.into_boxed_slice()),
             x_null,
+            x_min,
             cmm_x,
         })
     }
@@ -87,7 +90,8 @@ impl PartNominal {
         x >= self.cut.x_null || x < 0.0
     }
 
-    /// Exact Z at tool-centre `x`, angle `phi_turns`; zero beyond the null.
+    /// Exact Z at tool-centre `x`, part angle `phi_turns` (the CMM's
+    /// frame); zero beyond the null.
     pub fn exact(&self, x: f64, phi_turns: f64) -> f64 {
         if self.null(x) {
             return 0.0;
@@ -102,7 +106,8 @@ impl PartNominal {
             .map_or(vec![0.0; 2 * K + 1], |s| columns(&s, K))
     }
 
-    /// Z from node expansions interpolated in X (per tick).
+    /// Z from node expansions interpolated in X (per tick), at the
+    /// firmware's angle `phi_turns` (the table's columns: `table::columns`).
     pub fn fast(&mut self, x: f64, phi_turns: f64) -> f64 {
         if self.null(x) {
             return 0.0;
@@ -168,7 +173,9 @@ mod tests {
             let x = 1.99 - 1.9 * f64::from(k) / 200.0;
             for j in 0..8 {
                 let phi = (f64::from(j) + 0.37) / 8.0;
-                worst = worst.max((n.fast(x, phi) - n.exact(x, phi)).abs());
+                // `fast` in the firmware's angle, `exact` in the part's.
+                let exact = n.exact(x, crate::cut::frame::part_turns(phi));
+                worst = worst.max((n.fast(x, phi) - exact).abs());
             }
         }
         assert!(worst < 0.01e-6, "{} µin", worst * 1e6);

@@ -1,6 +1,5 @@
 //! The rectangular CMM grid a part may be measured on (issue 23,
-//! `cut --part --grid NX,NY`; the measurement is not wired yet: see
-//! /work/notes/parts.md, "cut --grid").
+//! `cut --part --grid NX,NY`; the measurement: `gridcut`).
 //!
 //! Points in the part frame of `frame.rs` (eq 2-5): `x = X cos φ`,
 //! `y = X sin φ`, so a point (x, y) is measured at radius `X = hypot(x, y)`
@@ -9,7 +8,8 @@
 //! over the square inscribed in the circle `X = x_null` (half side
 //! `x_null/√2`, corners on that circle), x the fast index. A point outside
 //! the cut range `x_min ≤ X < x_null` is absent, never dropped: the corners
-//! (where the table nulls the slide) and, for odd NX and NY, the centre.
+//! (where the table nulls the slide) and, for odd NX and NY, the centre
+//! (on the axis, where the part angle is undefined, even when x_min = 0).
 
 use std::f64::consts::TAU;
 
@@ -43,6 +43,23 @@ pub struct RectGrid {
 }
 
 impl RectGrid {
+    /// The points inside the cut range.
+    pub fn cut_points(&self) -> impl Iterator<Item = &GridPoint> {
+        self.points.iter().flatten().filter(|p| p.cut)
+    }
+
+    /// The grid of `--grid NX,NY`.
+    pub fn parse(arg: &str, x_min: f64, x_null: f64) -> anyhow::Result<Self> {
+        let side = |v: Option<&str>| v.and_then(|v| v.trim().parse::<usize>().ok());
+        let mut it = arg.split(',');
+        match (side(it.next()), side(it.next()), it.next()) {
+            (Some(nx), Some(ny), None) => Self::new(nx, ny, x_min, x_null),
+            _ => anyhow::bail!(
+                "--grid {arg}: expected NX,NY, two whole numbers of points a side ({SIDE_MIN}..={SIDE_MAX}), e.g. --grid 9,9"
+            ),
+        }
+    }
+
     pub fn new(nx: usize, ny: usize, x_min: f64, x_null: f64) -> anyhow::Result<Self> {
         for (name, n) in [("NX", nx), ("NY", ny)] {
             anyhow::ensure!(
@@ -68,7 +85,7 @@ impl RectGrid {
                             y_in: y,
                             radius_in: r,
                             phi_turns: y.atan2(x).rem_euclid(TAU) / TAU,
-                            cut: r >= x_min && r < x_null - ON_NULL_IN,
+                            cut: r >= x_min.max(ON_NULL_IN) && r < x_null - ON_NULL_IN,
                         }
                     })
                     .collect()
@@ -120,11 +137,23 @@ mod tests {
     }
 
     #[test]
+    fn the_centre_on_the_axis_is_never_cut() {
+        let g = RectGrid::new(3, 3, 0.0, 2.0).unwrap();
+        assert!(!g.points[1][1].cut);
+        assert_eq!(g.points.iter().flatten().filter(|p| p.cut).count(), 4);
+    }
+
+    #[test]
     fn grid_sides_outside_two_to_two_hundred_are_refused() {
         for (nx, ny) in [(1, 5), (5, 1), (201, 5), (5, 201)] {
             let e = RectGrid::new(nx, ny, 0.1, 2.0).unwrap_err().to_string();
             assert!(e.contains(&format!("--grid {nx},{ny}")), "{e}");
         }
         assert!(RectGrid::new(2, 200, 0.1, 2.0).is_ok());
+        for bad in ["9", "9,", "9,x", "9,9,9", "-1,5", "9;9"] {
+            let e = RectGrid::parse(bad, 0.1, 2.0).unwrap_err().to_string();
+            assert!(e.contains(&format!("--grid {bad}: expected NX,NY")), "{e}");
+        }
+        assert_eq!(RectGrid::parse(" 4, 6", 0.1, 2.0).unwrap().points.len(), 6);
     }
 }

@@ -32,6 +32,8 @@ pub struct StretchLog {
     pub trace: Vec<(f64, f64, f64)>,
     /// Mean cutting force while recording, lbf.
     pub force_sum: f64,
+    /// The passes at a rectangular grid's angles (`cut --grid`).
+    pub grid: Option<super::gridcut::AngleLog>,
 }
 
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
@@ -187,6 +189,12 @@ impl TickHook for Cutter {
                     let i = frame::part_index(k, CMM_PHI_COUNT);
                     let ec = zc - self.nominal_sign * self.nominal.exact(xc, i as f64 / n);
                     self.log.passes.by_phi[i].push(Pass { x_in: xc, e_in: ec });
+                }
+                if let Some(g) = self.log.grid.as_mut() {
+                    let (nominal, sign) = (&self.nominal, self.nominal_sign);
+                    g.record((turns0, x0, z0), (turns, x, z), |x, p| {
+                        sign * nominal.exact(x, p)
+                    });
                 }
             }
             self.prev = Some((turns, x, z));

@@ -58,6 +58,16 @@ pub trait Sag: Send + Sync + std::fmt::Debug {
     }
 }
 
+/// The part angle (radians) under the tool when the firmware's angle is
+/// `command_rad`. The part turns in +φ past a still tool, so the point
+/// under the tool runs backwards: `φ_part = 180° − φ_command`, the index at
+/// 90° of both (`cut::frame`, docs/CUT.md "Conventions"). A table holds Z
+/// in the firmware's angle, so a part's table is this map applied to the
+/// part-frame surface (`table::columns`); the map is its own inverse.
+pub fn part_angle(command_rad: f64) -> f64 {
+    std::f64::consts::PI - command_rad
+}
+
 /// What a table header's `c` and `S_y` (nano-inches) hold when the part is
 /// not an off-axis paraboloid: 1 nin each, the smallest the format accepts
 /// (it refuses zero). No real paraboloid has them; `accuracy --table` then

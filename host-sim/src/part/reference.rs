@@ -50,11 +50,13 @@ impl Reference {
 }
 
 impl RefSection<'_> {
-    /// `Z` at φ (radians), in.
+    /// `Z` at the firmware's angle φ (radians), in (a part's surface is
+    /// in the part frame: `super::part_angle`; the paraboloid is the same
+    /// in both).
     pub fn z(&self, phi: f64) -> f64 {
         match self {
             Self::Paraboloid(s) => s.z(phi),
-            Self::Part(s, p) => s.z(p, phi).unwrap_or(f64::NAN),
+            Self::Part(s, p) => s.z(p, super::part_angle(phi)).unwrap_or(f64::NAN),
         }
     }
 }

@@ -10,10 +10,9 @@
 
 use super::split::{Part, Section};
 use crate::coeffgen::{
-    check_coefficient_range, check_sign, eval_columns, interpolate, ErrorSplit, PickResult,
-    Sampling, SpecError, TableSpec,
+    check_coefficient_range, check_sign, split_of, ErrorSplit, PickResult, Sampling, SectionSource,
+    SpecError, TableColumns, TableSpec,
 };
-use std::f64::consts::PI;
 use zslide::table::{CoeffTable, Geometry, Representation, TableHeader, HEADER_LEN, MAX_TERMS};
 
 /// Most harmonics a table can hold (2K + 1 ≤ 31 columns).
@@ -69,13 +68,18 @@ pub struct PartTable {
     pub header: TableHeader,
 }
 
-/// The columns `C_0, C_1, S_1, ..` of a section.
+/// The columns `C_0, C_1, S_1, ..` of a section in the firmware's angle
+/// φ_c ([`super::part_angle`]: the part-frame φ = π − φ_c), which the
+/// table holds: `cos k(π − φ_c) = (−1)^k cos kφ_c`, `sin k(π − φ_c) =
+/// −(−1)^k sin kφ_c`.
 pub fn columns(sec: &Section, k: usize) -> Vec<f64> {
     let h = sec.harmonics(k);
     let mut v = vec![h.c[0]];
+    let mut sign = 1.0;
     for i in 1..=k {
-        v.push(h.c[i]);
-        v.push(h.s[i]);
+        sign = -sign;
+        v.push(sign * h.c[i]);
+        v.push(-sign * h.s[i]);
     }
     v
 }
@@ -162,7 +166,28 @@ impl PartTable {
     }
 }
 
-/// The error split (coeffgen's definitions) of a part table over
+/// The part as the error split's reference: its section, the harmonic
+/// columns of `harmonics`, the split's Z, all in the firmware's angle.
+struct PartSource<'a> {
+    part: &'a Part,
+    harmonics: usize,
+}
+
+impl SectionSource for PartSource<'_> {
+    type Section = Section;
+    type Error = String;
+    fn section(&self, x: f64) -> Result<Section, String> {
+        self.part.section(x)
+    }
+    fn columns(&self, sec: &Section) -> Vec<f64> {
+        columns(sec, self.harmonics)
+    }
+    fn z(&self, sec: &Section, phi: f64) -> Result<f64, String> {
+        sec.z(self.part, super::part_angle(phi))
+    }
+}
+
+/// The error split (coeffgen's, [`split_of`]) of a part table over
 /// `[x_lo, x_hi]`.
 pub fn error_split(
     part: &Part,
@@ -171,67 +196,18 @@ pub fn error_split(
     x_hi: f64,
     sampling: Sampling,
 ) -> Result<ErrorSplit, String> {
-    let rep = Representation::Harmonic;
-    let k = g.spec.harmonics;
     let quant: Vec<Vec<f64>> = (0..g.x.len()).map(|i| g.quantised(i)).collect();
-    let n_iv = g.x.len() - 1;
-    let dx = (g.x[n_iv] - g.x[0]) / n_iv as f64;
-    let per = sampling.per_interval.max(2);
-    let phis: Vec<f64> = (0..sampling.phi)
-        .map(|j| 2.0 * PI * j as f64 / sampling.phi as f64)
-        .collect();
-    let mut e = ErrorSplit {
-        truncation_uin: 0.0,
-        interpolation_uin: 0.0,
-        quantization_uin: 0.0,
-        total_uin: 0.0,
-        total_at_nodes_uin: 0.0,
-        total_midway_uin: 0.0,
-        z_peak_to_peak_in: 0.0,
-        worst_x_in: x_lo,
-        worst_phi_deg: 0.0,
+    let table = TableColumns {
+        representation: Representation::Harmonic,
+        x: &g.x,
+        exact: &g.cols,
+        quantised: &quant,
     };
-    for iv in 0..=n_iv {
-        for kk in 0..per {
-            if iv == n_iv && kk > 0 {
-                break;
-            }
-            let x = g.x[0] + (iv as f64 + kk as f64 / per as f64) * dx;
-            if x < x_lo - 1e-12 || x > x_hi + 1e-12 {
-                continue;
-            }
-            let sec = part.section(x)?;
-            let exact_cols = columns(&sec, k);
-            let interp_cols = interpolate(&g.x, &g.cols, x);
-            let interp_q = interpolate(&g.x, &quant, x);
-            let (mut z_lo, mut z_hi) = (f64::MAX, f64::MIN);
-            for &phi in &phis {
-                let z = sec.z(part, phi)?;
-                z_lo = z_lo.min(z);
-                z_hi = z_hi.max(z);
-                let s_exact = eval_columns(rep, &exact_cols, phi);
-                let s_interp = eval_columns(rep, &interp_cols, phi);
-                let s_q = eval_columns(rep, &interp_q, phi);
-                e.truncation_uin = e.truncation_uin.max((s_exact - z).abs() * 1e6);
-                e.interpolation_uin = e.interpolation_uin.max((s_interp - s_exact).abs() * 1e6);
-                e.quantization_uin = e.quantization_uin.max((s_q - s_interp).abs() * 1e6);
-                let to = (s_q - z).abs() * 1e6;
-                if to > e.total_uin {
-                    e.total_uin = to;
-                    e.worst_x_in = x;
-                    e.worst_phi_deg = phi.to_degrees();
-                }
-                if kk == 0 {
-                    e.total_at_nodes_uin = e.total_at_nodes_uin.max(to);
-                }
-                if 2 * kk == per {
-                    e.total_midway_uin = e.total_midway_uin.max(to);
-                }
-            }
-            e.z_peak_to_peak_in = e.z_peak_to_peak_in.max(z_hi - z_lo);
-        }
-    }
-    Ok(e)
+    let src = PartSource {
+        part,
+        harmonics: g.spec.harmonics,
+    };
+    split_of(&src, &table, x_lo, x_hi, sampling)
 }
 
 /// Picks the smallest table (bytes) of `base`'s range and formats whose

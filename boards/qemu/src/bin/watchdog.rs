@@ -30,17 +30,16 @@
 #![no_std]
 #![no_main]
 
-use core::cell::Cell;
 use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use critical_section::Mutex;
 use defmt_semihosting as _;
 use zslide::firmware::{
     EventState, Firmware, FirmwareConfig, LoopState, NoCoefficientDac, Shared, SpindleMode,
     TickInput, XMode,
 };
+use zslide::handoff::handover::Handover;
 use zslide::hw::{AmplifierDac, BusError, GaugeAdc, GaugeSample};
 use zslide::servo::ServoConfig;
 use zslide::watchdog::FeedGate;
@@ -86,8 +85,10 @@ static X_EVENTS: AtomicU32 = AtomicU32::new(0);
 static INDEX_EVENTS: AtomicU32 = AtomicU32::new(0);
 
 static SHARED: Shared = Shared::new();
-static LOOP_PART: Mutex<Cell<Option<LoopState>>> = Mutex::new(Cell::new(None));
-static EVENT_PART: Mutex<Cell<Option<EventState>>> = Mutex::new(Cell::new(None));
+/// Each handler's part, handed over by reference as in the other images
+/// (`zslide::handoff::handover`).
+static LOOP_PART: Handover<LoopState> = Handover::new();
+static EVENT_PART: Handover<EventState> = Handover::new();
 
 /// A gauge at rest and a DAC that takes every code: the loop's outputs
 /// are not what this image checks.
@@ -131,12 +132,9 @@ fn hang_if(which: u8) {
 
 #[interrupt]
 fn TIMER0() {
-    static mut LP: Option<LoopState> = None;
+    static mut LP: Option<&'static mut LoopState> = None;
     TIMER0_LOOP.clear_interrupt();
-    if LP.is_none() {
-        *LP = critical_section::with(|cs| LOOP_PART.borrow(cs).take());
-    }
-    let Some(lp) = LP.as_mut() else {
+    let Some(lp) = LOOP_PART.claim(LP) else {
         return;
     };
     lp.loop_tick(&SHARED, &TickInput::NONE, &mut Resting, &mut Resting);
@@ -149,12 +147,9 @@ fn TIMER0() {
 
 #[interrupt]
 fn TIMER1() {
-    static mut EV: Option<EventState> = None;
+    static mut EV: Option<&'static mut EventState> = None;
     TIMER1_EVENTS.clear_interrupt();
-    if EV.is_none() {
-        *EV = critical_section::with(|cs| EVENT_PART.borrow(cs).take());
-    }
-    let Some(ev) = EV.as_mut() else {
+    let Some(ev) = EVENT_PART.claim(EV) else {
         return;
     };
     let n = X_EVENTS.fetch_add(1, Ordering::Relaxed);
@@ -228,10 +223,9 @@ fn main() -> ! {
         fail("configuration refused");
     };
     let (lp, ev, _learn) = fw.into_parts();
-    critical_section::with(|cs| {
-        LOOP_PART.borrow(cs).set(Some(lp));
-        EVENT_PART.borrow(cs).set(Some(ev));
-    });
+    // `None` only on a second run of this code (main never returns).
+    LOOP_PART.give(cortex_m::singleton!(: LoopState = lp));
+    EVENT_PART.give(cortex_m::singleton!(: EventState = ev));
     defmt::info!(
         "watchdog check: CMSDK watchdog {=u32} us (NMI), loop tick {=u32} Hz at priority 0x00, X and index handlers at 0x80, fed by the background when the loop tick ran",
         us(TIMEOUT),
@@ -240,7 +234,7 @@ fn main() -> ! {
 
     // SAFETY: unmasking can break a critical section that relies on masking
     // these interrupts; none does: the handlers share data with `main` only
-    // through `critical_section::Mutex` and atomics, and with each other
+    // through the hand-over (a critical-section cell) and atomics, and with each other
     // only through `SHARED` (atomics).
     unsafe {
         let mut cp = cortex_m::Peripherals::steal();
