@@ -38,6 +38,9 @@ fn ramp_to_null_s(spec: &host_sim::cut::CutSpec, command_in: f64) -> f64 {
     3.0 * v / a + command_in.abs() / v + 2.0 / f64::from(d.rate_hz)
 }
 
+/// How long the campaign watches the spindle-speed row, s.
+const SPINDLE_WINDOW_S: f64 = 2.5;
+
 /// The following-error push (`Case::FollowingError`'s profile in
 /// `host_sim::faults`: 20 lbf at 5 ms, falling to 0 at 45 ms).
 const PUSH_END_S: f64 = 0.045;
@@ -503,6 +506,42 @@ fn the_campaign_runs_on_every_machine_and_each_row_holds_its_mechanisms_bound() 
             if let Some(why) = case.not_applicable(spec) {
                 assert_eq!(o.row.detected, None, "{name}: {:?}", o.row);
                 assert!(o.row.reason.contains(why), "{}", o.row.reason);
+                continue;
+            }
+            if *case == Case::SpindleSpeed && o.row.detected == Some(false) {
+                // The campaign watches the coast for 2.5 s (300 → 100 rpm
+                // at 100 rpm/s, `faults::Case::observe_ns`). The firmware's
+                // per-tick checks see it below a floor (encoder: one count
+                // slower than at 4/5·min_rpm; tachometer: below
+                // min_rpm/2), the index check at a revolution's average
+                // below min_rpm, wherever the index falls: detection is
+                // guaranteed only (rpm − floor)/accel after the failure.
+                // Undetected is right only where that lies beyond the
+                // window (360 rpm on the tachometer: 3.1 s); there the
+                // loop still cuts, within the depth of cut.
+                use host_sim::machine::SpindleSensor;
+                let m = &spec.scenario.machine;
+                let floor = f64::from(m.min_rpm)
+                    * match m.sensor {
+                        SpindleSensor::EncoderIndex => 0.8,
+                        SpindleSensor::TachIndex => 0.5,
+                    };
+                let t_s = (spec.rpm - floor) / spec.scenario.file.spindle.accel_rpm_per_s;
+                assert!(
+                    t_s > SPINDLE_WINDOW_S,
+                    "{name} X {x_in} in {} rpm: spindle-speed not detected, though the checks must see the coast {t_s} s after the failure: {:?}",
+                    spec.rpm,
+                    o.row
+                );
+                assert!(
+                    o.row.max_excursion_uin.unwrap() < DEPTH_OF_CUT_IN * 1e6,
+                    "{:?}",
+                    o.row
+                );
+                eprintln!(
+                    "{name} X {x_in} in {} rpm: spindle-speed not seen in the {SPINDLE_WINDOW_S} s window (guaranteed at {t_s:.2} s), the tool within the depth of cut",
+                    spec.rpm
+                );
                 continue;
             }
             if *case == Case::FollowingError && name == "modern-hw" {
