@@ -19,10 +19,7 @@
 //! turn): a capture of 2ⁿ ticks holds a whole number of periods when the
 //! step is a multiple of 2³²⁻ⁿ.
 
-use super::looptick::LoopState;
-use crate::codes::{CODE_MAX, CODE_MIN};
 use crate::servo::design::DAC_CODES_PER_V;
-use crate::servo::Phase;
 use crate::trig::{sin_cos, FRAC_BITS};
 use crate::units::SpindleAngle;
 
@@ -149,44 +146,6 @@ impl Excitation {
         let s = sin_cos(SpindleAngle(self.phase)).sin;
         self.phase = self.phase.wrapping_add(self.step);
         ((i64::from(s) * i64::from(self.amplitude)) >> FRAC_BITS) as i32
-    }
-}
-
-impl LoopState {
-    /// Engaged at null: the only state a sine may run in (module docs).
-    pub(crate) fn at_null(&self) -> bool {
-        self.servo.phase() == Phase::Engaged
-            && self.fault.is_none()
-            && self.coeff_null
-            && self.target == 0
-    }
-
-    /// Starts the sine (the station's checked request); false, and nothing
-    /// started, when the loop is not engaged at null.
-    pub fn excite(&mut self, step: u32, amplitude: u32, ticks: u32) -> bool {
-        if !self.at_null() {
-            self.excite.stop();
-            return false;
-        }
-        self.excite.start(step, amplitude, ticks);
-        true
-    }
-
-    /// `code` plus this tick's sine, or `code` alone (and the sine stopped
-    /// for good) when the loop left null.
-    #[inline(always)]
-    pub(crate) fn excited(&mut self, code: i32) -> i32 {
-        if !self.at_null() {
-            self.excite.stop();
-            return code;
-        }
-        code.saturating_add(self.excite.sample())
-            .clamp(CODE_MIN, CODE_MAX)
-    }
-
-    /// A sine is running.
-    pub fn exciting(&self) -> bool {
-        self.excite.active()
     }
 }
 

@@ -695,3 +695,43 @@ impl LoopState {
         true
     }
 }
+
+// Identification's sine (`super::excite`): the state checks live with
+// the state they read.
+impl LoopState {
+    /// Engaged at null: the only state a sine may run in (module docs).
+    pub(crate) fn at_null(&self) -> bool {
+        self.servo.phase() == Phase::Engaged
+            && self.fault.is_none()
+            && self.coeff_null
+            && self.target == 0
+    }
+
+    /// Starts the sine (the station's checked request); false, and nothing
+    /// started, when the loop is not engaged at null.
+    pub fn excite(&mut self, step: u32, amplitude: u32, ticks: u32) -> bool {
+        if !self.at_null() {
+            self.excite.stop();
+            return false;
+        }
+        self.excite.start(step, amplitude, ticks);
+        true
+    }
+
+    /// `code` plus this tick's sine, or `code` alone (and the sine stopped
+    /// for good) when the loop left null.
+    #[inline(always)]
+    pub(crate) fn excited(&mut self, code: i32) -> i32 {
+        if !self.at_null() {
+            self.excite.stop();
+            return code;
+        }
+        code.saturating_add(self.excite.sample())
+            .clamp(CODE_MIN, CODE_MAX)
+    }
+
+    /// A sine is running.
+    pub fn exciting(&self) -> bool {
+        self.excite.active()
+    }
+}
