@@ -174,6 +174,9 @@ impl core::fmt::Display for ParamError {
             ParamError::BlockDuplicate(id) => {
                 write!(f, "the parameter block sets {} twice", name(id))
             }
+            ParamError::StoreUnreadable => f.write_str(
+                "the parameter store is unreadable (corrupt, or its flash failed): save again, or erase the parameter region",
+            ),
         }
     }
 }

@@ -238,6 +238,9 @@ pub enum ParamError {
     },
     /// The same parameter twice in one block.
     BlockDuplicate(u16),
+    /// The parameter store (`store`) could not be read: it is corrupt or
+    /// its flash failed; its last saved block is unknown.
+    StoreUnreadable,
 }
 
 /// A design parameter out of its range (named for the `[servo]` field).

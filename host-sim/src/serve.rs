@@ -15,6 +15,7 @@
 //! waits until the first closes. The machine keeps running between
 //! connections.
 
+use crate::fwrig::link::{ParamsFlash, ParamsStore, PARAMS_REGION_BYTES};
 use crate::fwrig::{machine_with_table, FirmwareWorld};
 use crate::machine::xslide::FeedSegment;
 use crate::scenario::Scenario;
@@ -25,7 +26,10 @@ use std::net::{TcpListener, TcpStream};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+use zslide::params::ParamSource;
+use zslide::safety::Fault;
 
 /// Machine time per step between socket transfers, ns (the host's RTT
 /// polling period of the board, `link::HOST_POLL_NS`).
@@ -134,6 +138,10 @@ pub struct Setup {
     pub rpm: f64,
     /// Machine seconds per wall-clock second.
     pub speed: f64,
+    /// The parameter region's flash: shared by the clones of a setup, so
+    /// a machine served again from a clone boots from what the last one
+    /// saved (a power cycle of the board).
+    pub params_flash: Arc<Mutex<ParamsFlash>>,
 }
 
 impl Setup {
@@ -152,6 +160,7 @@ impl Setup {
             feed_in_per_min: 0.0,
             rpm,
             speed: 1.0,
+            params_flash: Arc::new(Mutex::new(ParamsFlash::new())),
         }
     }
 
@@ -173,9 +182,32 @@ impl Setup {
             }
         }
         machine.spindle.rpm0 = self.rpm;
+        // The boot's parameter order (`zslide::store::boot`): the store's
+        // last block, else the region's raw block (none here: an erased
+        // header), else the scenario's design.
+        let flash = self
+            .params_flash
+            .lock()
+            .map_err(|_| anyhow::anyhow!("the parameter flash's lock is poisoned"))?
+            .clone();
+        let mut store = ParamsStore::new(flash, 0..PARAMS_REGION_BYTES as u32)
+            .map_err(|e| anyhow::anyhow!("the parameter store: {e}"))?;
+        let erased = [0xFF; zslide::params::HEADER_LEN];
+        let (design, cfg, source) =
+            zslide::store::boot::at_boot(&mut store, &erased, &sc.servo_design).map_err(|e| {
+                anyhow::anyhow!("the scenario's servo design is refused: {}", e.reason())
+            })?;
+        let cfg = match source {
+            ParamSource::Block { .. } => cfg,
+            _ => sc.servo,
+        };
         let (mut w, mut s) =
-            machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, self.table);
-        let link = crate::fwrig::link::attach(&mut w, &mut s, sc.loop_hz, sc.servo_design)?;
+            machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, cfg, self.table);
+        if let ParamSource::Refused(e) = source {
+            w.fw.trip(Fault::Parameters(e));
+        }
+        let link = crate::fwrig::link::attach(&mut w, &mut s, sc.loop_hz, design, source)?;
+        link.borrow_mut().set_store(store);
         Ok((w, s, link))
     }
 }
@@ -227,6 +259,10 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
                 conn = None;
             }
         }
+    }
+    // The firmware stops; its flash stays for the next boot.
+    if let (Some(st), Ok(mut f)) = (link.borrow_mut().take_store(), setup.params_flash.lock()) {
+        *f = st.into_flash();
     }
     Ok(())
 }

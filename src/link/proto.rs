@@ -35,6 +35,7 @@
 use crate::firmware::excite::ExciteError;
 use crate::params::{ParamError, ParamSource};
 use crate::safety::Fault;
+use crate::store::StoreError;
 use crate::table::{crc32, TableError, TableIdentity};
 use serde::{Deserialize, Serialize};
 
@@ -89,11 +90,14 @@ pub enum Request {
         amplitude: u32,
         ticks: u32,
     },
+    /// Save every servo parameter in force to the parameter store (only
+    /// while disarmed; the boot reads it back first, `store::boot`).
+    SaveParams,
 }
 
 /// Number of [`Request`] variants: a variant index at or above it is an
 /// unknown command (not a malformed frame).
-pub const REQUEST_KINDS: u32 = 11;
+pub const REQUEST_KINDS: u32 = 12;
 
 /// What starts a capture.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -293,6 +297,8 @@ pub enum Refusal {
     LoopSilent,
     /// An identification sine outside its bounds, or not at null.
     Excite(ExciteError),
+    /// The parameters were not saved.
+    Store(StoreError),
 }
 
 impl core::fmt::Display for Refusal {
@@ -320,6 +326,7 @@ impl core::fmt::Display for Refusal {
             Refusal::Range => f.write_str("asked beyond the recorded samples or fault records"),
             Refusal::LoopSilent => f.write_str("the loop tick did not answer: it is not running"),
             Refusal::Excite(e) => write!(f, "{e}"),
+            Refusal::Store(e) => write!(f, "{e}"),
         }
     }
 }
@@ -349,6 +356,12 @@ pub enum Reply {
     Exciting {
         tick: u32,
         ticks: u32,
+    },
+    /// The parameter block saved to the store: `entries` parameters, its
+    /// CRC.
+    Saved {
+        entries: u16,
+        crc: u32,
     },
 }
 

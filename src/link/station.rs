@@ -19,6 +19,7 @@ use crate::handoff::{Request as LoopRequest, Shared};
 use crate::params::{self, ParamSource};
 use crate::safety::{Fault, Reaction};
 use crate::servo::ServoDesign;
+use crate::store::{NoStore, ParamStore, StoreError, MAX_BLOCK};
 use crate::table::{TableError, TableIdentity};
 use heapless::Deque;
 
@@ -76,6 +77,8 @@ enum Waiting {
     Excite {
         ticks: u32,
     },
+    /// A snapshot to decide whether a save may go ahead (disarmed?).
+    Save,
 }
 
 pub struct Station<const N: usize> {
@@ -141,13 +144,26 @@ impl<const N: usize> Station<N> {
     /// thread mode: bytes from the host must never stop the firmware.
     #[inline(never)]
     pub fn poll(&mut self, tap: &TapShared<'_, N>, shared: &Shared, io: &mut impl LinkIo) {
+        self.poll_with_store(tap, shared, io, &mut NoStore);
+    }
+
+    /// [`Station::poll`] on a board whose parameter region has a flash
+    /// driver: a `SaveParams` request writes `store` (in this call: the
+    /// erase and program times are the background's, never the tick's).
+    pub fn poll_with_store(
+        &mut self,
+        tap: &TapShared<'_, N>,
+        shared: &Shared,
+        io: &mut impl LinkIo,
+        store: &mut impl ParamStore,
+    ) {
         self.drain_faults(tap);
         if let Some((seq, w, waited)) = self.waiting {
             match tap.snapshots.dequeue() {
                 Some(s) => {
                     self.last = Some(s);
                     self.waiting = None;
-                    self.answer(seq, w, &s, tap, shared);
+                    self.answer(seq, w, &s, tap, shared, store);
                 }
                 None if waited >= SNAPSHOT_PATIENCE => {
                     self.waiting = None;
@@ -325,6 +341,7 @@ impl<const N: usize> Station<N> {
                     self.wait(seq, Waiting::Excite { ticks }, tap);
                 }
             },
+            Request::SaveParams => self.wait(seq, Waiting::Save, tap),
             Request::CaptureInfo => self.reply(seq, &Reply::Capture(self.capture_info(tap))),
             Request::CaptureRead { from } => {
                 if tap.scope.state() != CaptureState::Done {
@@ -397,6 +414,7 @@ impl<const N: usize> Station<N> {
         s: &Snapshot,
         tap: &TapShared<'_, N>,
         shared: &Shared,
+        store: &mut impl ParamStore,
     ) {
         // The snapshot came from the tick that took the request: a fault it
         // latched is in the queue by now.
@@ -455,6 +473,10 @@ impl<const N: usize> Station<N> {
                     ))
                 }
             }
+            Waiting::Save => match s.phase {
+                LoopPhase::Disarmed => self.save(store),
+                _ => Reply::Refused(Refusal::Store(StoreError::Armed)),
+            },
             Waiting::Set {
                 id,
                 value,
@@ -472,6 +494,30 @@ impl<const N: usize> Station<N> {
             }
         };
         self.reply(seq, &r);
+    }
+
+    /// Every parameter of the design in force, as one block, into `store`.
+    fn save(&mut self, store: &mut impl ParamStore) -> Reply {
+        let d = &self.cfg.design;
+        let mut entries = heapless::Vec::<(u16, f64), { params::PARAMS.len() }>::new();
+        for p in params::PARAMS.iter() {
+            let _ = entries.push((p.id, p.get(d)));
+        }
+        let mut block = [0u8; MAX_BLOCK];
+        let len = match params::encode_block(&entries, d, &mut block) {
+            Ok(len) => len,
+            Err(e) => return Reply::Refused(Refusal::Param(e)),
+        };
+        let block = block.get(..len).unwrap_or(&[]);
+        match (store.save(block, d), params::load_region(block, d)) {
+            (Ok(()), Ok((_, _, ParamSource::Block { entries, crc }))) => {
+                Reply::Saved { entries, crc }
+            }
+            (Err(e), _) => Reply::Refused(Refusal::Store(e)),
+            (Ok(()), Err(e)) => Reply::Refused(Refusal::Param(e)),
+            // A block `encode_block` wrote is never empty.
+            (Ok(()), Ok(_)) => Reply::Refused(Refusal::Store(StoreError::Map)),
+        }
     }
 
     fn status(&self, s: &Snapshot, tap: &TapShared<'_, N>, shared: &Shared) -> Status {

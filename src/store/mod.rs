@@ -35,6 +35,7 @@ use sequential_storage::map::{MapConfig, MapStorage};
 
 use crate::params;
 
+pub mod boot;
 pub mod ram;
 
 /// The map key of the parameter block.
@@ -47,11 +48,11 @@ pub const MAX_BLOCK: usize = params::HEADER_LEN + params::PARAMS.len() * params:
 /// word of up to 32 bytes (the STM32H7's).
 pub const BUFFER: usize = (1 + MAX_BLOCK).div_ceil(32) * 32;
 
-/// Why a save or a load did not happen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Why a save or a load did not happen (sent over the link in a refusal).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum StoreError {
-    /// The flash driver failed (`kind` is its `NorFlashErrorKind` as text).
-    Flash(&'static str),
+    /// The flash driver failed.
+    Flash(FlashFault),
     /// The region is not a store the map recognises (needs an erase).
     Corrupted,
     /// The region is too small for the map (two pages) or the block.
@@ -60,12 +61,45 @@ pub enum StoreError {
     Block(params::ParamError),
     /// Anything else the map reports.
     Map,
+    /// A save asked while the loop is armed.
+    Armed,
+    /// The board has no flash driver for the store.
+    NoDriver,
+}
+
+/// The flash driver's failure (`NorFlashErrorKind`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum FlashFault {
+    NotAligned,
+    OutOfBounds,
+    Other,
+}
+
+/// Where the station saves the parameter block: the board's store, or
+/// [`NoStore`] on a board without a flash driver.
+pub trait ParamStore {
+    fn save(&mut self, block: &[u8], base: &crate::servo::ServoDesign) -> Result<(), StoreError>;
+}
+
+impl<F: NorFlash> ParamStore for Store<F> {
+    fn save(&mut self, block: &[u8], base: &crate::servo::ServoDesign) -> Result<(), StoreError> {
+        Store::save(self, block, base)
+    }
+}
+
+/// A board without a flash driver: every save is refused by name.
+pub struct NoStore;
+
+impl ParamStore for NoStore {
+    fn save(&mut self, _: &[u8], _: &crate::servo::ServoDesign) -> Result<(), StoreError> {
+        Err(StoreError::NoDriver)
+    }
 }
 
 impl core::fmt::Display for StoreError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            StoreError::Flash(k) => write!(f, "the flash driver failed: {k}"),
+            StoreError::Flash(k) => write!(f, "the flash driver failed: {k:?}"),
             StoreError::Corrupted => {
                 f.write_str("the parameter store is corrupt (erase the parameter region)")
             }
@@ -74,6 +108,12 @@ impl core::fmt::Display for StoreError {
             }
             StoreError::Block(e) => write!(f, "the stored parameter block is refused: {e}"),
             StoreError::Map => f.write_str("the parameter store refused the operation"),
+            StoreError::Armed => f.write_str(
+                "save refused: the parameters are saved only while the loop is disarmed (a flash erase stalls the CPU for seconds): disarm first",
+            ),
+            StoreError::NoDriver => f.write_str(
+                "save refused: this board has no flash driver for the parameter store (write a block with `params flash`)",
+            ),
         }
     }
 }
@@ -84,9 +124,9 @@ fn map_error<E: embedded_storage_async::nor_flash::NorFlashError>(
     use embedded_storage_async::nor_flash::NorFlashErrorKind as K;
     match e {
         sequential_storage::Error::Storage { value, .. } => StoreError::Flash(match value.kind() {
-            K::NotAligned => "not aligned",
-            K::OutOfBounds => "out of bounds",
-            _ => "other",
+            K::NotAligned => FlashFault::NotAligned,
+            K::OutOfBounds => FlashFault::OutOfBounds,
+            _ => FlashFault::Other,
         }),
         sequential_storage::Error::Corrupted { .. } => StoreError::Corrupted,
         sequential_storage::Error::ItemTooBig | sequential_storage::Error::BufferTooSmall(_) => {

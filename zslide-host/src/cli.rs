@@ -102,6 +102,9 @@ pub enum ParamsCmd {
     /// Set every parameter of a block file on the machine (only while
     /// disarmed).
     Load { file: PathBuf },
+    /// Save every parameter in force to the machine's parameter store
+    /// (only while disarmed); the machine boots with them.
+    Save,
     /// Check a block file as the firmware checks it and list its entries.
     Check { file: PathBuf },
     /// Write a parameter block file.
@@ -327,6 +330,12 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
                     p.unit
                 ))
             }
+            ParamsCmd::Save => match link.client()?.call(&Request::SaveParams)? {
+                Reply::Saved { entries, crc } => say(format!(
+                    "saved {entries} parameters to the machine's parameter store (block CRC {crc:#010x}); the machine boots with them"
+                )),
+                r => Err(unexpected(&r)),
+            },
             ParamsCmd::Load { file } => {
                 let (src, entries) = regions::check_params_file(file, &NUCLEO)?;
                 say(format!("{}: {src}", file.display()))?;

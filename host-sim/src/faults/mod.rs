@@ -441,6 +441,7 @@ fn simulate(
             &mut rig.s,
             spec.scenario.loop_hz,
             spec.scenario.servo_design,
+            zslide::params::ParamSource::BuiltIn,
         )?)
     } else {
         None

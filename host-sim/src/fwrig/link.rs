@@ -56,7 +56,18 @@ pub struct HostLink {
     /// Bytes the host has yet to write, and the bytes it has read.
     backlog: VecDeque<u8>,
     received: Vec<u8>,
+    /// The parameter store on the machine's flash model (`host-sim
+    /// serve`); `None`: saves are refused as on a board without a driver.
+    store: Option<ParamsStore>,
 }
+
+/// The NUCLEO's parameter region as the store sees it: two 128 KiB
+/// sectors of bank 2 (memory.x `ZSPB`), programmed in 32-byte flash words.
+pub type ParamsFlash = zslide::store::ram::RamFlash<PARAMS_REGION_BYTES, { 128 * 1024 }, 32>;
+/// The parameter region's size, bytes.
+pub const PARAMS_REGION_BYTES: usize = 256 * 1024;
+/// The parameter store on [`ParamsFlash`].
+pub type ParamsStore = zslide::store::Store<ParamsFlash>;
 
 /// The RTT channel pair as the station sees it: never blocking.
 struct Rtt<'a> {
@@ -91,7 +102,18 @@ impl HostLink {
             up: VecDeque::with_capacity(UP_BYTES),
             backlog: VecDeque::new(),
             received: Vec::new(),
+            store: None,
         }
+    }
+
+    /// Gives the station a parameter store (the machine's flash).
+    pub fn set_store(&mut self, store: ParamsStore) {
+        self.store = Some(store);
+    }
+
+    /// The parameter store back (its flash outlives this firmware).
+    pub fn take_store(&mut self) -> Option<ParamsStore> {
+        self.store.take()
     }
 
     /// One background pass.
@@ -100,7 +122,12 @@ impl HostLink {
             down: &mut self.down,
             up: &mut self.up,
         };
-        self.station.poll(self.shared, shared, &mut io);
+        match self.store.as_mut() {
+            Some(st) => self
+                .station
+                .poll_with_store(self.shared, shared, &mut io, st),
+            None => self.station.poll(self.shared, shared, &mut io),
+        }
     }
 
     /// The host's side of one RTT poll: what fits of its backlog into the
@@ -207,6 +234,7 @@ pub fn attach(
     s: &mut Scheduler<FirmwareWorld>,
     loop_hz: u32,
     design: ServoDesign,
+    params: ParamSource,
 ) -> anyhow::Result<Rc<RefCell<HostLink>>> {
     if w.recorder.is_some() {
         anyhow::bail!(
@@ -235,7 +263,7 @@ pub fn attach(
         spindle_source,
         table,
         design,
-        params: ParamSource::BuiltIn,
+        params,
     })));
     let period_ns = 1_000_000_000 / Nanos::from(loop_hz.max(1));
     w.hooks.push(Box::new(link.clone()));

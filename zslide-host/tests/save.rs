@@ -1,0 +1,75 @@
+//! `zslide params save` against `host-sim serve`: the parameters in force
+//! go to the machine's parameter store, and the machine served again on
+//! the same flash (a power cycle) boots with them; a save while armed is
+//! refused and writes nothing.
+
+use std::time::{Duration, Instant};
+
+use host_sim::serve::Setup;
+use zslide::link::proto::LoopPhase;
+use zslide_host::cli::{run_line, Link};
+
+mod machine;
+use machine::Machine;
+
+fn wait_phase(link: &mut Link, want: LoopPhase) {
+    let start = Instant::now();
+    while link.client().unwrap().status().unwrap().state.phase != want {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "not {want:?} within 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_saved_parameter_survives_a_restart_and_a_save_while_armed_is_refused() {
+    let setup = Setup::new(host_sim::scenario::load("legacy-hw").unwrap());
+    let flash_before = setup.params_flash.lock().unwrap().bytes.to_vec();
+    {
+        let m = Machine::start("save-1", setup.clone());
+        let mut link = Link::new(&m.addr, Duration::from_secs(10));
+        let built_in = run_line(&mut link, "params get following_error_ms").unwrap();
+        assert!(!built_in.contains("= 3 ms"), "{built_in}");
+        run_line(&mut link, "params set following_error_ms 3").unwrap();
+        let saved = run_line(&mut link, "params save").unwrap();
+        assert!(
+            saved.starts_with(&format!(
+                "saved {} parameters to the machine's parameter store",
+                zslide::params::PARAMS.len()
+            )),
+            "{saved}"
+        );
+
+        // Armed: refused by name; the store keeps the block saved above.
+        run_line(&mut link, "params set following_error_ms 4").unwrap();
+        assert!(run_line(&mut link, "link arm")
+            .unwrap()
+            .contains("loop armed"));
+        wait_phase(&mut link, LoopPhase::Engaged);
+        let e = run_line(&mut link, "params save").unwrap_err();
+        assert!(e.contains("saved only while the loop is disarmed"), "{e}");
+    }
+    let flash_after = setup.params_flash.lock().unwrap().bytes.to_vec();
+    let written = flash_after
+        .iter()
+        .zip(&flash_before)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(written > 0, "the save wrote nothing to the flash");
+
+    // Served again on the same flash: the boot reads the store.
+    let m = Machine::start("save-2", setup.clone());
+    let mut link = Link::new(&m.addr, Duration::from_secs(10));
+    let got = run_line(&mut link, "params get following_error_ms").unwrap();
+    assert!(got.contains("following_error_ms = 3 ms"), "{got}");
+    let status = run_line(&mut link, "link status").unwrap();
+    assert!(
+        status.contains(&format!(
+            "parameter block of {} entries",
+            zslide::params::PARAMS.len()
+        )),
+        "{status}"
+    );
+}
