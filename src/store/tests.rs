@@ -119,3 +119,47 @@ fn a_region_of_one_page_is_refused() {
         Some(StoreError::Config)
     ));
 }
+
+/// `following_error_ms` in a design.
+fn ms(d: &ServoDesign) -> f64 {
+    params::by_name("following_error_ms").unwrap().get(d)
+}
+
+#[test]
+fn the_boot_takes_the_stores_block_before_the_regions() {
+    let mut s = Store::new(Flash::new(), 0..REGION).unwrap();
+    s.save(&block(1), &base()).unwrap();
+    let (d, _, src) = boot::at_boot(&mut s, &block(2), &base()).unwrap();
+    // block(k) sets following_error_ms = 1 + k % 5.
+    assert_eq!(ms(&d), 2.0);
+    assert!(
+        matches!(src, params::ParamSource::Block { entries: 3, .. }),
+        "{src:?}"
+    );
+}
+
+#[test]
+fn the_boot_takes_the_regions_block_when_nothing_was_saved() {
+    let mut s = Store::new(Flash::new(), 0..REGION).unwrap();
+    let (d, _, _) = boot::at_boot(&mut s, &block(2), &base()).unwrap();
+    assert_eq!(ms(&d), 3.0);
+    let (d, _, src) = boot::at_boot(&mut s, &[0xFF; params::HEADER_LEN], &base()).unwrap();
+    assert_eq!(ms(&d), ms(&base()));
+    assert_eq!(src, params::ParamSource::BuiltIn);
+}
+
+#[test]
+fn an_unreadable_store_boots_the_built_in_design_refused() {
+    let mut s = Store::new(Flash::new(), 0..REGION).unwrap();
+    s.save(&block(1), &base()).unwrap();
+    let mut f = s.into_flash();
+    // Every byte of the region written over: no page state the map knows.
+    f.bytes.iter_mut().for_each(|b| *b = 0x5A);
+    let mut s = Store::new(f, 0..REGION).unwrap();
+    let (d, _, src) = boot::at_boot(&mut s, &block(2), &base()).unwrap();
+    assert_eq!(ms(&d), ms(&base()));
+    assert_eq!(
+        src,
+        params::ParamSource::Refused(crate::safety::ParamError::StoreUnreadable)
+    );
+}
