@@ -548,6 +548,7 @@ mod tests {
                 amplitude: u32::MAX,
                 ticks: u32::MAX,
             },
+            Request::SaveParams,
         ];
         assert_eq!(all.len() as u32, REQUEST_KINDS);
         for (i, r) in all.iter().enumerate() {
