@@ -38,12 +38,22 @@ pub struct ErrorLevels {
     /// Thermal drift of the tool against the part along +Y_t, µin per hour
     /// of the pass.
     pub thermal_drift_uin_per_h: f64,
+    /// The 1983 command generator (`analog1983::generator`), used by
+    /// `--controller legacy-analog` in place of the firmware's command when
+    /// `gen_calibrated_rpm > 0`: the speed its rate and amplitude were
+    /// trimmed at (chapter 3: 5 V at 300 rpm), its tachometer's rate error
+    /// (fraction), the reset one-shot's pulse (µs) and the mismatch of its
+    /// multipliers' offsets (mV).
+    pub gen_calibrated_rpm: f64,
+    pub gen_tach_rate_error: f64,
+    pub gen_reset_hold_us: f64,
+    pub gen_multiplier_offset_mv: f64,
 }
 
 impl ErrorLevels {
     /// Range checks naming the field.
     pub fn validate(&self) -> anyhow::Result<()> {
-        let checks: [(&str, f64, f64, f64); 13] = [
+        let checks: [(&str, f64, f64, f64); 17] = [
             (
                 "errors.gauge_scale_error",
                 self.gauge_scale_error,
@@ -107,6 +117,30 @@ impl ErrorLevels {
                 1000.0,
             ),
             (
+                "errors.gen_calibrated_rpm",
+                self.gen_calibrated_rpm,
+                0.0,
+                3000.0,
+            ),
+            (
+                "errors.gen_tach_rate_error",
+                self.gen_tach_rate_error,
+                -0.1,
+                0.1,
+            ),
+            (
+                "errors.gen_reset_hold_us",
+                self.gen_reset_hold_us,
+                0.0,
+                10_000.0,
+            ),
+            (
+                "errors.gen_multiplier_offset_mv",
+                self.gen_multiplier_offset_mv,
+                -1000.0,
+                1000.0,
+            ),
+            (
                 "errors.spindle_async_bw_hz (needed with spindle_async_uin > 0)",
                 if self.spindle_async_uin > 0.0 {
                     self.spindle_async_bw_hz
@@ -124,6 +158,15 @@ impl ErrorLevels {
         }
         if self.amp_hum_mv > 0.0 && self.amp_hum_frequency_hz <= 0.0 {
             anyhow::bail!("errors.amp_hum_frequency_hz must be > 0 when errors.amp_hum_mv > 0");
+        }
+        let gen_set = self.gen_tach_rate_error != 0.0
+            || self.gen_reset_hold_us != 0.0
+            || self.gen_multiplier_offset_mv != 0.0;
+        if gen_set && self.gen_calibrated_rpm <= 0.0 {
+            anyhow::bail!(
+                "errors.gen_tach_rate_error/gen_reset_hold_us/gen_multiplier_offset_mv are set but \
+                 errors.gen_calibrated_rpm is not: the 1983 command generator needs the speed it was trimmed at"
+            );
         }
         Ok(())
     }

@@ -15,6 +15,7 @@ pub mod geometry;
 pub mod machine;
 pub mod outpath;
 pub mod part;
+pub mod perturb;
 pub mod plant;
 pub mod error_levels;
 pub mod plot;

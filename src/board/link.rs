@@ -43,7 +43,7 @@ pub fn table_region() -> &'static [u8] {
     )
 }
 
-/// The servo-parameter region (`ZSPB`, bank 2 sector 6, 0x081C_0000).
+/// The servo-parameter region (`ZSPB`, bank 2 sectors 5-6, 0x081A_0000).
 pub fn params_region() -> &'static [u8] {
     region(
         core::ptr::addr_of!(__zspb_start),

@@ -113,6 +113,8 @@ pub struct LoopState {
     pub(crate) dac_clamped: bool,
     /// The DAC holds code 0 (disarmed).
     pub(crate) dac_zeroed: bool,
+    /// Identification's sine on the DAC (`super::excite`).
+    pub(crate) excite: super::excite::Excitation,
 }
 
 /// |ΔX| between two coefficient sets beyond which the learned table no
@@ -151,6 +153,7 @@ impl LoopState {
             clear_refused: None,
             dac_clamped: false,
             dac_zeroed: false,
+            excite: super::excite::Excitation::OFF,
         }
     }
 
@@ -462,8 +465,13 @@ impl LoopState {
             return;
         }
         self.dac_zeroed = false;
-        match dac.write(out.dac_code) {
-            Ok(()) => self.output = out.dac_code,
+        let code = if self.excite.active() {
+            self.excited(out.dac_code)
+        } else {
+            out.dac_code
+        };
+        match dac.write(code) {
+            Ok(()) => self.output = code,
             Err(_) => {
                 self.trip(Fault::Bus(Device::AmplifierDac));
                 self.hold_safe(dac);
@@ -685,5 +693,45 @@ impl LoopState {
         }
         self.servo = Servo::new(cfg);
         true
+    }
+}
+
+// Identification's sine (`super::excite`): the state checks live with
+// the state they read.
+impl LoopState {
+    /// Engaged at null: the only state a sine may run in (module docs).
+    pub(crate) fn at_null(&self) -> bool {
+        self.servo.phase() == Phase::Engaged
+            && self.fault.is_none()
+            && self.coeff_null
+            && self.target == 0
+    }
+
+    /// Starts the sine (the station's checked request); false, and nothing
+    /// started, when the loop is not engaged at null.
+    pub fn excite(&mut self, step: u32, amplitude: u32, ticks: u32) -> bool {
+        if !self.at_null() {
+            self.excite.stop();
+            return false;
+        }
+        self.excite.start(step, amplitude, ticks);
+        true
+    }
+
+    /// `code` plus this tick's sine, or `code` alone (and the sine stopped
+    /// for good) when the loop left null.
+    #[inline(always)]
+    pub(crate) fn excited(&mut self, code: i32) -> i32 {
+        if !self.at_null() {
+            self.excite.stop();
+            return code;
+        }
+        code.saturating_add(self.excite.sample())
+            .clamp(CODE_MIN, CODE_MAX)
+    }
+
+    /// A sine is running.
+    pub fn exciting(&self) -> bool {
+        self.excite.active()
     }
 }

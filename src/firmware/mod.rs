@@ -38,6 +38,7 @@
 //! clears it when the loop is disarmed and the cause is gone.
 
 pub mod config;
+pub mod excite;
 pub mod learning;
 pub mod looptick;
 pub mod xevent;

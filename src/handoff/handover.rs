@@ -12,9 +12,9 @@
 //! Why a reference and not the value: a `static` `Option<T>` whose `None`
 //! is niche-encoded as a nonzero pattern puts the whole state in `.data`
 //! with a flash initialiser, once for the cell and once for the handler's
-//! copy (the X handler's slope table alone is 8.7 KiB; the QEMU loop
-//! handler's 40 KiB plant model was kept twice that way). A reference is a
-//! word in either place.
+//! copy (the NUCLEO X handler's slope table alone is 8.7 KiB; the QEMU loop
+//! handler's state with its 40 KiB plant model was kept twice). A reference
+//! is a word in either place.
 //!
 //! The cell is a `critical_section::Mutex<Cell<..>>`, not a `RefCell`: a
 //! `RefCell` borrow inside a handler links the "already borrowed" panic into
@@ -75,7 +75,11 @@ mod tests {
         assert!(h.claim(&mut mine).is_none());
         let state: &'static mut u32 = std::boxed::Box::leak(std::boxed::Box::new(7));
         h.give(Some(state));
-        *h.claim(&mut mine).expect("given") += 1;
+        let first = h.claim(&mut mine).map(|s| {
+            *s += 1;
+            *s
+        });
+        assert_eq!(first, Some(8));
         // The handler keeps it: a second claim is the same state, and the
         // cell is empty (no second owner can take it).
         assert_eq!(h.claim(&mut mine).copied(), Some(8));

@@ -32,6 +32,7 @@
 //! so 52.4288 codes per µin), X in I8F24 inches, φ in the binary angle
 //! (2³² per turn), time in loop ticks.
 
+use crate::firmware::excite::ExciteError;
 use crate::params::{ParamError, ParamSource};
 use crate::safety::Fault;
 use crate::table::{crc32, TableError, TableIdentity};
@@ -80,11 +81,19 @@ pub enum Request {
     CaptureInfo,
     /// Captured samples from number `from` (0 = oldest).
     CaptureRead { from: u16 },
+    /// Identification: a sine of `amplitude` DAC codes, `step` binary
+    /// angle per loop tick, added to the DAC for `ticks` ticks; only while
+    /// engaged at null (`firmware::excite`). `ticks` 0 stops one.
+    Excite {
+        step: u32,
+        amplitude: u32,
+        ticks: u32,
+    },
 }
 
 /// Number of [`Request`] variants: a variant index at or above it is an
 /// unknown command (not a malformed frame).
-pub const REQUEST_KINDS: u32 = 10;
+pub const REQUEST_KINDS: u32 = 11;
 
 /// What starts a capture.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -167,6 +176,8 @@ pub struct LoopSnapshot {
     /// because the loop was armed by then.
     pub configs_applied: u32,
     pub configs_refused: u32,
+    /// The identification sine is on the DAC (`Request::Excite`).
+    pub exciting: bool,
 }
 
 /// The firmware's state: the loop tick's snapshot and the background's own
@@ -280,6 +291,8 @@ pub enum Refusal {
     Range,
     /// The loop tick did not answer (it is not running).
     LoopSilent,
+    /// An identification sine outside its bounds, or not at null.
+    Excite(ExciteError),
 }
 
 impl core::fmt::Display for Refusal {
@@ -306,6 +319,7 @@ impl core::fmt::Display for Refusal {
             Refusal::CaptureNotDone => f.write_str("no complete capture to read"),
             Refusal::Range => f.write_str("asked beyond the recorded samples or fault records"),
             Refusal::LoopSilent => f.write_str("the loop tick did not answer: it is not running"),
+            Refusal::Excite(e) => write!(f, "{e}"),
         }
     }
 }
@@ -330,6 +344,12 @@ pub enum Reply {
         samples: heapless::Vec<Sample, SAMPLES_PER_FRAME>,
     },
     Refused(Refusal),
+    /// The identification sine runs (from the loop tick `tick`, phase 0
+    /// there), for `ticks` ticks.
+    Exciting {
+        tick: u32,
+        ticks: u32,
+    },
 }
 
 /// Why a received frame is not a request.
@@ -510,6 +530,11 @@ mod tests {
             },
             Request::CaptureInfo,
             Request::CaptureRead { from: 1012 },
+            Request::Excite {
+                step: u32::MAX,
+                amplitude: u32::MAX,
+                ticks: u32::MAX,
+            },
         ];
         assert_eq!(all.len() as u32, REQUEST_KINDS);
         for (i, r) in all.iter().enumerate() {

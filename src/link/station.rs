@@ -14,7 +14,7 @@ use super::proto::{
     Refusal, Reply, Request, SpindleSource, Status, XSource, FAULTS_PER_FRAME, FAULT_LOG,
     MAX_FRAME, MAX_REQUEST, REQUEST_KINDS, SAMPLES_PER_FRAME,
 };
-use super::tap::{TapShared, REQ_CAPTURE, REQ_CONFIG, REQ_SNAPSHOT};
+use super::tap::{TapShared, REQ_CAPTURE, REQ_CONFIG, REQ_EXCITE, REQ_SNAPSHOT};
 use crate::handoff::{Request as LoopRequest, Shared};
 use crate::params::{self, ParamSource};
 use crate::safety::{Fault, Reaction};
@@ -71,6 +71,10 @@ enum Waiting {
     SetCheck {
         id: u16,
         value: f64,
+    },
+    /// The identification sine handed to the tick: did it start?
+    Excite {
+        ticks: u32,
     },
 }
 
@@ -307,6 +311,20 @@ impl<const N: usize> Station<N> {
                     self.reply(seq, &Reply::Capture(self.capture_info(tap)));
                 }
             }
+            Request::Excite {
+                step,
+                amplitude,
+                ticks,
+            } => match crate::firmware::excite::check(step, amplitude, ticks, self.cfg.loop_hz) {
+                Err(e) => self.reply(seq, &Reply::Refused(Refusal::Excite(e))),
+                Ok(()) => {
+                    for (slot, v) in tap.excite.iter().zip([step, amplitude, ticks]) {
+                        slot.store(v, core::sync::atomic::Ordering::Release);
+                    }
+                    tap.request(REQ_EXCITE);
+                    self.wait(seq, Waiting::Excite { ticks }, tap);
+                }
+            },
             Request::CaptureInfo => self.reply(seq, &Reply::Capture(self.capture_info(tap))),
             Request::CaptureRead { from } => {
                 if tap.scope.state() != CaptureState::Done {
@@ -422,6 +440,19 @@ impl<const N: usize> Station<N> {
                             Err(_) => Reply::Refused(Refusal::LoopSilent),
                         },
                     }
+                }
+            }
+            Waiting::Excite { ticks } => {
+                if s.exciting || ticks == 0 {
+                    // The sine's phase 0 is on the tick after the snapshot's.
+                    Reply::Exciting {
+                        tick: s.ticks.wrapping_add(1),
+                        ticks,
+                    }
+                } else {
+                    Reply::Refused(Refusal::Excite(
+                        crate::firmware::excite::ExciteError::NotAtNull,
+                    ))
                 }
             }
             Waiting::Set {

@@ -31,6 +31,7 @@ use heapless::mpmc::Queue;
 pub const REQ_SNAPSHOT: u32 = 1;
 pub const REQ_CONFIG: u32 = 2;
 pub const REQ_CAPTURE: u32 = 4;
+pub const REQ_EXCITE: u32 = 8;
 
 /// A change of the latched fault (`None`: cleared) at a loop tick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -84,6 +85,9 @@ pub struct TapShared<'s, const N: usize> {
     pub(crate) faults: Queue<FaultEvent, FAULT_QUEUE>,
     pub(crate) snapshots: Queue<Snapshot, 2>,
     pub(crate) configs: Queue<ServoConfig, 2>,
+    /// An identification sine's step, amplitude and ticks ([`REQ_EXCITE`];
+    /// written whole by the background before it sets the bit).
+    pub(crate) excite: [AtomicU32; 3],
 }
 
 impl<'s, const N: usize> TapShared<'s, N> {
@@ -104,6 +108,7 @@ impl<'s, const N: usize> TapShared<'s, N> {
             faults: Queue::new(),
             snapshots: Queue::new(),
             configs: Queue::new(),
+            excite: [const { AtomicU32::new(0) }; 3],
         }
     }
 
@@ -322,6 +327,13 @@ impl TickTap {
                 }
             }
         }
+        if req & REQ_EXCITE != 0 {
+            sh.requests.fetch_and(!REQ_EXCITE, Ordering::Relaxed);
+            let [step, amplitude, ticks] =
+                [0, 1, 2].map(|i| sh.excite.get(i).map_or(0, |a| a.load(Ordering::Acquire)));
+            // A refusal shows in the snapshot (`exciting` false).
+            let _ = lp.excite(step, amplitude, ticks);
+        }
         if req & REQ_SNAPSHOT != 0 {
             sh.requests.fetch_and(!REQ_SNAPSHOT, Ordering::Relaxed);
             let sp = lp.setpoint_state();
@@ -341,6 +353,7 @@ impl TickTap {
                 table_command: lp.table_code(),
                 configs_applied: self.configs_applied,
                 configs_refused: self.configs_refused,
+                exciting: lp.exciting(),
             });
         }
     }

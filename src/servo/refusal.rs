@@ -42,7 +42,10 @@ impl fmt::Display for Refusal<'_> {
                 fs / 20.0
             ),
             E::BandwidthFast => {
-                if !(d.bandwidth_fast_hz >= d.bandwidth_hz) {
+                // Negated so that a NaN takes the first message too.
+                #[allow(clippy::neg_cmp_op_on_partial_ord)]
+                let below = !(d.bandwidth_fast_hz >= d.bandwidth_hz);
+                if below {
                     write!(
                         f,
                         "bandwidth_fast_hz = {} must be at least bandwidth_hz = {} (raise bandwidth_fast_hz with it)",

@@ -1,3 +1,4 @@
+use super::encoder::{angle_q32, frac_since_edge};
 use super::*;
 
 /// A board that reads the count at the loop tick and stamps a change

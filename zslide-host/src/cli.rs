@@ -62,6 +62,13 @@ pub enum Cmd {
     /// A live scope in the terminal: chosen loop signals, trigger, time
     /// base; `s` writes the frame as CSV and PNG.
     Scope(crate::scope::ScopeArgs),
+    /// Measure the slide's frequency response (a stepped sine added to
+    /// the DAC by the firmware, engaged at null), fit the plant model
+    /// (gain, mass, mode) and write the Bode CSV, plots and the fit.
+    Identify(crate::identify::IdentifyArgs),
+    /// Set the loop's slide model and mode notch from `identify`'s fit
+    /// (checked by the firmware's design code; disarmed only).
+    Tune(crate::identify::TuneArgs),
     /// A board's decoded defmt log with trace events (`--features trace`)
     /// as a VCD with the simulator's signal names.
     Trace2vcd(host_sim::cmd::trace2vcd::Args),
@@ -228,14 +235,14 @@ fn param(name: &str) -> Result<&'static params::Param> {
     })
 }
 
-fn set(c: &mut Client, id: u16, value: f64) -> Result<f64> {
+pub(crate) fn set(c: &mut Client, id: u16, value: f64) -> Result<f64> {
     match c.call(&Request::Set { id, value })? {
         Reply::Param { value, .. } => Ok(value),
         r => Err(unexpected(&r)),
     }
 }
 
-fn get(c: &mut Client, id: u16) -> Result<f64> {
+pub(crate) fn get(c: &mut Client, id: u16) -> Result<f64> {
     match c.call(&Request::Get { id })? {
         Reply::Param { value, .. } => Ok(value),
         r => Err(unexpected(&r)),
@@ -420,6 +427,8 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
             }
         }
         Cmd::Capture(a) => capture::run(link, a, out),
+        Cmd::Identify(a) => crate::identify::identify(link, a, out).map(|_| ()),
+        Cmd::Tune(a) => crate::identify::tune(link, a, out).map(|_| ()),
         Cmd::Scope(a) => {
             let summary = crate::scope::run(link, a)?;
             say(format!("scope: {summary}"))

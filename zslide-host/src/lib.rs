@@ -6,6 +6,8 @@
 pub mod capture;
 pub mod cli;
 pub mod client;
+pub mod fit;
+pub mod identify;
 #[cfg(feature = "probe")]
 pub mod probe;
 pub mod regions;

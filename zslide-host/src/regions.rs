@@ -27,8 +27,8 @@ pub struct Regions {
 pub const NUCLEO: Regions = Regions {
     table_addr: 0x081E_0000,
     table_len: 128 * 1024,
-    params_addr: 0x081C_0000,
-    params_len: 128 * 1024,
+    params_addr: 0x081A_0000,
+    params_len: 256 * 1024,
 };
 /// probe-rs's name for the NUCLEO's chip.
 pub const NUCLEO_CHIP: &str = "STM32H743ZITx";

@@ -84,7 +84,7 @@ fn table_files_are_checked_and_the_probe_rs_command_built() {
     );
     let with_probe = probe_rs_download(&good, NUCLEO.params_addr, Some("0483:374e"));
     assert!(show(&with_probe)
-        .contains("--probe 0483:374e --binary-format bin --base-address 0x081c0000"));
+        .contains("--probe 0483:374e --binary-format bin --base-address 0x081a0000"));
 
     let dir = scratch();
     let e = check_table_file(&dir.join("absent.zsct"), &NUCLEO).unwrap_err();

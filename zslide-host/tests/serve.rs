@@ -3,50 +3,15 @@
 //! lines as a user types them.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use host_sim::serve::{serve, Listener, Setup};
+use host_sim::serve::Setup;
 use zslide::link::proto::LoopPhase;
 use zslide_host::cli::{run_line, Link};
 use zslide_host::words::CODES_PER_UIN;
 
-struct Machine {
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
-    pub addr: String,
-}
-
-impl Machine {
-    fn start(name: &str) -> Self {
-        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/zslide-host-test");
-        std::fs::create_dir_all(&dir).unwrap();
-        let sock = dir.join(format!("{name}.sock"));
-        let listener = Listener::bind(&format!("unix:{}", sock.display())).unwrap();
-        let addr = listener.address();
-        let stop = Arc::new(AtomicBool::new(false));
-        let s = stop.clone();
-        let thread = std::thread::spawn(move || {
-            let sc = host_sim::scenario::load("legacy-hw").unwrap();
-            serve(&Setup::new(sc), &listener, &s).unwrap();
-        });
-        Machine {
-            stop,
-            thread: Some(thread),
-            addr,
-        }
-    }
-}
-
-impl Drop for Machine {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
+mod machine;
+use machine::Machine;
 
 fn wait_phase(link: &mut Link, want: LoopPhase) -> zslide::link::proto::Status {
     let start = Instant::now();
@@ -66,7 +31,10 @@ fn wait_phase(link: &mut Link, want: LoopPhase) -> zslide::link::proto::Status {
 
 #[test]
 fn status_arm_and_capture_on_the_simulated_machine() {
-    let m = Machine::start("serve-e2e");
+    let m = Machine::start(
+        "serve-e2e",
+        Setup::new(host_sim::scenario::load("legacy-hw").unwrap()),
+    );
     let mut link = Link::new(&m.addr, Duration::from_secs(10));
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/zslide-host-test");
 

@@ -23,6 +23,9 @@ pub struct AnalogDrive {
     /// The command generator's sign (−1: the 1983 first part's mistake,
     /// `cut --command-sign reversed`).
     pub reference_sign: f64,
+    /// The command generator's output (V = mil) when it is not the
+    /// firmware's command (`cut::command1983`: the 1983 generator).
+    pub command_v: Option<std::rc::Rc<std::cell::Cell<f64>>>,
     /// Hand-overs to the co-simulation so far.
     pub nonlinear_spells: u64,
 }
@@ -49,6 +52,7 @@ impl AnalogDrive {
             next_substep_ns,
             reference_v: 0.0,
             reference_sign: 1.0,
+            command_v: None,
             nonlinear_spells: 0,
         }
     }

@@ -26,10 +26,13 @@
 //! its fit and the published equations), and the loop run in the time
 //! domain against the rig ([`emulation`]: co-simulated every substep;
 //! [`exact`]: exact closed-loop steps while it is linear; [`drive`]: the
-//! two handed over as the loop leaves and re-enters the linear range).
+//! two handed over as the loop leaves and re-enters the linear range), and
+//! the 1983 command generator's analog half ([`generator`]: the
+//! tachometer-driven sine oscillator reset at the index, the multipliers).
 
 pub mod drive;
 pub mod emulation;
+pub mod generator;
 pub mod exact;
 pub mod transfer;
 

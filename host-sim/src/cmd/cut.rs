@@ -87,6 +87,10 @@ pub struct Args {
     /// source the goal needs (`cut::budget`).
     #[arg(long)]
     pub budget: bool,
+    /// The force model's sensitivity instead of one cut: the contour band
+    /// with k_t and k_e each scaled × 0.1 .. × 2 (`cut::sensitivity`).
+    #[arg(long, conflicts_with = "budget")]
+    pub force_sensitivity: bool,
 }
 
 /// The JSON summary (brief §5).
@@ -290,6 +294,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             println!("{}", serde_json::to_string_pretty(&b)?);
         } else {
             print!("{}", crate::cut::budget::table(&b));
+        }
+        return Ok(());
+    }
+    if args.force_sensitivity {
+        let rows = crate::cut::sensitivity::run(&spec, &|s| eprintln!("sensitivity: {s}"))?;
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&rows)?);
+        } else {
+            print!("{}", crate::cut::sensitivity::table(&spec, &rows));
         }
         return Ok(());
     }

@@ -40,10 +40,16 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub speed: f64,
+    /// The plant's differences from the scenario's model (the firmware's
+    /// design keeps the model): a machine to identify and tune.
+    #[command(flatten)]
+    pub perturb: crate::perturb::Perturbation,
 }
 
 pub fn setup(a: &Args) -> anyhow::Result<Setup> {
-    let mut s = Setup::new(a.scenario.load()?);
+    let mut sc = a.scenario.load()?;
+    a.perturb.apply(&mut sc)?;
+    let mut s = Setup::new(sc);
     if let Some(t) = &a.table {
         let bytes = std::fs::read(t).with_context(|| format!("{}: cannot read", t.display()))?;
         zslide::firmware::config::check_table(&bytes)

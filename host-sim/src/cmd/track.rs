@@ -28,10 +28,20 @@ pub struct Args {
     /// Print the JSON summary.
     #[arg(long)]
     pub json: bool,
+    /// The plant's differences from the scenario's model (the loop keeps
+    /// the model unless `--param` changes it).
+    #[command(flatten)]
+    pub perturb: crate::perturb::Perturbation,
+    /// A servo parameter of the loop's design (`zslide params show` names
+    /// them), e.g. one `zslide tune` set; repeat for several.
+    #[arg(long = "param", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    pub params: Vec<String>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let sc = args.scenario.load()?;
+    let mut sc = args.scenario.load()?;
+    args.perturb.apply(&mut sc)?;
+    crate::perturb::set_params(&mut sc, &args.params)?;
     let r = run_track(
         &sc,
         &TrackSpec {

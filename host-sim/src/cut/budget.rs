@@ -115,7 +115,7 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Budget> {
     let sources: Vec<Source> = Source::ALL
         .iter()
         .copied()
-        .filter(|s| s.present(&levels))
+        .filter(|s| s.present(&levels) && s.applies(spec.controller))
         .collect();
     // The CMM is one more row in the share.
     let n_rows = (sources.len() + 1) as f64;

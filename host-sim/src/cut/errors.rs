@@ -24,10 +24,13 @@ pub enum Source {
     AmpHum,
     ToolWear,
     Thermal,
+    /// The 1983 command generator (tach rate, index reset, amplitude
+    /// trimmed at one speed; `analog1983::generator`): the 1983 loop only.
+    CommandGenerator,
 }
 
 impl Source {
-    pub const ALL: [Source; 8] = [
+    pub const ALL: [Source; 9] = [
         Source::GaugeScale,
         Source::GaugeNonlinearity,
         Source::GaugeDrift,
@@ -36,6 +39,7 @@ impl Source {
         Source::AmpHum,
         Source::ToolWear,
         Source::Thermal,
+        Source::CommandGenerator,
     ];
     pub fn name(self) -> &'static str {
         match self {
@@ -47,6 +51,7 @@ impl Source {
             Source::AmpHum => "120 Hz at the amplifier",
             Source::ToolWear => "tool wear",
             Source::Thermal => "thermal drift",
+            Source::CommandGenerator => "1983 command generator",
         }
     }
     /// Whether `levels` give this source a non-zero level.
@@ -60,7 +65,13 @@ impl Source {
             Source::AmpHum => l.amp_hum_mv != 0.0,
             Source::ToolWear => l.tool_wear_uin_per_kin != 0.0,
             Source::Thermal => l.thermal_drift_uin_per_h != 0.0,
+            Source::CommandGenerator => l.gen_calibrated_rpm > 0.0,
         }
+    }
+    /// Whether the source exists with `controller` (the digital firmware
+    /// has no analog command generator).
+    pub fn applies(self, controller: crate::fwrig::Controller) -> bool {
+        self != Source::CommandGenerator || controller == crate::fwrig::Controller::LegacyAnalog
     }
     /// `levels` with only this source kept.
     pub fn alone(self, l: &ErrorLevels) -> ErrorLevels {
@@ -82,6 +93,12 @@ impl Source {
             Source::AmpHum => o.amp_hum_mv = l.amp_hum_mv,
             Source::ToolWear => o.tool_wear_uin_per_kin = l.tool_wear_uin_per_kin,
             Source::Thermal => o.thermal_drift_uin_per_h = l.thermal_drift_uin_per_h,
+            Source::CommandGenerator => {
+                o.gen_calibrated_rpm = l.gen_calibrated_rpm;
+                o.gen_tach_rate_error = l.gen_tach_rate_error;
+                o.gen_reset_hold_us = l.gen_reset_hold_us;
+                o.gen_multiplier_offset_mv = l.gen_multiplier_offset_mv;
+            }
         }
         o
     }
@@ -98,6 +115,9 @@ impl Source {
         o.amp_hum_mv *= k;
         o.tool_wear_uin_per_kin *= k;
         o.thermal_drift_uin_per_h *= k;
+        o.gen_tach_rate_error *= k;
+        o.gen_reset_hold_us *= k;
+        o.gen_multiplier_offset_mv *= k;
         o
     }
     /// The level as the scenario states it, with its unit.
@@ -114,6 +134,13 @@ impl Source {
             Source::AmpHum => format!("{} mV at {} Hz", l.amp_hum_mv, l.amp_hum_frequency_hz),
             Source::ToolWear => format!("{} µin per 1000 in", l.tool_wear_uin_per_kin),
             Source::Thermal => format!("{} µin/h", l.thermal_drift_uin_per_h),
+            Source::CommandGenerator => format!(
+                "tach {} %, reset {} µs, offsets {} mV, trimmed at {} rpm",
+                l.gen_tach_rate_error * 100.0,
+                l.gen_reset_hold_us,
+                l.gen_multiplier_offset_mv,
+                l.gen_calibrated_rpm
+            ),
         }
     }
 }

@@ -294,5 +294,4 @@ pub fn windows(grid: &RectGrid, half: f64) -> Vec<(f64, f64)> {
 }
 
 #[cfg(test)]
-#[path = "gridcut_tests.rs"]
 mod tests;

@@ -21,6 +21,7 @@
 
 pub mod budget;
 pub mod cmm;
+pub mod command1983;
 pub mod engage;
 pub mod errors;
 pub mod frame;
@@ -32,6 +33,7 @@ pub mod partcut;
 pub mod plot;
 pub mod rectgrid;
 pub mod run;
+pub mod sensitivity;
 pub mod sign;
 
 use crate::cut::part::{CmmGrid, PassLog, CMM_X_IN};
@@ -348,9 +350,13 @@ pub fn build_stretch(
     let sc = seeded(&spec.scenario, st.index);
     let mut machine = sc.machine.clone();
     let feed = spec.feed_in_per_min();
+    // The stretch is planned on the part; the X the machine reads is off
+    // by the X-zero error (`errors`), so a band keeps its pre-roll on the
+    // part whatever the error.
+    let x_zero = spec.applied_levels().map_or(0.0, |l| l.x_zero_error_in);
     match &mut machine.x {
         XInterface::LegacyBcd(c) | XInterface::Quadrature(c) => {
-            c.x0_in = st.x_start_in;
+            c.x0_in = st.x_start_in + x_zero;
             c.feed = vec![crate::machine::xslide::FeedSegment {
                 t_start_s: 0.0,
                 feed_in_per_min: feed,
@@ -358,6 +364,11 @@ pub fn build_stretch(
         }
     }
     machine.spindle.rpm0 = spec.rpm;
+    let generator = command1983_levels(spec, &machine)?;
+    if generator.is_some() {
+        // The 8080's coefficient output: C00..C03 to the quad DAC.
+        machine.coefficient_output = true;
+    }
     let mut cutting = sc.cutting.clone();
     cutting.bolt_holes.filled = spec.holes == Holes::Filled;
     // The engagement works in the command's angle; the holes are placed
@@ -430,6 +441,11 @@ pub fn build_stretch(
     spec.controller.attach(&mut w, &mut s);
     if let Some(a) = w.analog.as_mut() {
         a.reference_sign = spec.command_sign.factor();
+        if let Some(lv) = generator {
+            let out = Rc::new(std::cell::Cell::new(0.0));
+            a.command_v = Some(out.clone());
+            cutter.borrow_mut().command1983 = Some(command1983::AnalogCommand::new(lv, out));
+        }
     }
     w.fw.set_target_code((spec.z_offset_in * zslide::codes::GAUGE_CODES_PER_INCH).round() as i32);
     w.hooks.push(Box::new(cutter.clone()));
@@ -440,6 +456,38 @@ pub fn build_stretch(
         rec_start_s,
         total_s,
     })
+}
+
+/// The 1983 command generator's levels when this cut uses it: the 1983
+/// loop with the scenario's `gen_*` levels applied. It needs the legacy X
+/// events (its coefficients come from the quad DAC they write) and the
+/// index at φ = 0 (its integrators reset to sine 0 there).
+fn command1983_levels(
+    spec: &CutSpec,
+    machine: &crate::machine::MachineConfig,
+) -> anyhow::Result<Option<crate::analog1983::generator::GeneratorLevels>> {
+    let Some(lv) = spec.applied_levels().and_then(|l| command1983::levels(&l)) else {
+        return Ok(None);
+    };
+    if spec.controller != Controller::LegacyAnalog {
+        return Ok(None);
+    }
+    if !matches!(machine.x, XInterface::LegacyBcd(_)) {
+        bail!(
+            "scenario {}: errors.gen_calibrated_rpm = {} asks for the 1983 command generator, which takes \
+             its coefficients from the legacy X events' quad DAC; this machine's X interface is not legacy BCD",
+            spec.scenario.file.name,
+            lv.calibrated_rpm
+        );
+    }
+    if machine.spindle.index_phase_turns != 0.0 {
+        bail!(
+            "scenario {}: spindle.index_phase_deg = {} but the 1983 command generator resets its sine to 0 at the index",
+            spec.scenario.file.name,
+            machine.spindle.index_phase_turns * 360.0
+        );
+    }
+    Ok(Some(lv))
 }
 
 /// Simulates one stretch; `progress(simulated_s)` after every chunk.

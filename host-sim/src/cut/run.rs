@@ -69,6 +69,8 @@ pub struct Cutter {
     /// The slide's electrical constants for the amplifier hum's force:
     /// (Kf lbf/A, K_A V/V, R Ω, L/R s).
     pub drive: (f64, f64, f64, f64),
+    /// The 1983 command generator, when it makes the 1983 loop's command.
+    pub command1983: Option<super::command1983::AnalogCommand>,
 }
 
 impl Cutter {
@@ -101,6 +103,7 @@ impl Cutter {
             errors: None,
             nominal_sign: 1.0,
             drive: (0.0, 0.0, 1.0, 0.0),
+            command1983: None,
         }
     }
 
@@ -110,7 +113,7 @@ impl Cutter {
 }
 
 impl TickHook for Cutter {
-    fn before_tick(&mut self, rig: &mut Rig, m: &Machine, _fw: &Firmware) {
+    fn before_tick(&mut self, rig: &mut Rig, m: &Machine, fw: &Firmware) {
         let t = rig.t_ns;
         let t_s = t as f64 * 1e-9;
         let x_read = m.x_true_in(t_s);
@@ -122,6 +125,19 @@ impl TickHook for Cutter {
         // The tool rides on the slide carriage (not on the coil frame the
         // gauge also sees).
         let z_slide = rig.slide.position_in();
+        if let Some(g) = self.command1983.as_mut() {
+            let q = rig.quad.state.borrow();
+            let c_v = [q.volts(0), q.volts(1), q.volts(2), q.volts(3)];
+            drop(q);
+            let engaged = fw.table_code() != 0;
+            g.tick(
+                t_s,
+                turns - self.index_phase_turns,
+                c_v,
+                engaged,
+                fw.target_code(),
+            );
+        }
         let d_turns = self.prev_turns.map_or(0.0, |p| turns - p);
         self.prev_turns = Some(turns);
         let (x, z, hum) = match self.errors.as_mut() {

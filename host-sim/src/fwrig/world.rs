@@ -103,9 +103,16 @@ impl World for FirmwareWorld {
         match self.analog.as_mut() {
             None => self.rig.advance_to(t),
             Some(a) => {
-                // Its reference: the firmware's command, V = mil.
-                let code = self.fw.table_code().saturating_add(self.fw.target_code());
-                a.reference_v = a.reference_sign * f64::from(code) * 10.0 / 524_288.0;
+                // Its reference: the firmware's command (or the 1983
+                // generator's), V = mil.
+                let v = match &a.command_v {
+                    Some(c) => c.get(),
+                    None => {
+                        let code = self.fw.table_code().saturating_add(self.fw.target_code());
+                        f64::from(code) * 10.0 / 524_288.0
+                    }
+                };
+                a.reference_v = a.reference_sign * v;
                 a.advance(&mut self.rig, t);
             }
         }

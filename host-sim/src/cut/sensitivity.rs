@@ -1,0 +1,100 @@
+//! `cut --force-sensitivity`: the part's contour band with the cutting
+//! force model's two constants scaled, one at a time. k_t (thrust per unit
+//! chip area) and k_e (the edge's rubbing force per unit contact length)
+//! rest on one datum (brief §2: the force measured at one depth and feed),
+//! so each is swept over × 0.1 .. × 2 with the other at its value; every run
+//! has the same seeds as the nominal one.
+
+use super::{run_pass, CutSpec, Extras};
+
+/// The factors swept.
+pub const FACTORS: [f64; 5] = [0.1, 0.5, 1.0, 1.5, 2.0];
+
+/// One run of the sweep.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    /// `k_t` or `k_e`.
+    pub constant: &'static str,
+    pub factor: f64,
+    /// The constant's value in the run (psi or lbf/in).
+    pub value: f64,
+    pub band_min_uin: f64,
+    pub band_max_uin: f64,
+    pub following_error_rms_uin: f64,
+    pub mean_force_lbf: f64,
+    pub faults: Vec<String>,
+}
+
+/// Runs the sweep on `spec` (its controller, scenario, speed, holes,
+/// error sources); `progress(label)` before each run.
+pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Vec<Row>> {
+    let c = &spec.scenario.cutting;
+    let (kt, ke) = (c.k_t_psi, c.k_e_lbf_per_in);
+    let mut rows = Vec::new();
+    for constant in ["k_t", "k_e"] {
+        for f in FACTORS {
+            progress(&format!("{constant} × {f}"));
+            let mut s = spec.clone();
+            let value = if constant == "k_t" {
+                s.scenario.cutting.k_t_psi = kt * f;
+                kt * f
+            } else {
+                s.scenario.cutting.k_e_lbf_per_in = ke * f;
+                ke * f
+            };
+            let o = run_pass(&s, |_| Extras::default(), &|_| {})?;
+            let (lo, hi) = o
+                .grid
+                .band()
+                .ok_or_else(|| anyhow::anyhow!("{constant} × {f}: the grid has no value"))?;
+            rows.push(Row {
+                constant,
+                factor: f,
+                value,
+                band_min_uin: lo,
+                band_max_uin: hi,
+                following_error_rms_uin: o.following_error_rms_uin,
+                mean_force_lbf: o.mean_force_lbf,
+                faults: o.faults,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// The sweep as a table (µin).
+pub fn table(spec: &CutSpec, rows: &[Row]) -> String {
+    use std::fmt::Write;
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "force-model sensitivity: {} / {} / {} rpm / holes {} / errors {:?}",
+        spec.scenario.file.name,
+        spec.controller.name(),
+        spec.rpm,
+        spec.holes.name(),
+        spec.errors
+    );
+    let _ = writeln!(
+        o,
+        "{:<10} {:>10} {:>20} {:>10} {:>12}  faults",
+        "constant", "value", "contour band, µin", "p-v µin", "FE RMS µin"
+    );
+    for r in rows {
+        let _ = writeln!(
+            o,
+            "{:<10} {:>10} {:>20} {:>10.1} {:>12.1}  {}",
+            format!("{} × {}", r.constant, r.factor),
+            format!("{:.4}", r.value),
+            format!("{:.1} .. {:.1}", r.band_min_uin, r.band_max_uin),
+            r.band_max_uin - r.band_min_uin,
+            r.following_error_rms_uin,
+            if r.faults.is_empty() {
+                "none".to_string()
+            } else {
+                r.faults.join(", ")
+            }
+        );
+    }
+    o
+}

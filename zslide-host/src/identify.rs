@@ -1,0 +1,546 @@
+//! `zslide identify` and `zslide tune`: the slide's frequency response
+//! measured through the firmware's link, the plant model fitted to it
+//! (`crate::fit`), and the loop's model parameters set from the fit.
+//!
+//! The measurement is a stepped sine. For each frequency the firmware adds
+//! a sine to its DAC output (`Request::Excite`: only while engaged at null,
+//! amplitude bounded by the firmware), the host waits for the loop to
+//! settle, then captures whole capture windows of consecutive loop ticks
+//! (the DAC code u that reached the amplifier and the gauge code y). Each
+//! frequency is a whole number of periods in the window (a bin of its
+//! DFT), so one DFT bin of u and of y gives the response y/u with no
+//! leakage from the sine itself. Repeated windows give the coherence and
+//! the noise: the spread of the per-window responses.
+//!
+//! The sine is a disturbance of the closed loop, added after the servo;
+//! y/u is the plant whatever the loop adds to u. Its amplitude at each
+//! frequency aims the open plant's response at `--target-uin` of the data
+//! sheet's model (the closed loop moves less below its bandwidth), capped
+//! by the firmware's bound.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use nalgebra::Complex;
+use zslide::link::proto::{LoopPhase, Reply, Request, Sample, Trigger};
+use zslide::params;
+use zslide::servo::design::DAC_CODES_PER_V;
+use zslide::servo::ServoDesign;
+
+use crate::cli::{get, say_to, set, Link};
+use crate::client::{unexpected, Client};
+use crate::fit::{self, Known, Plant, Point};
+use crate::Result;
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct IdentifyArgs {
+    /// The data sheet's model (motor Kf, Kb, R, L; air film B; the mass,
+    /// amplifier gain and mode to start from): a scenario name or file.
+    #[arg(long, default_value = "legacy-hw")]
+    pub scenario: String,
+    /// Output stem: STEM.csv (the Bode data), STEM.plant (the fit, for
+    /// `zslide tune`), STEM-mag.png / STEM-phase.png (+ .svg).
+    #[arg(long, value_name = "STEM", default_value = "identify")]
+    pub out: PathBuf,
+    /// Slide motion aimed at, µin (amplitude of the model's response).
+    #[arg(long, value_name = "UIN", default_value_t = 400.0)]
+    pub target_uin: f64,
+    /// Capture windows averaged per frequency below the mode band.
+    #[arg(long, value_name = "N", default_value_t = 2)]
+    pub repeats: u32,
+    /// ... and in the mode band (where the response is a few µin).
+    #[arg(long, value_name = "N", default_value_t = 6)]
+    pub mode_repeats: u32,
+    /// Settling time at each frequency before the first window, ms.
+    #[arg(long, value_name = "MS", default_value_t = 60.0)]
+    pub settle_ms: f64,
+    /// No plot images (the CSV and the fit only).
+    #[arg(long)]
+    pub no_plot: bool,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct TuneArgs {
+    /// The fit `zslide identify` wrote (STEM.plant).
+    pub plant: PathBuf,
+    /// Only print what would be set.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+/// Capture window: the firmware's ring.
+const WINDOW: usize = zslide::link::CAPTURE;
+
+/// One measured frequency.
+#[derive(Clone, Copy, Debug)]
+pub struct Measured {
+    pub f_hz: f64,
+    pub h: Complex<f64>,
+    /// H1 coherence over the windows (1: no noise).
+    pub coherence: f64,
+    /// Relative standard deviation of `h` (the windows' spread / √n).
+    pub rel_sigma: f64,
+    pub amplitude_v: f64,
+}
+
+/// The DFT bin `k` of `x` over the window (amplitude-scaled).
+fn bin(x: impl Iterator<Item = f64>, k: usize) -> Complex<f64> {
+    let n = WINDOW as f64;
+    let mut s = Complex::new(0.0, 0.0);
+    for (i, v) in x.enumerate() {
+        let a = -std::f64::consts::TAU * (k * i) as f64 / n;
+        s += Complex::new(a.cos(), a.sin()) * v;
+    }
+    s * (2.0 / n)
+}
+
+/// The data sheet's model (the fit's fixed part and its start).
+pub fn known_from_scenario(name: &str) -> Result<(Known, Plant)> {
+    let sc = host_sim::scenario::load(name).map_err(|e| format!("--scenario {name}: {e:#}"))?;
+    let slide = sc.rig.slide.clone();
+    let mode = slide
+        .mode
+        .ok_or_else(|| format!("--scenario {name}: no [mode] to start the fit from"))?;
+    let known = Known {
+        slide: slide.clone(),
+        gauge_v_per_in: sc.servo_design.slide.gauge_v_per_in,
+        loop_hz: f64::from(sc.loop_hz),
+    };
+    let start = Plant {
+        amp_gain: sc.rig.amplifier.gain,
+        mass_lbf_s2_per_in: slide.mass_lbf_s2_per_in,
+        mode_pole_hz: mode.pole_hz,
+        mode_zero_hz: mode.zero_hz,
+        mode_zeta: mode.zeta,
+        delay_s: sc.rig.dac_latency_ns as f64 * 1e-9,
+    };
+    Ok((known, start))
+}
+
+/// The frequency bins measured: log-spaced below the mode band (skipping
+/// the bins next to the 120 Hz hum), every second bin across it.
+pub fn bins(loop_hz: f64, start: &Plant) -> Vec<usize> {
+    let df = loop_hz / WINDOW as f64;
+    let hum = (120.0 / df).round() as usize;
+    let lo = ((0.85 * start.mode_zero_hz) / df).floor() as usize;
+    let hi = ((1.15 * start.mode_pole_hz) / df).ceil() as usize;
+    let mut ks: Vec<usize> = [1, 2, 3, 4, 5, 8, 11, 16, 22, 32, 45, 64, 90]
+        .into_iter()
+        .filter(|&k: &usize| k.abs_diff(hum) > 1 && k < lo)
+        .collect();
+    ks.extend((lo..=hi).step_by(2).filter(|&k| k < WINDOW / 4));
+    ks
+}
+
+fn excite(c: &mut Client, step: u32, amplitude: u32, ticks: u32) -> Result<()> {
+    match c.call(&Request::Excite {
+        step,
+        amplitude,
+        ticks,
+    })? {
+        Reply::Exciting { .. } => Ok(()),
+        r => Err(unexpected(&r)),
+    }
+}
+
+/// Waits `ticks` of the machine's loop ticks (as its status counts
+/// them: a simulated machine may run faster or slower than the wall).
+fn wait_ticks(c: &mut Client, ticks: u32) -> Result<()> {
+    let t0 = c.status()?.state.ticks;
+    loop {
+        let s = c.status()?;
+        if s.state.ticks.wrapping_sub(t0) >= ticks {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+fn window(c: &mut Client) -> Result<Vec<Sample>> {
+    match c.call(&Request::CaptureStart {
+        samples: WINDOW as u16,
+        pre: 0,
+        trigger: Trigger::Immediate,
+    })? {
+        Reply::Capture(_) => {}
+        r => return Err(unexpected(&r)),
+    }
+    loop {
+        let info = c.capture_info()?;
+        if info.state == zslide::link::proto::CaptureState::Done {
+            if usize::from(info.recorded) != WINDOW {
+                return Err(format!(
+                    "the capture recorded {} samples, not {WINDOW}",
+                    info.recorded
+                ));
+            }
+            return c.capture_read(info.recorded);
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// Measures the response at the bins of [`bins`].
+pub fn measure(
+    c: &mut Client,
+    a: &IdentifyArgs,
+    known: &Known,
+    start: &Plant,
+    out: &mut dyn Write,
+) -> Result<Vec<Measured>> {
+    let st = c.status()?;
+    if st.state.phase != LoopPhase::Engaged || st.state.fault.is_some() || !st.state.null_command {
+        return Err(
+            "identify needs the loop armed, engaged and at null (no fault, X outside the table): \
+             `zslide link arm` with X outside the table, then `zslide link status`"
+                .into(),
+        );
+    }
+    let loop_hz = f64::from(st.loop_hz);
+    if (loop_hz - known.loop_hz).abs() > 0.5 {
+        return Err(format!(
+            "the machine's loop runs at {loop_hz} Hz, the model's at {} Hz",
+            known.loop_hz
+        ));
+    }
+    let codes_per_uin = known.gauge_v_per_in * DAC_CODES_PER_V * 1e-6;
+    let settle = (a.settle_ms * 1e-3 * loop_hz) as u32;
+    let mut res = Vec::new();
+    for k in bins(loop_hz, start) {
+        let f_hz = k as f64 * loop_hz / WINDOW as f64;
+        let step = (k as u64 * (1u64 << 32) / WINDOW as u64) as u32;
+        let h_nom = known.response(start, f_hz).norm();
+        let max = zslide::firmware::excite::max_amplitude_codes(f_hz);
+        let amplitude = ((a.target_uin * codes_per_uin / h_nom) as u32).clamp(1, max);
+        let repeats = if f_hz >= 0.85 * start.mode_zero_hz {
+            a.mode_repeats
+        } else {
+            a.repeats
+        }
+        .max(2);
+        // Long enough for the settling and the windows with their reads
+        // (a read takes about a window's ticks more on a simulated link).
+        let ticks = ((settle + 12 * WINDOW as u32 * repeats) as f64)
+            .min(zslide::firmware::excite::EXCITE_MAX_S * loop_hz) as u32;
+        excite(c, step, amplitude, ticks)?;
+        wait_ticks(c, settle)?;
+        let (mut suy, mut suu, mut syy) = (Complex::new(0.0, 0.0), 0.0, 0.0);
+        let mut hs = Vec::new();
+        for _ in 0..repeats {
+            let w = window(c)?;
+            let u = bin(w.iter().map(|s| f64::from(s.output)), k);
+            let y = bin(w.iter().map(|s| f64::from(s.position)), k);
+            suy += u.conj() * y;
+            suu += u.norm_sqr();
+            syy += y.norm_sqr();
+            hs.push(y / u);
+        }
+        excite(c, 0, 0, 0)?;
+        let h = suy / suu;
+        let coherence = suy.norm_sqr() / (suu * syy);
+        let n = hs.len() as f64;
+        let spread = (hs.iter().map(|x| (x / h - 1.0).norm_sqr()).sum::<f64>() / (n - 1.0)).sqrt();
+        // Two windows estimate a spread poorly: never trust one below the
+        // coherence's own figure.
+        let from_coh = ((1.0 - coherence).max(0.0) / (coherence * n)).sqrt();
+        let m = Measured {
+            f_hz,
+            h,
+            coherence,
+            rel_sigma: (spread / n.sqrt()).max(from_coh).max(1e-3),
+            amplitude_v: f64::from(amplitude) / DAC_CODES_PER_V,
+        };
+        say_to(
+            out,
+            &format!(
+                "{:7.1} Hz  {:7.2} dB {:7.1} deg  coherence {:.3}  ({:.3} V, {} windows)",
+                f_hz,
+                20.0 * h.norm().log10(),
+                h.arg().to_degrees(),
+                coherence,
+                m.amplitude_v,
+                repeats
+            ),
+        )?;
+        res.push(m);
+    }
+    Ok(res)
+}
+
+/// The fit's file: `name = value` lines.
+pub fn plant_text(p: &Plant, scenario: &str) -> String {
+    format!(
+        "# zslide identify: the plant fitted to the measured response (data sheet: {scenario})\n\
+         amp_gain = {}\nmass_lbf_s2_per_in = {}\nmode_pole_hz = {}\nmode_zero_hz = {}\n\
+         mode_zeta = {}\ndelay_s = {}\n",
+        p.amp_gain, p.mass_lbf_s2_per_in, p.mode_pole_hz, p.mode_zero_hz, p.mode_zeta, p.delay_s
+    )
+}
+
+/// Reads [`plant_text`]'s file; every field is required, nothing else is
+/// accepted.
+pub fn read_plant(path: &Path) -> Result<Plant> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let mut v = std::collections::BTreeMap::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let (k, x) = line
+            .split_once('=')
+            .ok_or_else(|| format!("{}:{}: expected NAME = VALUE", path.display(), i + 1))?;
+        let x: f64 = x
+            .trim()
+            .parse()
+            .map_err(|e| format!("{}:{}: {}: {e}", path.display(), i + 1, x.trim()))?;
+        v.insert(k.trim().to_string(), x);
+    }
+    let mut take = |k: &str| {
+        v.remove(k)
+            .ok_or_else(|| format!("{}: no {k}", path.display()))
+    };
+    let p = Plant {
+        amp_gain: take("amp_gain")?,
+        mass_lbf_s2_per_in: take("mass_lbf_s2_per_in")?,
+        mode_pole_hz: take("mode_pole_hz")?,
+        mode_zero_hz: take("mode_zero_hz")?,
+        mode_zeta: take("mode_zeta")?,
+        delay_s: take("delay_s")?,
+    };
+    if let Some(k) = v.keys().next() {
+        return Err(format!("{}: unknown field {k}", path.display()));
+    }
+    Ok(p)
+}
+
+fn write_csv(path: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Result<()> {
+    let mut s = String::from(
+        "f_hz,mag_db,phase_deg,coherence,rel_sigma,excitation_v,model_mag_db,model_phase_deg\n",
+    );
+    for m in ms {
+        let h = known.response(p, m.f_hz);
+        s += &format!(
+            "{:.3},{:.4},{:.3},{:.5},{:.5},{:.4},{:.4},{:.3}\n",
+            m.f_hz,
+            20.0 * m.h.norm().log10(),
+            m.h.arg().to_degrees(),
+            m.coherence,
+            m.rel_sigma,
+            m.amplitude_v,
+            20.0 * h.norm().log10(),
+            h.arg().to_degrees()
+        );
+    }
+    std::fs::write(path, s).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+}
+
+fn write_plots(stem: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Result<()> {
+    use host_sim::plot::{write_images, Series};
+    let dir = stem
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = stem
+        .file_name()
+        .map_or("identify".into(), |n| n.to_string_lossy().into_owned());
+    let lf = |f: f64| f.log10();
+    let model: Vec<(f64, Complex<f64>)> = (0..400)
+        .map(|i| {
+            let f = 15.0 * (5000.0f64 / 15.0).powf(f64::from(i) / 399.0);
+            (f, known.response(p, f))
+        })
+        .collect();
+    for (suffix, label, get) in [
+        (
+            "mag",
+            "gauge/DAC, dB",
+            (|h: Complex<f64>| 20.0 * h.norm().log10()) as fn(_) -> f64,
+        ),
+        ("phase", "phase, deg", |h: Complex<f64>| {
+            h.arg().to_degrees()
+        }),
+    ] {
+        write_images(
+            dir,
+            &format!("{name}-{suffix}"),
+            "zslide identify: measured (points) and fitted (line)",
+            "log10 frequency / Hz",
+            label,
+            &[
+                Series {
+                    label: "measured".into(),
+                    points: ms.iter().map(|m| (lf(m.f_hz), get(m.h))).collect(),
+                },
+                Series {
+                    label: "fit".into(),
+                    points: model.iter().map(|(f, h)| (lf(*f), get(*h))).collect(),
+                },
+            ],
+        )
+        .map_err(|e| format!("{e:#}"))?;
+    }
+    Ok(())
+}
+
+/// `zslide identify`: measure, fit, write; returns the fit.
+pub fn identify(link: &mut Link, a: &IdentifyArgs, out: &mut dyn Write) -> Result<fit::Fit> {
+    let (known, start) = known_from_scenario(&a.scenario)?;
+    let stem = a.out.clone();
+    let csv = stem.with_extension("csv");
+    // Every output path is opened before the machine is touched.
+    for p in [&csv, &stem.with_extension("plant")] {
+        std::fs::write(p, "").map_err(|e| format!("{}: cannot write: {e}", p.display()))?;
+    }
+    let c = link.client()?;
+    let ms = measure(c, a, &known, &start, out)?;
+    let pts: Vec<Point> = ms
+        .iter()
+        .map(|m| Point {
+            f_hz: m.f_hz,
+            h: m.h,
+            rel_sigma: m.rel_sigma,
+        })
+        .collect();
+    let f = fit::fit(&known, &pts, &start)?;
+    let p = &f.plant;
+    write_csv(&csv, &ms, &known, p)?;
+    std::fs::write(stem.with_extension("plant"), plant_text(p, &a.scenario))
+        .map_err(|e| format!("{}: {e}", stem.with_extension("plant").display()))?;
+    if !a.no_plot {
+        write_plots(&stem, &ms, &known, p)?;
+    }
+    let rel = |x: f64, x0: f64| 100.0 * (x / x0 - 1.0);
+    let s = &f.rel_sigma;
+    for line in [
+        format!(
+            "fit ({} points, {} iterations, weighted rms residual {:.2}):",
+            ms.len(),
+            f.iterations,
+            f.rms_weighted
+        ),
+        format!(
+            "  amplifier gain  {:.4} V/V          ({:+.1} % of the data sheet, ±{:.2} %)",
+            p.amp_gain,
+            rel(p.amp_gain, start.amp_gain),
+            100.0 * s[0]
+        ),
+        format!(
+            "  moving mass     {:.6} lbf s^2/in ({:+.1} %, ±{:.2} %)",
+            p.mass_lbf_s2_per_in,
+            rel(p.mass_lbf_s2_per_in, start.mass_lbf_s2_per_in),
+            100.0 * s[1]
+        ),
+        format!(
+            "  mode pole       {:.1} Hz          ({:+.1} %, ±{:.2} %), damping {:.4} (±{:.0} %)",
+            p.mode_pole_hz,
+            rel(p.mode_pole_hz, start.mode_pole_hz),
+            100.0 * s[2],
+            p.mode_zeta,
+            100.0 * s[4]
+        ),
+        format!(
+            "  mode zero       {:.1} Hz          ({:+.1} %, ±{:.2} %)",
+            p.mode_zero_hz,
+            rel(p.mode_zero_hz, start.mode_zero_hz),
+            100.0 * s[3]
+        ),
+        format!("  DAC delay       {:.2} us", p.delay_s * 1e6),
+        format!(
+            "wrote {}, {}{}",
+            csv.display(),
+            stem.with_extension("plant").display(),
+            if a.no_plot {
+                String::new()
+            } else {
+                format!(", {0}-mag.png, {0}-phase.png", stem.display())
+            }
+        ),
+    ] {
+        say_to(out, &line)?;
+    }
+    Ok(f)
+}
+
+/// The parameters `tune` sets from a fit: the loop's model of the slide
+/// (its mass and the amplifier's gain) and the mode notch on the fitted
+/// mode.
+pub fn tuned(p: &Plant) -> [(&'static str, f64); 3] {
+    [
+        ("mass_lbf_s2_per_in", p.mass_lbf_s2_per_in),
+        ("amp_gain", p.amp_gain),
+        ("mode_notch_hz", p.mode_pole_hz),
+    ]
+}
+
+/// The design the machine runs now, read parameter by parameter.
+pub fn design_on(c: &mut Client) -> Result<ServoDesign> {
+    let loop_hz = c.status()?.loop_hz;
+    let mut d = ServoDesign::brief(loop_hz);
+    for p in params::PARAMS.iter() {
+        p.set(&mut d, get(c, p.id)?);
+    }
+    Ok(d)
+}
+
+/// `zslide tune`: the loop's model from the fit, designed by the
+/// firmware's own design code (checked here first, then by the firmware on
+/// each set), set on the machine while disarmed.
+pub fn tune(link: &mut Link, a: &TuneArgs, out: &mut dyn Write) -> Result<ServoDesign> {
+    let plant = read_plant(&a.plant)?;
+    let c = link.client()?;
+    let mut d = design_on(c)?;
+    let before = d;
+    for (name, v) in tuned(&plant) {
+        let p = params::by_name(name).ok_or_else(|| format!("no parameter {name}"))?;
+        if !(p.min..=p.max).contains(&v) {
+            return Err(format!(
+                "{}: {name} = {v} is outside its limits {} .. {} {}: the fit is not a slide this \
+                 firmware can run",
+                a.plant.display(),
+                p.min,
+                p.max,
+                p.unit
+            ));
+        }
+        p.set(&mut d, v);
+    }
+    d.config().map_err(|e| {
+        format!(
+            "the design from {} is refused: {}",
+            a.plant.display(),
+            d.refusal(e)
+        )
+    })?;
+    for (name, v) in tuned(&plant) {
+        let p = params::by_name(name).ok_or_else(|| format!("no parameter {name}"))?;
+        say_to(
+            out,
+            &format!(
+                "{name:<22} {:>12.6} -> {v:>12.6} {}",
+                p.get(&before),
+                p.unit
+            ),
+        )?;
+    }
+    if a.dry_run {
+        return Ok(d);
+    }
+    if c.status()?.state.phase != LoopPhase::Disarmed {
+        return Err(
+            "tune sets parameters, which change only while disarmed: `zslide link disarm` first"
+                .into(),
+        );
+    }
+    for (name, v) in tuned(&plant) {
+        let p = params::by_name(name).ok_or_else(|| format!("no parameter {name}"))?;
+        set(c, p.id, v).map_err(|e| format!("setting {name} = {v}: {e}"))?;
+    }
+    say_to(
+        out,
+        "set on the machine (in force now; `zslide params save` or `params flash` to keep them)",
+    )?;
+    Ok(d)
+}
