@@ -267,6 +267,10 @@ pub struct Sample {
     /// Slide carriage velocity, in/s.
     pub velocity_in_s: f64,
     pub fault: bool,
+    /// The latched fault's reaction is to drop the amplifier enable (a
+    /// row can latch a ramp-to-null fault first and a disabling one later,
+    /// which replaces it).
+    pub fault_disables: bool,
     /// The enable line as the amplifier sees it at the tick's instant
     /// (before the tick's own write, which lands `dac_latency_ns` later).
     pub amp_enabled: bool,
@@ -478,6 +482,10 @@ fn simulate(
                 force_lbf: w.rig.f_ext,
                 velocity_in_s: w.rig.slide.velocity_in_s(),
                 fault: w.fw.fault().is_some(),
+                fault_disables: w
+                    .fw
+                    .fault()
+                    .is_some_and(|f| f.reaction() == zslide::safety::Reaction::DisableAmplifier),
                 amp_enabled: w.rig.amp.enabled(),
                 enable_written: w.rig.enable.state.borrow().enable,
             });
