@@ -97,8 +97,12 @@ fn encoder(c: &[u8], events: &[u8], at_read: bool) {
             let since = u64::from(now.wrapping_sub(last_edge.unwrap_or(edge)));
             let count_period = period(cfg.ticks_per_s, cfg.min_rpm) / u64::from(cfg.counts_per_rev);
             match est.fault {
+                // At-read stamps also hold the 20 ms baseline's rate to the
+                // band's floor (`spindle::encoder`), which can trip between
+                // edges: this model does not keep the baseline, so it checks
+                // the time since the edge only for captured edges.
                 Some(Fault::SpindleSpeed) => {
-                    assert!(since > count_period, "stall after {since} ticks")
+                    assert!(at_read || since > count_period, "stall after {since} ticks")
                 }
                 f => {
                     assert_eq!(f, fault);
