@@ -189,6 +189,12 @@ impl<F: NorFlash> Store<F> {
         }
     }
 
+    /// The flash under the store (a simulated machine keeps its image
+    /// across runs).
+    pub fn flash(&mut self) -> &mut F {
+        self.map.flash()
+    }
+
     /// The flash back (a test's model, to "reboot" on).
     pub fn into_flash(self) -> F {
         self.map.destroy().0
