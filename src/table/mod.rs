@@ -806,6 +806,82 @@ mod tests {
         ));
     }
 
+    /// The format's ranges are inclusive at their stated ends (module
+    /// docs): 31 columns, 31 coefficient fraction bits, a null X on either
+    /// end of the grid and a tool radius of zero parse; one step past each
+    /// end is refused with its own error.
+    #[test]
+    fn each_header_range_holds_its_stated_ends() {
+        let good = image(&header(9, 4));
+        let last_raw = 8 * (1i32 << 21);
+        let wide = image(&header(9, MAX_TERMS));
+        assert_eq!(CoeffTable::parse(&wide).unwrap().terms(), 31);
+        for (at, bytes, field) in [
+            (10usize, vec![31u8], "fc = 31"),
+            (28, 0i32.to_le_bytes().to_vec(), "x_null on node 0"),
+            (28, last_raw.to_le_bytes().to_vec(), "x_null on the last node"),
+            (48, 0i64.to_le_bytes().to_vec(), "tool radius 0"),
+        ] {
+            let mut m = good.clone();
+            patch(&mut m, at, &bytes);
+            assert!(CoeffTable::parse(&m).is_ok(), "{field}");
+        }
+        for (at, bytes, want) in [
+            (28usize, (-1i32).to_le_bytes(), TableError::NullZoneOutsideGrid),
+            (28, (last_raw + 1).to_le_bytes(), TableError::NullZoneOutsideGrid),
+        ] {
+            let mut m = good.clone();
+            patch(&mut m, at, &bytes);
+            assert_eq!(CoeffTable::parse(&m), Err(want), "field at {at}");
+        }
+        let mut m = good.clone();
+        patch(&mut m, 48, &(-1i64).to_le_bytes());
+        assert_eq!(CoeffTable::parse(&m), Err(TableError::BadGeometry));
+    }
+
+    /// The grid's last node is node_count − 1 steps from node 0: a grid
+    /// ending on the largest X the core holds (I8F24 at fx = 24: raw
+    /// i32::MAX) parses, and node X past the last saturates there. With
+    /// fewer X fraction bits than the core's, a grid whose last node is
+    /// beyond the core's range (2²⁷ raw at fx = 20 is 128 in) is refused,
+    /// as is one whose node 0 is.
+    #[test]
+    fn the_grid_ends_on_its_last_node_and_must_fit_the_core_x() {
+        let mut h = header(9, 2);
+        h.dx_raw = i32::MAX / 8;
+        let img = image(&h);
+        let t = CoeffTable::parse(&img).unwrap();
+        let last = 8 * (i32::MAX / 8);
+        assert_eq!(t.node_x(8).to_bits(), last);
+        assert_eq!(t.node_x(9).to_bits(), last, "past the last node");
+        assert_eq!(t.node_x(u32::MAX).to_bits(), last);
+
+        let good = image(&header(9, 4));
+        let mut m = good.clone();
+        patch(&mut m, 11, &[20]);
+        patch(&mut m, 24, &(1i32 << 24).to_le_bytes());
+        assert_eq!(CoeffTable::parse(&m), Err(TableError::GridOverflow));
+        let mut m = good.clone();
+        patch(&mut m, 11, &[20]);
+        patch(&mut m, 20, &(-(1i32 << 27) - 1).to_le_bytes());
+        patch(&mut m, 28, &(-(1i32 << 27) + 1).to_le_bytes());
+        assert_eq!(CoeffTable::parse(&m), Err(TableError::GridOverflow));
+    }
+
+    /// A header alone (64 bytes, no payload) is cut short by the size its
+    /// fields describe, not by the header's own length.
+    #[test]
+    fn a_header_without_its_payload_is_truncated_by_the_payload_size() {
+        let good = image(&header(9, 4));
+        assert_eq!(
+            CoeffTable::parse(&good[..HEADER_LEN]),
+            Err(TableError::Truncated {
+                needed: good.len() as u32,
+                got: 64
+            })
+        );
+    }
+
     #[test]
     fn every_single_byte_corruption_is_caught() {
         let good = image(&header(5, 3));
