@@ -819,20 +819,22 @@ mod tests {
         for (at, bytes, field) in [
             (10usize, vec![31u8], "fc = 31"),
             (28, 0i32.to_le_bytes().to_vec(), "x_null on node 0"),
-            (28, last_raw.to_le_bytes().to_vec(), "x_null on the last node"),
+            (
+                28,
+                last_raw.to_le_bytes().to_vec(),
+                "x_null on the last node",
+            ),
             (48, 0i64.to_le_bytes().to_vec(), "tool radius 0"),
         ] {
             let mut m = good.clone();
             patch(&mut m, at, &bytes);
             assert!(CoeffTable::parse(&m).is_ok(), "{field}");
         }
-        for (at, bytes, want) in [
-            (28usize, (-1i32).to_le_bytes(), TableError::NullZoneOutsideGrid),
-            (28, (last_raw + 1).to_le_bytes(), TableError::NullZoneOutsideGrid),
-        ] {
+        for x_null in [-1i32, last_raw + 1] {
             let mut m = good.clone();
-            patch(&mut m, at, &bytes);
-            assert_eq!(CoeffTable::parse(&m), Err(want), "field at {at}");
+            patch(&mut m, 28, &x_null.to_le_bytes());
+            let want = Err(TableError::NullZoneOutsideGrid);
+            assert_eq!(CoeffTable::parse(&m), want, "x_null {x_null}");
         }
         let mut m = good.clone();
         patch(&mut m, 48, &(-1i64).to_le_bytes());

@@ -1,11 +1,15 @@
 //! `cargo xtask mutants [--module M]...`: cargo-mutants on the core's
-//! safety-relevant code, each mutant tested by the core's own tests only
-//! (`cargo test -p zslide --lib --tests`: its unit tests and the
-//! integration tests in `tests/`). Not part of `cargo xtask test`: on two
-//! cores one module takes tens of minutes. cargo-mutants is installed on
-//! demand (`cargo install cargo-mutants --locked`), never built by the
-//! normal build. The score per module and every surviving mutant, with
-//! what was done about it: docs/RELIABILITY.md ("Mutation testing").
+//! safety-relevant code, each mutant tested by the core's own tests only:
+//! its unit tests (`cargo test -p zslide --lib`), and for the loop tick
+//! also the integration tests in `tests/` that drive it (`--tests`). The
+//! test targets go to cargo-mutants as `--cargo-arg`s, so that its build
+//! phase (`cargo test --no-run`, which never sees what follows `--`)
+//! builds those alone, not every test target and the firmware binaries.
+//! Not part of `cargo xtask test` (it runs for minutes, and cargo-mutants
+//! is a heavy build): cargo-mutants is installed on demand (`cargo install
+//! cargo-mutants --locked`), never built by the normal build. The score
+//! per module and every surviving mutant, with what was done about it:
+//! docs/RELIABILITY.md ("Mutation testing").
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -19,6 +23,9 @@ pub struct Module {
     pub name: &'static str,
     pub files: &'static [&'static str],
     pub re: Option<&'static str>,
+    /// The core's test targets that judge a mutant (cargo's `--lib`,
+    /// `--tests`).
+    pub tests: &'static [&'static str],
     pub what: &'static str,
 }
 
@@ -28,6 +35,7 @@ pub const MODULES: [Module; 5] = [
         name: "safety",
         files: &["**/safety.rs"],
         re: None,
+        tests: &["--lib"],
         what: "faults, their reactions and severity order",
     },
     Module {
@@ -39,24 +47,29 @@ pub const MODULES: [Module; 5] = [
         re: Some(
             "trip|clear_fault|amplifier_must_be_off|hold_safe|take_requests|amplifier_enable|LoopState::(loop_tick|sense_gauge|fault_checks|output) ",
         ),
+        // `tests/fault_clear.rs` and `tests/fault_latch.rs` drive the tick.
+        tests: &["--lib", "--tests"],
         what: "the loop tick's fault reactions: latch, clamp, clear, arm",
     },
     Module {
         name: "limits",
         files: &["**/servo/limits.rs", "**/servo/limits/*.rs"],
         re: Some("FollowingError|CurrentLimit"),
+        tests: &["--lib"],
         what: "the following-error and current-limit monitors",
     },
     Module {
         name: "table",
         files: &["**/table.rs", "**/table/*.rs"],
         re: Some("parse|crc32|node_x|x_null"),
+        tests: &["--lib"],
         what: "the coefficient table's parser",
     },
     Module {
         name: "params",
         files: &["**/params.rs", "**/params/*.rs"],
         re: Some("load_region|at_boot|check|limits|[ :]set "),
+        tests: &["--lib"],
         what: "the servo parameter block: parse, limits, design",
     },
 ];
@@ -70,8 +83,15 @@ pub struct Args {
     #[arg(long, default_value_t = 120)]
     pub timeout: u32,
     /// Parallel mutants (each builds in its own copy of the tree).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, conflicts_with = "in_place")]
     pub jobs: u32,
+    /// Mutate this tree itself, one mutant at a time, instead of a copy:
+    /// its own target/ stays warm, so a mutant costs an incremental
+    /// build (seconds) and no run starts with a cold one. Each mutant is
+    /// reverted after its test (and on Ctrl-C); run it in a scratch clone,
+    /// not in a tree being edited.
+    #[arg(long)]
+    pub in_place: bool,
     /// List the mutants, run nothing.
     #[arg(long)]
     pub list: bool,
@@ -110,8 +130,25 @@ pub fn command(m: &Module, args: &Args, out: &std::path::Path) -> Command {
         .arg("--output")
         .arg(out)
         .args(["--timeout", &args.timeout.to_string()])
-        .args(["--jobs", &args.jobs.to_string()])
-        .arg("--no-shuffle");
+        .arg("--no-shuffle")
+        // No debug info in the mutants' builds: nothing reads it, and it
+        // is most of their link time.
+        .env("CARGO_PROFILE_DEV_DEBUG", "0")
+        .env("CARGO_PROFILE_TEST_DEBUG", "0")
+        // Every mutant judged on the baseline's property cases, and no
+        // failure persisted into the tree: a property test that fails on
+        // a new random case (one did, in `spindle`) would otherwise fail
+        // every later mutant's run and count it caught.
+        .env("PROPTEST_RNG_SEED", "22")
+        .env("PROPTEST_DISABLE_FAILURE_PERSISTENCE", "1");
+    if args.in_place {
+        cmd.arg("--in-place");
+    } else {
+        cmd.args(["--jobs", &args.jobs.to_string()]);
+    }
+    for t in m.tests {
+        cmd.args(["--cargo-arg", t]);
+    }
     for f in m.files {
         cmd.args(["--file", f]);
     }
@@ -121,8 +158,6 @@ pub fn command(m: &Module, args: &Args, out: &std::path::Path) -> Command {
     if args.list {
         cmd.arg("--list");
     }
-    // The core's unit and integration tests; no doctests, no other crate.
-    cmd.args(["--", "--lib", "--tests"]);
     cmd
 }
 
