@@ -189,6 +189,11 @@ impl<F: NorFlash> Store<F> {
         }
     }
 
+    /// The flash (a model's operation count).
+    pub fn flash(&mut self) -> &mut F {
+        self.map.flash()
+    }
+
     /// The flash back (a test's model, to "reboot" on).
     pub fn into_flash(self) -> F {
         self.map.destroy().0
