@@ -150,6 +150,8 @@ impl<const N: usize> Station<N> {
     /// [`Station::poll`] on a board whose parameter region has a flash
     /// driver: a `SaveParams` request writes `store` (in this call: the
     /// erase and program times are the background's, never the tick's).
+    /// Never inlined, for `cargo xtask no-panic` as [`Station::poll`].
+    #[inline(never)]
     pub fn poll_with_store(
         &mut self,
         tap: &TapShared<'_, N>,
