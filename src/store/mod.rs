@@ -194,7 +194,8 @@ impl<F: NorFlash> Store<F> {
         }
     }
 
-    /// The flash (a model's operation count).
+    /// The flash under the store (a simulated machine keeps its image
+    /// across runs; a model's operation count).
     pub fn flash(&mut self) -> &mut F {
         self.map.flash()
     }

@@ -8,6 +8,7 @@ pub mod cli;
 pub mod client;
 pub mod fit;
 pub mod identify;
+pub mod predict;
 #[cfg(feature = "probe")]
 pub mod probe;
 pub mod regions;

@@ -111,6 +111,11 @@ impl HostLink {
         self.store = Some(store);
     }
 
+    /// The parameter store's flash, while the station has it.
+    pub fn store_flash(&mut self) -> Option<&mut ParamsFlash> {
+        self.store.as_mut().map(|s| s.flash())
+    }
+
     /// The parameter store back (its flash outlives this firmware).
     pub fn take_store(&mut self) -> Option<ParamsStore> {
         self.store.take()
