@@ -199,10 +199,7 @@ impl<W: FnMut()> Bank2<W> {
         // SAFETY: CCR2's bits only clear the SR2 flags at the same
         // positions (EOP and the error flags).
         unsafe {
-            self.flash
-                .bank2()
-                .ccr()
-                .write(|w| w.bits(errors | SR_EOP));
+            self.flash.bank2().ccr().write(|w| w.bits(errors | SR_EOP));
         }
         errors
     }
@@ -279,7 +276,9 @@ fn invalidate(addr: u32, len: usize) {
 /// `offset..offset + len` inside the region, as addresses.
 fn span(offset: u32, len: usize) -> Result<u32, FlashError> {
     let (base, size) = region();
-    let end = offset.checked_add(len as u32).ok_or(FlashError::OutOfBounds)?;
+    let end = offset
+        .checked_add(len as u32)
+        .ok_or(FlashError::OutOfBounds)?;
     if end > size {
         return Err(FlashError::OutOfBounds);
     }

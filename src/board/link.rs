@@ -42,7 +42,6 @@ pub fn table_region() -> &'static [u8] {
     )
 }
 
-
 /// The link's RTT channel pair.
 pub struct RttLink {
     up: UpChannel,

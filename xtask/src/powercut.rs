@@ -199,7 +199,12 @@ fn cut_every_operation(
         }
         // The next boot, on what the cut left; its save must work.
         let next = run_image(dir, set(k + 1), None)?;
-        check_boot(&next, old, new, &format!("{what}, cut at operation {n} of {ops}"))?;
+        check_boot(
+            &next,
+            old,
+            new,
+            &format!("{what}, cut at operation {n} of {ops}"),
+        )?;
         if next.saved_ops.is_none() {
             return Err(format!(
                 "{what}, cut at operation {n} of {ops}: the next boot's save failed:\n  {}",
@@ -221,7 +226,9 @@ fn design_block(k: u32) -> Result<Vec<u8>> {
         ("following_error_in", f64::from(s.fe_uin) * 1e-6),
     ] {
         let p = params::by_name(name).ok_or(format!("no parameter {name}"))?;
-        d = params::set(&d, p.id, v).map_err(|e| format!("{name} {v}: {e}"))?.0;
+        d = params::set(&d, p.id, v)
+            .map_err(|e| format!("{name} {v}: {e}"))?
+            .0;
     }
     let mut out = vec![0u8; MAX_BLOCK];
     let n = params::design_block(&d, &mut out).map_err(|e| e.to_string())?;
@@ -304,7 +311,10 @@ pub fn check() -> Result<String> {
             }));
         }
         jobs.into_iter()
-            .map(|j| j.join().unwrap_or_else(|_| Err("a power-cut job panicked".into())))
+            .map(|j| {
+                j.join()
+                    .unwrap_or_else(|_| Err("a power-cut job panicked".into()))
+            })
             .collect()
     });
     let lines = results.into_iter().collect::<Result<Vec<_>>>()?;

@@ -54,7 +54,9 @@ impl ImageFlash {
         }
         let at = core::ptr::addr_of_mut!(__zsfl_start).cast::<Bank2Region>();
         let room = core::ptr::addr_of!(__zsfl_size) as usize;
-        if room < core::mem::size_of::<Bank2Region>() || !(at as usize).is_multiple_of(core::mem::align_of::<Bank2Region>()) {
+        if room < core::mem::size_of::<Bank2Region>()
+            || !(at as usize).is_multiple_of(core::mem::align_of::<Bank2Region>())
+        {
             return None;
         }
         // SAFETY: `memory.x` reserves ZSFL (PSRAM, mapped by QEMU for
@@ -124,7 +126,10 @@ fn load(bytes: &mut [u8; BANK2_REGION_BYTES]) -> bool {
         return true;
     }
     // READ returns the bytes *not* read.
-    let left = call3(nr::READ, [h as usize, bytes.as_mut_ptr() as usize, bytes.len()]);
+    let left = call3(
+        nr::READ,
+        [h as usize, bytes.as_mut_ptr() as usize, bytes.len()],
+    );
     close(h);
     if left != 0 {
         defmt::error!(
@@ -141,7 +146,10 @@ fn save(bytes: &[u8; BANK2_REGION_BYTES]) -> bool {
         return false;
     }
     // WRITE returns the bytes *not* written.
-    let left = call3(nr::WRITE, [h as usize, bytes.as_ptr() as usize, bytes.len()]);
+    let left = call3(
+        nr::WRITE,
+        [h as usize, bytes.as_ptr() as usize, bytes.len()],
+    );
     close(h);
     left == 0
 }

@@ -106,9 +106,6 @@ pub fn save(station: &mut Station<CAPTURE>, shared: &Shared, store: &mut Store<I
 
 /// Why the store could not be made, for the log.
 pub fn refused(e: StoreError) -> ! {
-    defmt::error!(
-        "FAIL: the parameter store: {}",
-        defmt::Display2Format(&e)
-    );
+    defmt::error!("FAIL: the parameter store: {}", defmt::Display2Format(&e));
     zslide_qemu::exit(false)
 }
