@@ -314,11 +314,11 @@ impl<W: FnMut()> NorFlash for Bank2<W> {
     const ERASE_SIZE: usize = SECTOR as usize;
 
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        if from % SECTOR != 0 || to % SECTOR != 0 || from > to {
+        if !from.is_multiple_of(SECTOR) || !to.is_multiple_of(SECTOR) || from > to {
             return Err(FlashError::NotAligned);
         }
         let start = span(from, (to - from) as usize)?;
-        if start % SECTOR != 0 || start < BANK2_BASE {
+        if !start.is_multiple_of(SECTOR) || start < BANK2_BASE {
             return Err(FlashError::NotAligned);
         }
         for addr in (start..start + (to - from)).step_by(SECTOR as usize) {
@@ -329,7 +329,7 @@ impl<W: FnMut()> NorFlash for Bank2<W> {
     }
 
     async fn write(&mut self, offset: u32, data: &[u8]) -> Result<(), Self::Error> {
-        if offset as usize % WORD != 0 || data.len() % WORD != 0 {
+        if !(offset as usize).is_multiple_of(WORD) || !data.len().is_multiple_of(WORD) {
             return Err(FlashError::NotAligned);
         }
         let start = span(offset, data.len())?;

@@ -55,7 +55,7 @@ impl ImageFlash {
         let at = core::ptr::addr_of_mut!(__zsfl_start).cast::<Bank2Region>();
         let room = core::ptr::addr_of!(__zsfl_size) as usize;
         if room < core::mem::size_of::<Bank2Region>()
-            || !(at as usize).is_multiple_of(core::mem::align_of::<Bank2Region>())
+            || (at as usize) % core::mem::align_of::<Bank2Region>() != 0
         {
             return None;
         }
