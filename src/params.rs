@@ -522,6 +522,29 @@ mod tests {
         ));
     }
 
+    /// The entry count's bound (module docs: 0..=`PARAMS.len()`) is
+    /// inclusive: a block naming every parameter once loads, and a header
+    /// claiming one entry more is refused as too many, before its entries
+    /// or CRC are read.
+    #[test]
+    fn a_block_may_name_every_parameter_once_and_no_more() {
+        let b = brief();
+        let all: Vec<(u16, f64)> = PARAMS.iter().map(|p| (p.id, p.get(&b))).collect();
+        let img = block(&all);
+        let (d, _, src) = load_region(&img, &b).unwrap();
+        assert_eq!(d, b);
+        assert!(
+            matches!(src, ParamSource::Block { entries, .. } if usize::from(entries) == PARAMS.len())
+        );
+        let over = PARAMS.len() as u16 + 1;
+        let mut m = img.clone();
+        m[6..8].copy_from_slice(&over.to_le_bytes());
+        assert_eq!(
+            load_region(&m, &b).unwrap_err(),
+            ParamError::BlockTooMany(over)
+        );
+    }
+
     #[test]
     fn each_block_defect_has_its_own_error() {
         let fe = by_name("following_error_in").unwrap().id;

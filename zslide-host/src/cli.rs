@@ -72,6 +72,16 @@ pub enum Cmd {
     /// A board's decoded defmt log with trace events (`--features trace`)
     /// as a VCD with the simulator's signal names.
     Trace2vcd(host_sim::cmd::trace2vcd::Args),
+    /// Decode a raw defmt log (a file, or stdin) with the firmware's ELF,
+    /// as `defmt-print -e ELF` does.
+    #[cfg(feature = "defmt-log")]
+    Log {
+        /// The firmware image the log came from.
+        #[arg(long, value_name = "ELF")]
+        elf: PathBuf,
+        /// The raw log (default: stdin).
+        file: Option<PathBuf>,
+    },
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -458,6 +468,12 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
             say(format!("scope: {summary}"))
         }
         Cmd::Trace2vcd(a) => host_sim::cmd::trace2vcd::run(a.clone()).map_err(|e| format!("{e:#}")),
+        #[cfg(feature = "defmt-log")]
+        Cmd::Log { elf, file } => {
+            let summary = crate::defmt_log::decode_file(elf, file.as_deref())?;
+            eprintln!("{summary}");
+            Ok(())
+        }
     }
 }
 
