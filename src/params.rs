@@ -376,6 +376,16 @@ pub fn encode_block(
     Ok(len)
 }
 
+/// Every parameter of `design` as one block into `out` (what a save
+/// stores); returns the bytes written.
+pub fn design_block(design: &ServoDesign, out: &mut [u8]) -> Result<usize, ParamError> {
+    let mut entries = heapless::Vec::<(u16, f64), { PARAMS.len() }>::new();
+    for p in PARAMS.iter() {
+        let _ = entries.push((p.id, p.get(design)));
+    }
+    encode_block(&entries, design, out)
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {

@@ -63,9 +63,9 @@ pub struct HostLink {
 
 /// The NUCLEO's parameter region as the store sees it: two 128 KiB
 /// sectors of bank 2 (memory.x `ZSPB`), programmed in 32-byte flash words.
-pub type ParamsFlash = zslide::store::ram::RamFlash<PARAMS_REGION_BYTES, { 128 * 1024 }, 32>;
+pub type ParamsFlash = zslide::store::ram::Bank2Region;
 /// The parameter region's size, bytes.
-pub const PARAMS_REGION_BYTES: usize = 256 * 1024;
+pub const PARAMS_REGION_BYTES: usize = zslide::store::ram::BANK2_REGION_BYTES;
 /// The parameter store on [`ParamsFlash`].
 pub type ParamsStore = zslide::store::Store<ParamsFlash>;
 
