@@ -488,7 +488,8 @@ fn the_watchdog_resets_the_chip_five_milliseconds_after_the_loop_stops() {
 /// disabled and leaves the tool within the depth of cut. (The worst of 128
 /// instants on 16 seed streams: docs/SAFETY.md.)
 #[test]
-fn a_loop_stalled_at_any_phase_of_the_revolution_is_reset_safe_within_the_depth_of_cut() {
+fn a_loop_stalled_at_any_phase_of_the_revolution_is_reset_safe_within_its_release_bound_and_the_depth_of_cut(
+) {
     const PHASES: usize = 16;
     let spec = legacy();
     let rev_s = 60.0 / spec.rpm;
@@ -516,6 +517,9 @@ fn a_loop_stalled_at_any_phase_of_the_revolution_is_reset_safe_within_the_depth_
                 (5.0 - 0.05..=5.0 + 0.125 + 0.05).contains(&t),
                 "{t} ms: {r:?}"
             );
+            // The release's carry at each instant (its own w and F).
+            let held = check_row(&spec, Case::StalledLoop, o);
+            eprintln!("seed stream {seed}, stalled {k}/{PHASES} of a turn in: {held}");
             let e = r.max_excursion_uin.unwrap();
             assert!(
                 e < DEPTH_OF_CUT_IN * 1e6,
