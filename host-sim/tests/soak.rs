@@ -99,7 +99,11 @@ fn following_error_rms_predicted_uin(spec: &SoakSpec) -> f64 {
     let z_per_d = |w: f64| {
         let num = mul(
             (0.0, w),
-            quad(w, 3.0 * wo + 2.0 * zeta * wc, 3.0 * wo * wo + wc * wc + 6.0 * zeta * wc * wo),
+            quad(
+                w,
+                3.0 * wo + 2.0 * zeta * wc,
+                3.0 * wo * wo + wc * wc + 6.0 * zeta * wc * wo,
+            ),
         );
         let p = (wo, w);
         let den = mul(mul(mul(p, p), p), quad(w, 2.0 * zeta * wc, wc * wc));
