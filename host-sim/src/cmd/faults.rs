@@ -325,8 +325,9 @@ pub struct Drive {
     pub slide_move_uin: f64,
     /// Into the part at the release, µin (< 0: out of it).
     pub at_release_uin: f64,
-    /// The slide's velocity at the release, in/s (what carries the
-    /// released slide on: docs/SAFETY.md, v·√(m/k)).
+    /// The slide's velocity at the release, in/s (against the surface's
+    /// own, it carries the released slide on: docs/SAFETY.md, "The
+    /// released slide's carry").
     pub release_velocity_in_s: f64,
     /// When the tool was deepest, ms after the stall.
     pub peak_at_ms: f64,
