@@ -43,8 +43,8 @@
 //! error is clipped to ±C (`learning_clip_uin`) before it is learned: a
 //! bin's update is the mean of its ticks' κ·sat_C(e), so one revolution
 //! moves a bin by at most κ·C, and the Q-filter (a positive kernel of sum
-//! 1) does not enlarge it; the replayed correction is then unlearned at
-//! (1 − κ) per revolution, since the loop following it makes the error
+//! 1) does not enlarge it; the replayed correction is then unlearned,
+//! revolution by revolution, since the loop following it makes the error
 //! −c. C sits above the largest error that does repeat, an interrupted
 //! cut's edges before they are learned (269 µin on `legacy-hw`, 116 on
 //! `modern-hw`, docs/TUNING.md), so the cut's learning is not touched
@@ -566,7 +566,9 @@ impl Learner {
         // following-error limit) is replayed a revolution later by at most
         // that, while an error that repeats is still learned, at that rate
         // per revolution until it is inside the clip.
-        let e_q8 = error_q8.clamp(-self.clip_q8, self.clip_q8);
+        // (max/min, not clamp: clamp's min ≤ max assertion is a panic path
+        // the handler must not have; clip_q8 ≥ 1 by construction.)
+        let e_q8 = error_q8.max(-self.clip_q8).min(self.clip_q8);
         let k_dphi = (dphi >> 7) * self.gain_q16;
         let inc = ((i64::from(e_q8) * i64::from(k_dphi)) >> (BIN_BITS + 9)) as i32;
         // Shared between the two bins around the angle (|inc| < 2²⁶).
@@ -668,7 +670,7 @@ mod tests {
     /// (κ 0.3, lead 3, Q-filter shift 2: the scenarios'), no hum notch,
     /// and the Q8 codes of one µin.
     fn clipped_learner(clip_uin: f64) -> (Learner, f64) {
-        let mut d = super::super::ServoDesign::brief(20_000);
+        let mut d = crate::servo::ServoDesign::brief(20_000);
         d.learning_clip_uin = clip_uin;
         d.hum_notch_q = 0.0;
         let cfg = d.config().unwrap();
