@@ -42,8 +42,8 @@
 //! (docs/SAFETY.md, "A transient learned and replayed"). So each tick's
 //! error is clipped to ±C (`learning_clip_uin`) before it is learned: a
 //! bin's update is the mean of its ticks' κ·sat_C(e), so one revolution
-//! moves a bin by at most κ·C, and the Q-filter (a positive kernel of sum
-//! 1) does not enlarge it; the replayed correction is then unlearned,
+//! moves a bin by at most κ·C, and the Q-filter (a positive kernel of
+//! sum one) does not enlarge it; the replayed correction is then unlearned,
 //! revolution by revolution, since the loop following it makes the error
 //! −c. C sits above the largest error that does repeat, an interrupted
 //! cut's edges before they are learned (269 µin on `legacy-hw`, 116 on
