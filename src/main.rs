@@ -28,6 +28,7 @@ mod app {
 
     use cortex_m::peripheral::NVIC;
     use cortex_m_rt::{entry, exception, ExceptionFrame};
+    use embedded_storage_async::nor_flash::ReadNorFlash;
     use stm32h7::stm32h743v::{interrupt, Interrupt, Peripherals, SPI1, SPI3, SPI4};
     use zslide::drivers::{ad4020::Ad4020, ad5686::Ad5686, ad5791::Ad5791};
     use zslide::firmware::{
@@ -39,10 +40,11 @@ mod app {
     use zslide::link::proto::{SpindleSource, XSource};
     use zslide::link::station::{Station, StationConfig};
     use zslide::link::tap::TickTap;
-    use zslide::params::{self, ParamSource};
+    use zslide::params::ParamSource;
     use zslide::safety::{Device, Fault};
     use zslide::servo::{ServoConfig, ServoDesign};
     use zslide::spindle::EncoderConfig;
+    use zslide::store::{self, ParamStore, Store};
     use zslide::trace::{self, Event, Outputs};
     use zslide::units::SpindleAngle;
     use zslide::watchdog::FeedGate;
@@ -150,11 +152,27 @@ mod app {
         let gauge_spi = SpiDev::new(dp.SPI4, 0, spi::Mode::Mode0, NoCs);
         let quad_spi = SpiDev::new(dp.SPI3, 1, spi::Mode::Mode1, Output(pins::QUAD_DAC_SYNC));
 
-        // Servo parameters: the parameter region's block on the built-in
-        // design; a refused block leaves the built-in design in the loop
-        // and the amplifier off (`Fault::Parameters`, never cleared).
+        // Servo parameters: the parameter store's last saved block
+        // (`zslide::store`, bank 2: `board::flash`) on the built-in design;
+        // the store owns the whole region (`zslide params flash` writes a
+        // store holding one block); a bare block an older `params flash`
+        // left at the region's start still boots. A refused block or an unreadable store leaves the built-in
+        // design in the loop and the amplifier off (`Fault::Parameters`,
+        // never cleared). The watchdog is fed inside the driver's
+        // busy-waits through its own gate: only while the loop tick runs.
+        let mut gate = FeedGate::new(TICKS.load(Ordering::Relaxed), 1);
+        let feed = move || {
+            if gate.may_feed(TICKS.load(Ordering::Relaxed)) {
+                timers::feed_watchdog();
+            }
+        };
+        let flash = board::flash::Bank2::new(dp.FLASH, feed);
+        let capacity = flash.capacity() as u32;
+        let Ok(mut store) = Store::new(flash, 0..capacity) else {
+            boot_failure("the parameter region is not a store (two sectors)");
+        };
         let base = ServoDesign::brief(timers::LOOP_HZ);
-        let Ok((design, loop_cfg, param_source)) = params::at_boot(link::params_region(), &base)
+        let Ok((design, loop_cfg, param_source)) = store::boot::at_boot_owned(&mut store, &base)
         else {
             boot_failure("servo design refused");
         };
@@ -253,7 +271,7 @@ mod app {
             NVIC::unmask(Interrupt::TIM7);
         }
 
-        background(station, rtt)
+        background(station, rtt, store)
     }
 
     /// A boot that cannot go on (a refused configuration, say): not a
@@ -274,7 +292,11 @@ mod app {
     /// Thread mode, the lowest priority: the host link, reports, the arm
     /// button and the watchdog, then sleeps until the next interrupt (the
     /// loop tick wakes it 20 000 times a second).
-    fn background(mut station: Station<{ link::CAPTURE }>, mut rtt: RttLink) -> ! {
+    fn background(
+        mut station: Station<{ link::CAPTURE }>,
+        mut rtt: RttLink,
+        mut store: impl ParamStore,
+    ) -> ! {
         let mut last_report = timers::micros();
         // Fault-log records reported so far.
         let mut reported = 0u32;
@@ -288,7 +310,9 @@ mod app {
             if gate.may_feed(TICKS.load(Ordering::Relaxed)) {
                 timers::feed_watchdog();
             }
-            station.poll(&TAP, &SHARED, &mut rtt);
+            // A save (disarmed only) runs here: its erase takes seconds,
+            // the loop tick runs on from bank 1 meanwhile (`board::flash`).
+            station.poll_with_store(&TAP, &SHARED, &mut rtt, &mut store);
             let latched = station.fault_log().last().is_some_and(|r| !r.cleared);
             let level = pins::ARM_BUTTON.is_high();
             let now = timers::micros();

@@ -377,6 +377,16 @@ pub fn encode_block(
     Ok(len)
 }
 
+/// Every parameter of `design` as one block into `out` (what a save
+/// stores); returns the bytes written.
+pub fn design_block(design: &ServoDesign, out: &mut [u8]) -> Result<usize, ParamError> {
+    let mut entries = heapless::Vec::<(u16, f64), { PARAMS.len() }>::new();
+    for p in PARAMS.iter() {
+        let _ = entries.push((p.id, p.get(design)));
+    }
+    encode_block(&entries, design, out)
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -511,6 +521,29 @@ mod tests {
             src,
             ParamSource::Refused(ParamError::BlockCrc { .. })
         ));
+    }
+
+    /// The entry count's bound (module docs: 0..=`PARAMS.len()`) is
+    /// inclusive: a block naming every parameter once loads, and a header
+    /// claiming one entry more is refused as too many, before its entries
+    /// or CRC are read.
+    #[test]
+    fn a_block_may_name_every_parameter_once_and_no_more() {
+        let b = brief();
+        let all: Vec<(u16, f64)> = PARAMS.iter().map(|p| (p.id, p.get(&b))).collect();
+        let img = block(&all);
+        let (d, _, src) = load_region(&img, &b).unwrap();
+        assert_eq!(d, b);
+        assert!(
+            matches!(src, ParamSource::Block { entries, .. } if usize::from(entries) == PARAMS.len())
+        );
+        let over = PARAMS.len() as u16 + 1;
+        let mut m = img.clone();
+        m[6..8].copy_from_slice(&over.to_le_bytes());
+        assert_eq!(
+            load_region(&m, &b).unwrap_err(),
+            ParamError::BlockTooMany(over)
+        );
     }
 
     #[test]

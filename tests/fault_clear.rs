@@ -188,3 +188,24 @@ fn an_amplifier_trip_is_not_cleared_while_its_line_is_high() {
     request(&mut fw, Request::Arm, &mut g, &mut d, false);
     assert!(fw.amplifier_enable());
 }
+
+/// Only a clear request clears: an arm or a disarm request leaves a
+/// latched fault latched, even one whose cause is gone and that a clear
+/// would take at once (a following error, disarmed).
+#[test]
+fn an_arm_or_disarm_request_never_clears_a_fault() {
+    let mut fw = Firmware::new(cfg());
+    let (mut g, mut d) = (Gauge::at(0), Dac::default());
+    fw.trip(Fault::FollowingError);
+    tick(&mut fw, &mut g, &mut d, false);
+    for r in [Request::Disarm, Request::Arm, Request::Disarm] {
+        request(&mut fw, r, &mut g, &mut d, false);
+        assert_eq!(fw.fault(), Some(Fault::FollowingError), "{r:?} cleared it");
+        for _ in 0..200 {
+            tick(&mut fw, &mut g, &mut d, false);
+        }
+    }
+    assert_eq!(fw.servo().phase(), Phase::Disarmed);
+    request(&mut fw, Request::ClearFault, &mut g, &mut d, false);
+    assert_eq!(fw.fault(), None, "the clear itself is taken");
+}

@@ -142,6 +142,10 @@ pub struct Setup {
     /// a machine served again from a clone boots from what the last one
     /// saved (a power cycle of the board).
     pub params_flash: Arc<Mutex<ParamsFlash>>,
+    /// A file holding the parameter region's image across runs of
+    /// `host-sim serve` (the board's flash across power cycles): read at
+    /// the start, rewritten whole after every flash operation.
+    pub params_file: Option<PathBuf>,
 }
 
 impl Setup {
@@ -161,7 +165,31 @@ impl Setup {
             rpm,
             speed: 1.0,
             params_flash: Arc::new(Mutex::new(ParamsFlash::new())),
+            params_file: None,
         }
+    }
+
+    /// The parameter region's flash kept in `path`: its image when the file
+    /// exists (it must be a whole region, as this wrote it), erased flash
+    /// when it does not (the file appears at the first save).
+    pub fn with_params_file(mut self, path: PathBuf) -> anyhow::Result<Self> {
+        let flash = match std::fs::read(&path) {
+            Ok(image) => {
+                anyhow::ensure!(
+                    image.len() == PARAMS_REGION_BYTES,
+                    "{}: {} bytes, but a parameter region image is {PARAMS_REGION_BYTES} \
+                     (the file `host-sim serve --params-flash` writes)",
+                    path.display(),
+                    image.len()
+                );
+                ParamsFlash::with_image(&image)
+            }
+            Err(e) if e.kind() == ErrorKind::NotFound => ParamsFlash::new(),
+            Err(e) => bail!("{}: cannot read: {e}", path.display()),
+        };
+        self.params_flash = Arc::new(Mutex::new(flash));
+        self.params_file = Some(path);
+        Ok(self)
     }
 
     /// The world, disarmed as a board boots, with its link attached.
@@ -220,6 +248,7 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
     let start = Instant::now();
     let mut t: Nanos = 0;
     let mut buf = [0u8; 4096];
+    let mut flash_ops = link.borrow_mut().store_flash().map(|f| f.ops);
     while !stop.load(Ordering::Relaxed) {
         if conn.is_none() {
             conn = listener.accept().context("accepting a host")?;
@@ -253,6 +282,13 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
         }
         t += STEP_NS;
         s.run_until(&mut w, t);
+        if let Some(path) = &setup.params_file {
+            let mut l = link.borrow_mut();
+            if let Some(f) = l.store_flash().filter(|f| Some(f.ops) != flash_ops) {
+                flash_ops = Some(f.ops);
+                write_image(path, &f.bytes)?;
+            }
+        }
         let out = link.borrow_mut().take_received();
         if let (Some(c), false) = (conn.as_mut(), out.is_empty()) {
             if write_all_nonblocking(c.as_mut(), &out).is_err() {
@@ -265,6 +301,14 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
         *f = st.into_flash();
     }
     Ok(())
+}
+
+/// `bytes` into `path` whole or not at all (a kill of the simulator
+/// mid-write leaves the last image).
+fn write_image(path: &std::path::Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let tmp = path.with_extension("partial");
+    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("renaming onto {}", path.display()))
 }
 
 fn write_all_nonblocking(c: &mut dyn Conn, mut out: &[u8]) -> std::io::Result<()> {

@@ -1,5 +1,5 @@
-//! The NUCLEO's host link and flash regions: the table and parameter
-//! regions of `memory.x`, and the RTT channels (one control block:
+//! The NUCLEO's host link and the table region of `memory.x` (the
+//! parameter region is the store's, `board::flash`), and the RTT channels (one control block:
 //! up channel 0 carries the defmt log, which `probe-rs run` decodes; the
 //! link's frames go up on channel 1 and come down on channel 1, the pair
 //! OpenOCD's `rtt server start PORT 1` bridges to a TCP port for
@@ -20,8 +20,6 @@ pub static TAP: TapShared<'static, CAPTURE> = TapShared::new(&SCOPE);
 extern "C" {
     static __zsct_start: u8;
     static __zsct_size: u8;
-    static __zspb_start: u8;
-    static __zspb_size: u8;
 }
 
 /// The bytes of a `memory.x` region given its start and size symbols.
@@ -30,24 +28,17 @@ fn region(start: *const u8, size: *const u8) -> &'static [u8] {
     // first byte and the *address* of the size symbol is its length (a
     // linker constant, never dereferenced). The region is a flash sector
     // outside every section of the image, readable whether programmed or
-    // erased, and the firmware never programs flash, so a shared `'static`
-    // view of it is sound.
+    // erased, and the firmware never programs it (it programs only the
+    // parameter region, `board::flash`, which has no such view), so a
+    // shared `'static` view of it is sound.
     unsafe { core::slice::from_raw_parts(start, size as usize) }
 }
 
-/// The coefficient-table region (`ZSCT`, bank 2 sector 7, 0x081E_0000).
+/// The coefficient-table region (`ZSCT`, bank 1 sector 7, 0x080E_0000).
 pub fn table_region() -> &'static [u8] {
     region(
         core::ptr::addr_of!(__zsct_start),
         core::ptr::addr_of!(__zsct_size),
-    )
-}
-
-/// The servo-parameter region (`ZSPB`, bank 2 sectors 5-6, 0x081A_0000).
-pub fn params_region() -> &'static [u8] {
-    region(
-        core::ptr::addr_of!(__zspb_start),
-        core::ptr::addr_of!(__zspb_size),
     )
 }
 

@@ -7,6 +7,10 @@
 #[allow(dead_code)]
 pub mod adc;
 pub mod clocks;
+// The parameter store's flash: the Z-slide firmware's; the centring image
+// saves no parameters.
+#[allow(dead_code)]
+pub mod flash;
 pub mod gpio;
 pub mod link;
 pub mod spi;

@@ -150,6 +150,8 @@ impl<const N: usize> Station<N> {
     /// [`Station::poll`] on a board whose parameter region has a flash
     /// driver: a `SaveParams` request writes `store` (in this call: the
     /// erase and program times are the background's, never the tick's).
+    /// Never inlined, for `cargo xtask no-panic` as [`Station::poll`].
+    #[inline(never)]
     pub fn poll_with_store(
         &mut self,
         tap: &TapShared<'_, N>,
@@ -499,12 +501,8 @@ impl<const N: usize> Station<N> {
     /// Every parameter of the design in force, as one block, into `store`.
     fn save(&mut self, store: &mut impl ParamStore) -> Reply {
         let d = &self.cfg.design;
-        let mut entries = heapless::Vec::<(u16, f64), { params::PARAMS.len() }>::new();
-        for p in params::PARAMS.iter() {
-            let _ = entries.push((p.id, p.get(d)));
-        }
         let mut block = [0u8; MAX_BLOCK];
-        let len = match params::encode_block(&entries, d, &mut block) {
+        let len = match params::design_block(d, &mut block) {
             Ok(len) => len,
             Err(e) => return Reply::Refused(Refusal::Param(e)),
         };

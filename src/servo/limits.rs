@@ -463,6 +463,64 @@ mod tests {
         assert_eq!(c.apply(5000, 0).2, Some(Fault::CurrentLimit));
     }
 
+    /// A command exactly on the window's edge is inside the limit (the
+    /// estimated current equals the configured one): it passes unchanged,
+    /// is not reported limited and never becomes a fault, however long it
+    /// is held; one code beyond the edge is limited.
+    #[test]
+    fn a_command_on_the_current_window_edge_is_not_limited() {
+        let mut c = CurrentLimit::new(1000, 0, 2);
+        for _ in 0..10 {
+            assert_eq!(c.apply(1000, 0), (1000, false, None));
+            assert_eq!(c.apply(-1000, 0), (-1000, false, None));
+        }
+        assert_eq!(c.apply(1001, 0), (1000, true, None));
+        assert_eq!(c.apply(-1001, 0), (-1000, true, None));
+    }
+
+    /// `reset` (engagement, a cleared fault) starts the persistence count
+    /// again: after it the limit may be held `ticks_allowed` ticks more.
+    #[test]
+    fn current_limit_reset_restarts_the_persistence_count() {
+        let mut c = CurrentLimit::new(1000, 0, 3);
+        for _ in 0..3 {
+            assert_eq!(c.apply(5000, 0).2, None);
+        }
+        c.reset();
+        for _ in 0..3 {
+            assert_eq!(c.apply(5000, 0).2, None, "3 ticks after the reset");
+        }
+        assert_eq!(c.apply(5000, 0).2, Some(Fault::CurrentLimit));
+    }
+
+    /// An error of exactly the limit is not beyond it: no fault however
+    /// long it lasts; one Q8 step more is.
+    #[test]
+    fn a_following_error_of_exactly_the_limit_is_not_a_fault() {
+        let mut f = FollowingError::new(100, 2);
+        for _ in 0..10 {
+            assert_eq!(f.check(100 << 8), None);
+            assert_eq!(f.check(-(100 << 8)), None);
+        }
+        for _ in 0..2 {
+            assert_eq!(f.check((100 << 8) + 1), None);
+        }
+        assert_eq!(f.check((100 << 8) + 1), Some(Fault::FollowingError));
+    }
+
+    /// `reset` starts the persistence count again.
+    #[test]
+    fn following_error_reset_restarts_the_persistence_count() {
+        let mut f = FollowingError::new(100, 2);
+        let big = 200i32 << 8;
+        assert_eq!(f.check(big), None);
+        assert_eq!(f.check(big), None);
+        f.reset();
+        assert_eq!(f.check(big), None, "1 tick after the reset");
+        assert_eq!(f.check(big), None, "2 ticks after the reset");
+        assert_eq!(f.check(big), Some(Fault::FollowingError));
+    }
+
     #[test]
     fn following_error_needs_persistence() {
         let mut f = FollowingError::new(100, 2);

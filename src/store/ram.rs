@@ -31,6 +31,14 @@ impl NorFlashError for RamFlashError {
     }
 }
 
+/// The NUCLEO's parameter region (`memory.x` `ZSPB`) as a model: two
+/// 128 KiB sectors of STM32H7 bank 2, programmed in 32-byte flash words
+/// (the QEMU image's parameter flash, host-sim's, and the host's image of a
+/// store that `zslide params flash` writes).
+pub type Bank2Region = RamFlash<BANK2_REGION_BYTES, { 128 * 1024 }, 32>;
+/// [`Bank2Region`]'s size, bytes.
+pub const BANK2_REGION_BYTES: usize = 256 * 1024;
+
 /// `N` bytes of flash in pages of `PAGE` bytes, programmed in words of
 /// `WORD` bytes.
 #[derive(Clone)]

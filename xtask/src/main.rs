@@ -19,6 +19,8 @@
 //!   reachable from their interrupt handlers (`nopanic.rs`); part of `test`.
 //! * `cycles` – no import cycle between the modules of any crate, and the
 //!   biggest source file (`cycles.rs`); part of `test`.
+//! * `flash-cut` – a power cut at every flash operation of the QEMU
+//!   image's parameter saves, across boots (`powercut.rs`); part of `test`.
 //! * `fuzz --seconds N [--target T]` – builds and runs the cargo-fuzz
 //!   targets of `fuzz/` (`fuzz.rs`).
 //!
@@ -35,6 +37,7 @@ mod isr_cost;
 mod link;
 mod mutants;
 mod nopanic;
+mod powercut;
 mod replay;
 mod stack;
 mod table_checks;
@@ -99,6 +102,9 @@ enum Cmd {
     /// The QEMU table-region runs and the host-link end-to-end test of
     /// `cargo xtask test`, alone.
     LinkTest,
+    /// A power cut at every flash operation of the QEMU image's parameter
+    /// saves, across boots (part of `test`, alone).
+    FlashCut,
     /// Rerun the commands behind the figures marked in README.md and
     /// docs/*.md and rewrite them (`--check`: list what drifted, exit 1);
     /// also checks the names the docs cite exist.
@@ -121,6 +127,7 @@ fn main() -> ExitCode {
         Cmd::Fuzz(args) => fuzz::run(&args).map(|_| 0),
         Cmd::QemuLink(args) => link::run_session(&args),
         Cmd::LinkTest => cmd_link_test(),
+        Cmd::FlashCut => cmd_flash_cut(),
         Cmd::Figures(args) => figures::run(&args),
         Cmd::Cycles => cycles::run(),
         Cmd::Mutants(args) => mutants::run(&args),
@@ -536,8 +543,25 @@ pub fn run_qemu_elf_with(
     extra: &[&str],
     echo: bool,
 ) -> Result<(u8, Vec<String>)> {
+    run_qemu_elf_at(elf, regions, semihosting, extra, echo, None)
+}
+
+/// [`run_qemu_elf_with`] with QEMU in `dir` (where the image's semihosting
+/// file operations land).
+pub fn run_qemu_elf_at(
+    elf: &Path,
+    regions: &QemuRegions,
+    semihosting: &str,
+    extra: &[&str],
+    echo: bool,
+    dir: Option<&Path>,
+) -> Result<(u8, Vec<String>)> {
     let elf = elf.to_path_buf();
-    let mut qemu = qemu_command_with(&elf, regions, "null", semihosting)
+    let mut cmd = qemu_command_with(&elf, regions, "null", semihosting);
+    if let Some(d) = dir {
+        cmd.current_dir(d);
+    }
+    let mut qemu = cmd
         .args(extra)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -652,6 +676,13 @@ fn cmd_link_test() -> Result<u8> {
     let n =
         table_checks::qemu_table_checks(&lines)? + faultpath::params_check()? + link::end_to_end()?;
     eprintln!("{n} passed, 0 failed");
+    Ok(0)
+}
+
+fn cmd_flash_cut() -> Result<u8> {
+    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])?;
+    build_qemu()?;
+    eprintln!("QEMU power cuts: {}", powercut::check()?);
     Ok(0)
 }
 
@@ -863,6 +894,8 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         board_checks += u64::from(table_checks::qemu_table_checks(&lines)?);
         board_checks += u64::from(faultpath::params_check()?);
         board_checks += u64::from(link::end_to_end()?);
+        eprintln!("QEMU power cuts: {}", powercut::check()?);
+        board_checks += 1;
         replay_line = Some(replay::check()?);
         watchdog_line = Some(watchdog::check()?);
         eprintln!("QEMU fault paths: {}", faultpath::check()?);
@@ -991,6 +1024,7 @@ mod tests {
             &["qemu-link"],
             &["qemu-link", "--table", "t.zsct"],
             &["link-test"],
+            &["flash-cut"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();

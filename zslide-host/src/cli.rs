@@ -72,6 +72,16 @@ pub enum Cmd {
     /// A board's decoded defmt log with trace events (`--features trace`)
     /// as a VCD with the simulator's signal names.
     Trace2vcd(host_sim::cmd::trace2vcd::Args),
+    /// Decode a raw defmt log (a file, or stdin) with the firmware's ELF,
+    /// as `defmt-print -e ELF` does.
+    #[cfg(feature = "defmt-log")]
+    Log {
+        /// The firmware image the log came from.
+        #[arg(long, value_name = "ELF")]
+        elf: PathBuf,
+        /// The raw log (default: stdin).
+        file: Option<PathBuf>,
+    },
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -394,12 +404,27 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
             ParamsCmd::Flash(a) => {
                 let (src, _) = regions::check_params_file(&a.file, &NUCLEO)?;
                 say(format!("{}: {src}", a.file.display()))?;
+                // The firmware's store owns the region: the block goes in
+                // as the store's one item (both sectors written).
+                let block = std::fs::read(&a.file)
+                    .map_err(|e| format!("{}: cannot read: {e}", a.file.display()))?;
+                let image = regions::params_store_image(&block)
+                    .map_err(|e| format!("{}: {e}", a.file.display()))?;
+                let store = std::env::temp_dir()
+                    .join(format!("zslide-params-store-{}.bin", std::process::id()));
+                std::fs::write(&store, &image)
+                    .map_err(|e| format!("{}: cannot write: {e}", store.display()))?;
                 say(format!(
-                    "parameter region of the NUCLEO-H743ZI2: {:#010x} ({} KiB)",
+                    "parameter region of the NUCLEO-H743ZI2: {:#010x} ({} KiB), written as the firmware's parameter store holding this block ({})",
                     NUCLEO.params_addr,
-                    NUCLEO.params_len / 1024
+                    NUCLEO.params_len / 1024,
+                    store.display()
                 ))?;
-                regions::download(&a.file, NUCLEO.params_addr, a.probe.as_deref(), a.dry_run)
+                let r = regions::download(&store, NUCLEO.params_addr, a.probe.as_deref(), a.dry_run);
+                if !a.dry_run {
+                    let _ = std::fs::remove_file(&store);
+                }
+                r
             }
         },
         Cmd::Link { cmd } => {
@@ -443,6 +468,12 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
             say(format!("scope: {summary}"))
         }
         Cmd::Trace2vcd(a) => host_sim::cmd::trace2vcd::run(a.clone()).map_err(|e| format!("{e:#}")),
+        #[cfg(feature = "defmt-log")]
+        Cmd::Log { elf, file } => {
+            let summary = crate::defmt_log::decode_file(elf, file.as_deref())?;
+            eprintln!("{summary}");
+            Ok(())
+        }
     }
 }
 

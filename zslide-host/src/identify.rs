@@ -64,6 +64,10 @@ pub struct IdentifyArgs {
 pub struct TuneArgs {
     /// The fit `zslide identify` wrote (STEM.plant).
     pub plant: PathBuf,
+    /// The data sheet `identify` was given (motor, gauge, board timing):
+    /// with the fit, the plant the prediction runs on.
+    #[arg(long, default_value = "legacy-hw")]
+    pub scenario: String,
     /// Only print what would be set.
     #[arg(long)]
     pub dry_run: bool,
@@ -119,7 +123,10 @@ pub fn known_from_scenario(name: &str) -> Result<(Known, Plant)> {
 }
 
 /// The frequency bins measured: log-spaced below the mode band (skipping
-/// the bins next to the 120 Hz hum), every second bin across it.
+/// the bins next to the 120 Hz hum), every second bin across it, and a few
+/// above it up to the excitation's bound (a quarter of the loop rate:
+/// 4.98 kHz at 20 kHz). The lowest is the window's first bin (19.5 Hz at
+/// 20 kHz): the firmware's capture ring holds 1024 ticks.
 pub fn bins(loop_hz: f64, start: &Plant) -> Vec<usize> {
     let df = loop_hz / WINDOW as f64;
     let hum = (120.0 / df).round() as usize;
@@ -130,6 +137,13 @@ pub fn bins(loop_hz: f64, start: &Plant) -> Vec<usize> {
         .filter(|&k: &usize| k.abs_diff(hum) > 1 && k < lo)
         .collect();
     ks.extend((lo..=hi).step_by(2).filter(|&k| k < WINDOW / 4));
+    let top = WINDOW / 4 - 1;
+    ks.extend(
+        [hi + (top - hi) / 3, hi + 2 * (top - hi) / 3, top]
+            .into_iter()
+            .filter(|&k| k > hi + 1 && k <= top),
+    );
+    ks.dedup();
     ks
 }
 
@@ -524,6 +538,21 @@ pub fn tune(link: &mut Link, a: &TuneArgs, out: &mut dyn Write) -> Result<ServoD
                 p.unit
             ),
         )?;
+    }
+    let data_sheet = host_sim::scenario::load(&a.scenario)
+        .map_err(|e| format!("--scenario {}: {e:#}", a.scenario))?;
+    say_to(
+        out,
+        &format!(
+            "predicted on the fitted plant (data sheet {}; the simulated firmware of \
+             `host-sim response --loop digital` and `track`):",
+            a.scenario
+        ),
+    )?;
+    let now = crate::predict::predict(&data_sheet, &plant, &before)?;
+    let after = crate::predict::predict(&data_sheet, &plant, &d)?;
+    for line in crate::predict::table(&now, &after) {
+        say_to(out, &line)?;
     }
     if a.dry_run {
         return Ok(d);

@@ -6,8 +6,11 @@
 pub mod capture;
 pub mod cli;
 pub mod client;
+#[cfg(feature = "defmt-log")]
+pub mod defmt_log;
 pub mod fit;
 pub mod identify;
+pub mod predict;
 #[cfg(feature = "probe")]
 pub mod probe;
 pub mod regions;

@@ -4,10 +4,11 @@
 //! table and parameter regions.
 //!
 //! Channel 0 carries defmt frames, which only the firmware's ELF can
-//! decode: they are written raw to the file named by `ZSLIDE_DEFMT_LOG`
-//! (decode it with `defmt-print -e target/.../zslide-fw < FILE`), and
-//! counted otherwise. Decoding in-process (the `defmt-decoder` crate) is
-//! not done yet.
+//! decode: with an ELF (`ZSLIDE_ELF`, else the workspace's release build
+//! of zslide-fw) each frame is printed to stderr as it comes, `fw: ` first
+//! (`crate::defmt_log`); without one they are counted. `ZSLIDE_DEFMT_LOG`
+//! also keeps the raw bytes in a file (`zslide log --elf ELF FILE`
+//! decodes it later).
 
 use std::io::{Read, Write};
 use std::path::Path;
@@ -60,6 +61,7 @@ pub struct RttLink {
     session: Session,
     rtt: Rtt,
     defmt: Option<std::fs::File>,
+    decoded: Option<crate::defmt_log::DefmtLog>,
     pub defmt_bytes: u64,
 }
 
@@ -80,10 +82,22 @@ impl RttLink {
             ),
             None => None,
         };
+        let decoded = match crate::defmt_log::elf_from_env() {
+            Some(elf) => Some(crate::defmt_log::DefmtLog::from_elf(&elf)?),
+            None => {
+                eprintln!(
+                    "the board's defmt log is not decoded: no firmware ELF (set ZSLIDE_ELF, or \
+                     build {})",
+                    crate::defmt_log::DEFAULT_ELF
+                );
+                None
+            }
+        };
         Ok(Self {
             session,
             rtt,
             defmt,
+            decoded,
             defmt_bytes: 0,
         })
     }
@@ -103,6 +117,9 @@ impl Read for RttLink {
             self.defmt_bytes += n as u64;
             if let Some(f) = self.defmt.as_mut() {
                 f.write_all(&log[..n])?;
+            }
+            if let Some(d) = self.decoded.as_mut() {
+                d.feed(&log[..n], "fw: ", &mut std::io::stderr())?;
             }
         }
         let up = self

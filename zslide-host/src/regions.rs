@@ -23,9 +23,10 @@ pub struct Regions {
     pub params_len: u32,
 }
 
-/// NUCLEO-H743ZI2 (`memory.x` at the root): bank 2 sectors 7 and 6.
+/// NUCLEO-H743ZI2 (`memory.x` at the root): the table in bank 1 sector 7,
+/// the parameter store in bank 2 sectors 5-6.
 pub const NUCLEO: Regions = Regions {
-    table_addr: 0x081E_0000,
+    table_addr: 0x080E_0000,
     table_len: 128 * 1024,
     params_addr: 0x081A_0000,
     params_len: 256 * 1024,
@@ -161,6 +162,20 @@ pub fn param_block(entries: &[(u16, f64)]) -> Result<Vec<u8>> {
     })?;
     out.truncate(n);
     Ok(out)
+}
+
+/// The NUCLEO's parameter region as `zslide params flash` writes it: the
+/// firmware's parameter store (`zslide::store`, which owns the region) on
+/// erased flash, holding `block` as its one saved item: what a `zslide
+/// params save` of the same parameters leaves on a new board, and what the
+/// boot reads first. The block is checked again by the store's save.
+pub fn params_store_image(block: &[u8]) -> Result<Vec<u8>> {
+    use zslide::store::ram::{Bank2Region, BANK2_REGION_BYTES};
+    let mut flash = Box::new(Bank2Region::new());
+    zslide::store::Store::new(&mut *flash, 0..BANK2_REGION_BYTES as u32)
+        .and_then(|mut s| s.save(block, &ServoDesign::brief(LOOP_HZ)))
+        .map_err(|e| format!("the parameter store image: {e}"))?;
+    Ok(flash.bytes.to_vec())
 }
 
 /// The `probe-rs` command-line tool's command that writes `file` at

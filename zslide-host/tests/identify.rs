@@ -15,7 +15,12 @@
 //! * mode pole ±0.7 % and zero ±1 %: one-sigma 0.07 % and 0.2 % (the mode
 //!   band's response is 1-6 µin at the 2.5 V bound, 6 windows); both well
 //!   inside the 5 % shift;
-//! * mode damping ±25 % (one-sigma 5 %; not perturbed).
+//! * mode damping ±25 % (one-sigma 5 %; not perturbed);
+//! * what `tune` predicts on the fitted plant against the true machine:
+//!   the tuned loop's crossover ±2 %, phase margin ±1.5°, gain margin
+//!   ±0.5 dB, the 10 Hz × 0.004 in figures ±5 % (the fit's 0.3 % moves the
+//!   crossover by about as much; the tracking figures differ by the noise
+//!   sequence's share, a few per cent).
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -118,6 +123,31 @@ fn identify_recovers_a_perturbed_plant_and_tune_tracks_as_the_nominal_design() {
     let mut tuned_machine = machine.clone();
     tuned_machine.servo_design = design;
     tuned_machine.servo = design.config().unwrap();
+    // What `tune` predicted on the fitted plant against what the true
+    // (perturbed) machine does: the margins of the tuned loop, and the
+    // tracking of the design in force and of the tuned one (below).
+    let (_, predicted_crossover) = tune_row(&tune, "crossover, Hz");
+    let freqs = host_sim::analyser::log_freqs(10.0, 6400.0, 40);
+    let (_, truth) = host_sim::cmd::response::sweep_digital(
+        &tuned_machine,
+        &freqs,
+        host_sim::cmd::response::DIGITAL_AMPLITUDE_IN,
+        false,
+    );
+    eprintln!("the tuned loop on the true machine: {truth:?}");
+    within(
+        "predicted crossover of the tuned loop",
+        predicted_crossover.parse().unwrap(),
+        truth.crossover_hz.unwrap(),
+        0.02,
+    );
+    let pm: f64 = tune_row(&tune, "phase margin, deg").1.parse().unwrap();
+    let gm: f64 = tune_row(&tune, "gain margin, dB").1.parse().unwrap();
+    assert!(
+        (pm - truth.phase_margin_deg.unwrap()).abs() <= 1.5
+            && (gm - truth.gain_margin_db.unwrap()).abs() <= 0.5,
+        "predicted {pm} deg / {gm} dB, the true machine {truth:?}"
+    );
     for learning in [true, false] {
         let spec = TrackSpec {
             freq_hz: 10.0,
@@ -160,6 +190,32 @@ fn identify_recovers_a_perturbed_plant_and_tune_tracks_as_the_nominal_design() {
             reference.following_error_peak_uin,
             reference.following_error_rms_uin
         );
+        // The prediction (the fitted plant) against the true machine,
+        // 5 %: the fit's 0.3 % in the model plus the noise sequence's
+        // share of the figure.
+        let row = if learning {
+            "10 Hz x 0.004 in error, uin pk/RMS"
+        } else {
+            "learning off, uin pk/RMS"
+        };
+        let (in_force, after) = tune_row(&tune, row);
+        for (what, predicted, measured) in
+            [("in force", in_force, &untuned), ("tuned", after, &tuned)]
+        {
+            let (pk, rms) = predicted.split_once(" / ").unwrap();
+            within(
+                &format!("predicted peak, {what}, learning {learning}"),
+                pk.parse().unwrap(),
+                measured.following_error_peak_uin,
+                0.05,
+            );
+            within(
+                &format!("predicted RMS, {what}, learning {learning}"),
+                rms.parse().unwrap(),
+                measured.following_error_rms_uin,
+                0.05,
+            );
+        }
         if !learning {
             // The perturbation matters to the loop: untuned, the error is
             // several times the nominal one.
@@ -171,4 +227,21 @@ fn identify_recovers_a_perturbed_plant_and_tune_tracks_as_the_nominal_design() {
             );
         }
     }
+}
+
+/// The row `name` of `tune`'s prediction: its two columns (the design in
+/// force, the tuned one).
+fn tune_row(tune: &str, name: &str) -> (String, String) {
+    let line = tune
+        .lines()
+        .find(|l| l.trim_start().starts_with(name))
+        .unwrap_or_else(|| panic!("no row {name:?} in:\n{tune}"));
+    let rest = line.trim_start()[name.len()..].trim();
+    let cols: Vec<&str> = rest
+        .split("  ")
+        .map(str::trim)
+        .filter(|c| !c.is_empty())
+        .collect();
+    assert_eq!(cols.len(), 2, "row {name:?}: {line:?}");
+    (cols[0].to_string(), cols[1].to_string())
 }

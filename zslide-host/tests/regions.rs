@@ -63,10 +63,14 @@ fn the_regions_are_those_of_both_memory_x() {
             "{file}"
         );
     }
-    // Each NUCLEO region is one whole 128 KiB sector of bank 2.
+    // Each NUCLEO region is made of whole 128 KiB sectors; the table is in
+    // bank 1 with the image, the parameter store alone in bank 2 (a bank-2
+    // erase stalls reads of bank 2 only: `src/board/flash.rs`).
     for a in [NUCLEO.table_addr, NUCLEO.params_addr] {
-        assert_eq!((a - 0x0810_0000) % (128 * 1024), 0);
+        assert_eq!((a - 0x0800_0000) % (128 * 1024), 0);
     }
+    assert!(NUCLEO.table_addr + NUCLEO.table_len <= 0x0810_0000);
+    assert!(NUCLEO.params_addr >= 0x0810_0000);
 }
 
 #[test]
@@ -78,7 +82,7 @@ fn table_files_are_checked_and_the_probe_rs_command_built() {
     assert_eq!(
         show(&cmd),
         format!(
-            "probe-rs download --chip STM32H743ZITx --binary-format bin --base-address 0x081e0000 {}",
+            "probe-rs download --chip STM32H743ZITx --binary-format bin --base-address 0x080e0000 {}",
             good.display()
         )
     );
@@ -177,4 +181,36 @@ fn param_blocks_are_written_checked_and_refused_in_words() {
         e.contains("r.zspb: parameter block refused: the parameter block is corrupt"),
         "{e}"
     );
+}
+
+/// `params flash` writes the NUCLEO's region as the firmware's store
+/// holding the block: the board's boot (`store::boot::at_boot_owned`, the
+/// store's block first) runs the block's values. A bare block at the
+/// region's start, as `params flash` wrote before the store owned the
+/// region, still boots (not dropped unseen); the first save over it
+/// starts the store afresh.
+#[test]
+fn the_parameter_region_is_written_as_a_store_the_boot_reads() {
+    use zslide::store::ram::{Bank2Region, BANK2_REGION_BYTES};
+    use zslide::store::{boot, Store};
+    let entries = [parse_setting("following_error_ms=7").unwrap()];
+    let block = param_block(&entries).unwrap();
+    let image = params_store_image(&block).unwrap();
+    assert_eq!(image.len() as u32, NUCLEO.params_len);
+    let base = zslide::servo::ServoDesign::brief(LOOP_HZ);
+    let ms = zslide::params::by_name("following_error_ms").unwrap();
+    let crc = u32::from_le_bytes(block[12..16].try_into().unwrap());
+    let mut bare = vec![0xFF; BANK2_REGION_BYTES];
+    bare[..block.len()].copy_from_slice(&block);
+    for (what, bytes) in [("store image", &image), ("bare block", &bare)] {
+        let mut flash = Box::new(Bank2Region::with_image(bytes));
+        let mut s = Store::new(&mut *flash, 0..BANK2_REGION_BYTES as u32).unwrap();
+        let (d, _, src) = boot::at_boot_owned(&mut s, &base).unwrap();
+        assert_eq!(ms.get(&d), 7.0, "{what}");
+        assert_eq!(src, ParamSource::Block { entries: 1, crc }, "{what}");
+        let other = param_block(&[parse_setting("following_error_ms=9").unwrap()]).unwrap();
+        s.save(&other, &base).unwrap();
+        let (d, _, _) = boot::at_boot_owned(&mut s, &base).unwrap();
+        assert_eq!(ms.get(&d), 9.0, "{what}, saved over");
+    }
 }

@@ -73,3 +73,48 @@ fn a_saved_parameter_survives_a_restart_and_a_save_while_armed_is_refused() {
         "{status}"
     );
 }
+
+/// `host-sim serve --params-flash FILE`: the region's image outlives the
+/// simulator process, as the board's flash outlives a power cycle; a file
+/// that is not a whole region is refused by name, not served as erased.
+#[test]
+fn a_saved_parameter_survives_a_new_simulator_through_its_params_flash_file() {
+    let dir =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/zslide-host-test");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("params-flash.bin");
+    let _ = std::fs::remove_file(&file);
+    let legacy = || host_sim::scenario::load("legacy-hw").unwrap();
+    {
+        let setup = Setup::new(legacy()).with_params_file(file.clone()).unwrap();
+        let m = Machine::start("save-file-1", setup);
+        let mut link = Link::new(&m.addr, Duration::from_secs(10));
+        run_line(&mut link, "params set following_error_ms 3").unwrap();
+        run_line(&mut link, "params save").unwrap();
+    }
+    let image = std::fs::read(&file).unwrap();
+    assert_eq!(
+        image.len(),
+        256 * 1024,
+        "the image is the NUCLEO's 256 KiB region"
+    );
+
+    // A new setup, nothing shared with the first but the file.
+    let setup = Setup::new(legacy()).with_params_file(file.clone()).unwrap();
+    let m = Machine::start("save-file-2", setup);
+    let mut link = Link::new(&m.addr, Duration::from_secs(10));
+    let got = run_line(&mut link, "params get following_error_ms").unwrap();
+    assert!(got.contains("following_error_ms = 3 ms"), "{got}");
+
+    let short = dir.join("params-flash-short.bin");
+    std::fs::write(&short, [0xFFu8; 100]).unwrap();
+    let e = Setup::new(legacy())
+        .with_params_file(short.clone())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("params-flash-short.bin: 100 bytes, but a parameter region image is 262144"),
+        "{e}"
+    );
+}

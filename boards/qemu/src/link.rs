@@ -63,7 +63,31 @@ pub fn session_requested() -> bool {
 
 /// Whether the semihosting command line holds the word `word`.
 pub fn argument(word: &[u8]) -> bool {
-    let mut buf = [0u8; 64];
+    let mut buf = [0u8; CMDLINE];
+    let found = words(&mut buf).any(|w| w == word);
+    found
+}
+
+/// The number `N` of the command line's word `key=N` (`key` with its `=`),
+/// if it is there and a number.
+pub fn value(key: &[u8]) -> Option<u32> {
+    let mut buf = [0u8; CMDLINE];
+    let n = words(&mut buf)
+        .find_map(|w| w.strip_prefix(key))
+        .filter(|d| !d.is_empty() && d.len() <= 9)
+        .and_then(|d| {
+            d.iter().try_fold(0u32, |n, &c| {
+                c.is_ascii_digit().then(|| n * 10 + u32::from(c - b'0'))
+            })
+        });
+    n
+}
+
+/// The longest command line read (the power-cut runs' is the longest).
+const CMDLINE: usize = 128;
+
+/// The semihosting command line's words (none if it cannot be read).
+fn words(buf: &mut [u8; CMDLINE]) -> impl Iterator<Item = &[u8]> {
     // SYS_GET_CMDLINE: a two-word block (buffer, length), the length
     // replaced by the command line's.
     let mut block = [buf.as_mut_ptr() as usize, buf.len() - 1];
@@ -71,11 +95,8 @@ pub fn argument(word: &[u8]) -> bool {
     // `buf` and updates `block[1]`, through the pointers it is given (taken
     // from `&mut` borrows); both live until the call returns.
     let r = unsafe { cortex_m_semihosting::syscall1(nr::GET_CMDLINE, block.as_mut_ptr() as usize) };
-    if r != 0 {
-        return false;
-    }
-    let len = block[1].min(buf.len());
-    buf[..len].split(|&b| b == b' ').any(|w| w == word)
+    let len = if r == 0 { block[1].min(buf.len()) } else { 0 };
+    buf[..len].split(|&b| b == b' ').filter(|w| !w.is_empty())
 }
 
 /// CMSDK APB UART0 (ARM DDI0479C §4.3; QEMU `hw/char/cmsdk-apb-uart.c`):

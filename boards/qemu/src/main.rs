@@ -52,8 +52,10 @@
 
 mod checks;
 mod events;
+mod flash;
 mod link;
 mod plant;
+mod powercut;
 mod scenario;
 mod tick;
 
@@ -74,10 +76,11 @@ use zslide::firmware::{Firmware, FirmwareConfig, Request, Shared, SpindleMode, X
 use zslide::link::proto::{Request as HostRequest, SpindleSource, Trigger, XSource};
 use zslide::link::station::{Station, StationConfig};
 use zslide::link::tap::TickTap;
-use zslide::params::{self, ParamSource};
+use zslide::params::ParamSource;
 use zslide::safety::{Device, Fault};
 use zslide::servo::ServoDesign;
 use zslide::spindle::EncoderConfig;
+use zslide::store::{self, ram::BANK2_REGION_BYTES, Store};
 use zslide::trace::Outputs;
 use zslide::units::SpindleAngle;
 use zslide_qemu::board::{enable, Interrupt, PCLK_HZ, TIMER0_LOOP, TIMER1_EVENTS};
@@ -103,7 +106,10 @@ pub(crate) const INJECT_PANIC: u32 = 2;
 
 #[entry]
 fn main() -> ! {
-    let session = link::session_requested();
+    // A power-cut run's save (`powercut.rs`) runs as a session does: no
+    // arm, no scripted fault, no end but its own.
+    let save = link::argument(b"save");
+    let session = link::session_requested() || save;
     SESSION.store(session, Ordering::Relaxed);
     if link::argument(b"hardfault") {
         INJECT.store(INJECT_HARDFAULT, Ordering::Relaxed);
@@ -115,13 +121,30 @@ fn main() -> ! {
         LOOP_HZ,
         TICKS
     );
-    // Servo parameters: the parameter region's block on the built-in
-    // design, or the built-in design with the block's refusal latched.
+    // Servo parameters (`zslide::store::boot`, as the NUCLEO): the store's
+    // last saved block on the flash model, else the parameter region's
+    // block, on the built-in design; or the built-in design with the
+    // refusal latched. The model is erased unless a power-cut run keeps it
+    // in a file (`flash`).
+    let persist = link::argument(b"flash");
+    let Some(flash) = flash::ImageFlash::boot(persist, link::value(b"cut=")) else {
+        defmt::error!("FAIL: the parameter flash model could not be set up");
+        exit(false);
+    };
+    let mut store = match Store::new(flash, 0..BANK2_REGION_BYTES as u32) {
+        Ok(s) => s,
+        Err(e) => powercut::refused(e),
+    };
     let base = ServoDesign::brief(LOOP_HZ);
-    let Ok((design, loop_cfg, param_source)) = params::at_boot(link::params_region(), &base) else {
+    let Ok((design, loop_cfg, param_source)) =
+        store::boot::at_boot(&mut store, link::params_region(), &base)
+    else {
         defmt::error!("FAIL: servo design refused");
         exit(false);
     };
+    if persist {
+        powercut::report_boot(&design, &param_source, store.flash().ops());
+    }
     let cfg = FirmwareConfig {
         loop_cfg,
         spindle: SpindleMode::Encoder(EncoderConfig {
@@ -262,11 +285,14 @@ fn main() -> ! {
     // Not a multiple of the loop period: the event handler runs at every
     // phase of the loop tick and is preempted by it.
     TIMER1_EVENTS.start_periodic(PCLK_HZ / LOOP_HZ * 2 + 377);
+    if save {
+        powercut::save(&mut station, &SHARED, &mut store);
+    }
     if session {
         defmt::info!("link session: frames on UART0, until QEMU stops");
         let mut uart = link::Uart0::new();
         loop {
-            station.poll(&link::TAP, &SHARED, &mut uart);
+            station.poll_with_store(&link::TAP, &SHARED, &mut uart, &mut store);
             cortex_m::asm::wfi();
         }
     }
@@ -287,7 +313,7 @@ fn main() -> ! {
         {
             panic!("injected in the background at tick {}", FAULT_AT);
         }
-        station.poll(&link::TAP, &SHARED, &mut host);
+        station.poll_with_store(&link::TAP, &SHARED, &mut host, &mut store);
         waits += 1;
         if waits > 100_000 {
             defmt::error!(

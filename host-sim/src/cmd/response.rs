@@ -581,14 +581,32 @@ fn refine_peak_s(pts: &[LoopPoint], measure: &dyn Fn(f64) -> LoopPoint) -> f64 {
     best.max(fc).max(fd)
 }
 
-fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
-    let sc = args.scenario.load()?;
-    let amp = args.amplitude.map_or(20e-6, |v| v * 0.001);
+/// The digital loop on `sc` swept over `freqs` (`amplitude_in` injected
+/// into the gauge's reading), and its margins refined by bisection: what
+/// `response --loop digital` reports, and what `zslide tune` predicts for
+/// the design it writes.
+pub fn sweep_digital(
+    sc: &crate::scenario::Scenario,
+    freqs: &[f64],
+    amplitude_in: f64,
+    rigid: bool,
+) -> (Vec<LoopPoint>, Margins) {
     let pts: Vec<LoopPoint> = freqs
         .iter()
-        .map(|&f| measure_digital(&sc, f, amp, args.rigid))
+        .map(|&f| measure_digital(sc, f, amplitude_in, rigid))
         .collect();
-    let m = margins_refined(&pts, &|f| measure_digital(&sc, f, amp, args.rigid));
+    let m = margins_refined(&pts, &|f| measure_digital(sc, f, amplitude_in, rigid));
+    (pts, m)
+}
+
+/// The injection `response --loop digital` uses unless told: 20 µin, well
+/// inside the gauge's range and above its quantisation.
+pub const DIGITAL_AMPLITUDE_IN: f64 = 20e-6;
+
+fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
+    let sc = args.scenario.load()?;
+    let amp = args.amplitude.map_or(DIGITAL_AMPLITUDE_IN, |v| v * 0.001);
+    let (pts, m) = sweep_digital(&sc, freqs, amp, args.rigid);
     let mut csv =
         String::from("f_hz,s_mag_db,s_phase_deg,t_mag_db,t_phase_deg,l_mag_db,l_phase_deg\n");
     for p in &pts {

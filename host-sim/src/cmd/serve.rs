@@ -44,12 +44,21 @@ pub struct Args {
     /// design keeps the model): a machine to identify and tune.
     #[command(flatten)]
     pub perturb: crate::perturb::Perturbation,
+    /// Keep the parameter region's flash in FILE: a machine served again
+    /// with it boots with what `zslide params save` saved (a power cycle).
+    /// Without it the flash starts erased and is lost at exit.
+    #[arg(long, value_name = "FILE")]
+    pub params_flash: Option<PathBuf>,
 }
 
 pub fn setup(a: &Args) -> anyhow::Result<Setup> {
     let mut sc = a.scenario.load()?;
     a.perturb.apply(&mut sc)?;
     let mut s = Setup::new(sc);
+    if let Some(f) = &a.params_flash {
+        crate::outpath::check_file("--params-flash", f)?;
+        s = s.with_params_file(f.clone())?;
+    }
     if let Some(t) = &a.table {
         let bytes = std::fs::read(t).with_context(|| format!("{}: cannot read", t.display()))?;
         zslide::firmware::config::check_table(&bytes)

@@ -63,9 +63,9 @@ pub struct HostLink {
 
 /// The NUCLEO's parameter region as the store sees it: two 128 KiB
 /// sectors of bank 2 (memory.x `ZSPB`), programmed in 32-byte flash words.
-pub type ParamsFlash = zslide::store::ram::RamFlash<PARAMS_REGION_BYTES, { 128 * 1024 }, 32>;
+pub type ParamsFlash = zslide::store::ram::Bank2Region;
 /// The parameter region's size, bytes.
-pub const PARAMS_REGION_BYTES: usize = 256 * 1024;
+pub const PARAMS_REGION_BYTES: usize = zslide::store::ram::BANK2_REGION_BYTES;
 /// The parameter store on [`ParamsFlash`].
 pub type ParamsStore = zslide::store::Store<ParamsFlash>;
 
@@ -109,6 +109,11 @@ impl HostLink {
     /// Gives the station a parameter store (the machine's flash).
     pub fn set_store(&mut self, store: ParamsStore) {
         self.store = Some(store);
+    }
+
+    /// The parameter store's flash, while the station has it.
+    pub fn store_flash(&mut self) -> Option<&mut ParamsFlash> {
+        self.store.as_mut().map(|s| s.flash())
     }
 
     /// The parameter store back (its flash outlives this firmware).
