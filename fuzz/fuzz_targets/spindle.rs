@@ -94,7 +94,12 @@ fn encoder(c: &[u8], events: &[u8], at_read: bool) {
                 fault = Some(Fault::IndexMissing);
                 reference = Some(r.wrapping_add(cfg.counts_per_rev));
             }
-            let since = u64::from(now.wrapping_sub(last_edge.unwrap_or(edge)));
+            // An edge stamped after the read has just happened (the
+            // estimator's rule): no time since it.
+            let since = match now.wrapping_sub(last_edge.unwrap_or(edge)) {
+                d if (d as i32) < 0 => 0,
+                d => u64::from(d),
+            };
             let count_period = period(cfg.ticks_per_s, cfg.min_rpm) / u64::from(cfg.counts_per_rev);
             match est.fault {
                 // At-read stamps also hold the 20 ms baseline's rate to the

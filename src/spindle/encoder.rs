@@ -247,7 +247,13 @@ impl EncoderAngle {
             self.reference = Some(reference.wrapping_add(self.cfg.counts_per_rev));
             delta -= cpr;
         }
-        let since_edge = now.wrapping_sub(self.last_edge);
+        // An edge stamped after the read (a board that reads its clock
+        // before the count sees an edge land between the two) has just
+        // happened: no time since it, not a wrapped stall of 2³² ticks.
+        let since_edge = match now.wrapping_sub(self.last_edge) {
+            d if (d as i32) < 0 => 0,
+            d => d,
+        };
         if since_edge > self.stall_ticks {
             fault = Some(Fault::SpindleSpeed);
         }

@@ -405,10 +405,14 @@ mod prop {
                 edge_stamps: EdgeStamps::Captured,
             })
             .unwrap();
-            // Counts per tick; the index at t = 0, count 0.
+            // Counts per tick; the index at t = 0, count 0. Counts and
+            // edges in integers: c(t) = ⌊t·cpr·rpm / 60·f⌋ and its edge
+            // ⌈c·60·f / cpr·rpm⌉ ≤ t (in floating point the edge could
+            // land a tick after the read that saw its count).
             let rate = f64::from(cpr) * f64::from(rpm) / 60.0 / f64::from(ticks_per_s);
-            let count_at = |t: u32| (f64::from(t) * rate).floor() as u32;
-            let edge_of = |c: u32| (f64::from(c) / rate).ceil() as u32;
+            let (num, den) = (u64::from(cpr) * u64::from(rpm), 60 * u64::from(ticks_per_s));
+            let count_at = |t: u32| (u64::from(t) * num / den) as u32;
+            let edge_of = |c: u32| (u64::from(c) * den).div_ceil(num) as u32;
             e.on_index(0, 0).unwrap();
             let per_rev = f64::from(cpr);
             let mut t = 0u32;
@@ -559,4 +563,40 @@ fn a_coasting_spindle_is_a_speed_fault_as_it_leaves_the_band_not_a_revolution_la
             rpm_at(t)
         );
     }
+}
+
+/// A board that reads its clock before the count can see an edge land
+/// between the two reads: the edge's stamp is then a few ticks after the
+/// read. That edge has just happened; it is not a stall of 2³² ticks
+/// (found by the property test above, whose floating-point edge times
+/// did the same: cpr 6780, 160 rpm, an edge at 62 501 read at 62 500).
+#[test]
+fn an_edge_stamped_just_after_the_read_is_not_a_stall() {
+    let mut e = EncoderAngle::new(EncoderConfig {
+        counts_per_rev: 6_780,
+        ticks_per_s: 1_000_000,
+        min_rpm: 30,
+        max_rpm: 2_000,
+        index_tolerance_counts: 2,
+        index_angle: SpindleAngle(0),
+        edge_stamps: EdgeStamps::Captured,
+    })
+    .unwrap();
+    e.on_index(0, 0).unwrap();
+    // 160 rpm: a count every 55.3 ticks.
+    for c in 1..100u32 {
+        let edge = c * 55_310 / 1_000;
+        let late_read = edge + 20;
+        assert_eq!(e.tick(c, edge, late_read).fault, None, "count {c}");
+    }
+    let est = e.tick(100, 5_532, 5_531);
+    assert_eq!(est.fault, None, "an edge one tick after the read");
+    // Still within the count it stamps.
+    let count_deg = 360.0 / 6_780.0;
+    assert!(
+        (est.angle.to_degrees() - 100.0 * count_deg).abs() <= count_deg,
+        "{}° for count 100 ({}°)",
+        est.angle.to_degrees(),
+        100.0 * count_deg
+    );
 }

@@ -350,6 +350,12 @@ pub fn end_to_end() -> Result<u32> {
     cli(&mut c, "params set following_error_ms 2")?;
     cli(&mut c, "link arm")?;
     wait_for(&mut c, "engaged", |s| s.state.phase == LoopPhase::Engaged)?;
+    // The image's parameter store (its flash model): no save while armed.
+    expect_refused(
+        &mut c,
+        "params save",
+        "saved only while the loop is disarmed",
+    )?;
     let csv2 = dir.join("immediate.csv");
     cli(
         &mut c,
@@ -396,6 +402,13 @@ pub fn end_to_end() -> Result<u32> {
         "samples must be 1..=1024",
     )?;
     cli(&mut c, "link disarm")?;
+    // Disarmed, the save goes through the station into the store.
+    wait_for(&mut c, "disarmed", |s| s.state.phase == LoopPhase::Disarmed)?;
+    let saved = cli(&mut c, "params save")?;
+    check(
+        saved.contains("saved 30 parameters to the machine's parameter store"),
+        &format!("params save on the QEMU image: {saved}"),
+    )?;
 
     // Malformed frames, sent raw: each refused by name and counted; the
     // firmware keeps answering.

@@ -191,6 +191,13 @@ fn cut_every_operation(
     for n in 1..=ops {
         put(state)?;
         let cut = run_image(dir, new, Some(n))?;
+        // Before its cut, this boot found the state unchanged.
+        check_boot(
+            &cut,
+            old,
+            old.unwrap_or(new),
+            &format!("{what}, before cut {n}"),
+        )?;
         if cut.cut_at != Some(n) || cut.saved_ops.is_some() {
             return Err(format!(
                 "{what}: cut at operation {n} of {ops}: the image reported cut {:?}, saved {:?}",
