@@ -73,7 +73,8 @@ macro_rules! param_table {
         slide { $(($sid:literal, $sname:ident, $sfield:ident, $sty:ident, $sunit:literal,
             $sdefault:expr, $smin:expr, $smax:expr, $sdoc:literal)),+ $(,)? }
     ) => {
-        /// Every settable parameter, in id order (`servo::parameters`).
+        /// Every settable parameter, in the table's order (`servo::parameters`:
+        /// the design's, then the slide's).
         pub const PARAMS: [Param; [$($id),+, $($sid),+].len()] = [
             $(Param {
                 id: $id,

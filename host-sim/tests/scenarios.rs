@@ -182,7 +182,7 @@ fn every_servo_field_reaches_the_design() {
     use host_sim::scenario::parse;
     let text = include_str!("../../scenarios/legacy-hw.toml");
     let head = &text[..text.find("[servo]").unwrap()];
-    let fields: [(&str, f64); 23] = [
+    let fields: [(&str, f64); 24] = [
         ("bandwidth_hz", 17.0),
         ("damping", 0.85),
         ("bandwidth_fast_hz", 90.0),
@@ -206,6 +206,7 @@ fn every_servo_field_reaches_the_design() {
         ("following_error_ms", 2.5),
         ("sign_check_v", 0.3),
         ("sign_check_ms", 1.5),
+        ("learning_clip_uin", 210.0),
     ];
     let mut servo = String::from("[servo]\n");
     for (k, v) in &fields {
@@ -241,6 +242,7 @@ fn every_servo_field_reaches_the_design() {
         d.following_error_ms,
         d.sign_check_v,
         d.sign_check_ms,
+        d.learning_clip_uin,
     ];
     for ((k, want), got) in fields.iter().zip(got) {
         assert_eq!(*want, got, "{k}");

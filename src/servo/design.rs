@@ -228,7 +228,9 @@ impl ServoDesign {
         if !(0.0..1.0).contains(&self.learning_gain) {
             return Err(E::Learning);
         }
-        if !(3..=32).contains(&self.learning_lead_bins) || !(1..=3).contains(&self.learning_q_shift)
+        if !(3..=32).contains(&self.learning_lead_bins)
+            || !(1..=3).contains(&self.learning_q_shift)
+            || !(self.learning_clip_uin > 0.0 && self.learning_clip_uin <= 10_000.0)
         {
             return Err(E::Learning);
         }
@@ -282,6 +284,9 @@ impl ServoDesign {
             learning_gain_q16: libm::round(self.learning_gain * 65_536.0) as i32,
             learning_lead_bins: self.learning_lead_bins,
             learning_q_shift: self.learning_q_shift,
+            // ≤ 10 000 µin: 1.34·10⁸ < 2²⁸, the learner's product bound.
+            learning_clip_q8: libm::round(self.learning_clip_uin * 1e-6 * cpi * 256.0).max(1.0)
+                as i32,
             slew_q16: (codes_per_tick(self.slew_in_per_s) * 65_536.0).max(1.0) as i64,
             slew_accel_q16: (self.slew_accel_in_per_s2 * cpi * h * h * 65_536.0).max(1.0) as i64,
             command_limit_code: (self.command_limit_in * cpi) as i32,
@@ -417,7 +422,7 @@ impl DesignError {
                 "mode_notch_hz/mode_notch_q: frequency in (0, rate/2), q > 0 (0 = off)"
             }
             Self::Learning => {
-                "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=3 (a weaker Q-filter leaves the harmonics the lead turns past 90° unstable)"
+                "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=3 (a weaker Q-filter leaves the harmonics the lead turns past 90° unstable), learning_clip_uin in (0, 10000]"
             }
             Self::Slew => "slew_in_per_s in (0, 10], slew_accel_in_per_s2 in (0, 1000]",
             Self::CommandLimit => "command_limit_in: must be in (0, 0.010]",
@@ -452,6 +457,9 @@ pub struct ServoConfig {
     pub learning_gain_q16: i32,
     pub learning_lead_bins: u32,
     pub learning_q_shift: u32,
+    /// The clip on the error the learning takes in, gauge codes Q8
+    /// (`learning_clip_uin`; `servo::repetitive`).
+    pub learning_clip_q8: i32,
     /// Largest command step per tick, gauge codes Q16.
     pub slew_q16: i64,
     /// Largest change of that step per tick, gauge codes Q16.

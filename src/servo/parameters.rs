@@ -20,7 +20,10 @@
 //! `config`.
 //!
 //! The ids are the parameter block's and the link's wire format
-//! (`params`, format version 1): never renumber one, only add. The limits
+//! (`params`, format version 1): never renumber one, only add (a new
+//! design parameter ends the design list with the next free id, so the
+//! table is not in id order; a block that does not name it keeps the
+//! default). The limits
 //! are the design's own where it has static ones (`ServoDesign::config`),
 //! narrowed to the machine where the brief sets a bound (the amplifier's
 //! 8 A, the gauge's ±0.010 in); the design's rate-dependent checks
@@ -93,6 +96,8 @@ macro_rules! servo_parameters {
                     "Commissioning sign check at every arm: the DAC pulse, volts (0 = no check)."),
                 (23, sign_check_ms, f64, "ms", 1.0, 0.1, 20.0,
                     "Duration of each half of the sign check's doublet, ms."),
+                (31, learning_clip_uin, f64, "uin", 300.0, 1.0, 10_000.0,
+                    "Repetitive learning: the error it takes in is clipped to ± this, µin, so one revolution moves the learned correction by at most `learning_gain` × this (what a one-off transient can be replayed by); a periodic error beyond it is still learned, at that rate. Above the largest periodic error of the cut before it is learned (an interrupted cut's edges): docs/TUNING.md."),
             }
             slide {
                 (24, motor_kf_lbf_per_a, kf_lbf_per_a, f64, "lbf/A", 2.9, 0.1, 100.0,

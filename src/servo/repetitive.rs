@@ -8,7 +8,7 @@
 //!
 //! ```text
 //! r'(φ) = r(φ) + c(φ)          c: the table, linearly interpolated in φ
-//! c(θ) ← Q[ c(θ) + κ · e(θ + lead) ]    once per revolution per bin
+//! c(θ) ← Q[ c(θ) + κ · sat_C(e(θ + lead)) ]    once per revolution per bin
 //! ```
 //!
 //! Because the correction enters as *reference*, it passes through the
@@ -33,6 +33,24 @@
 //! clamped to ± a quarter of the gauge range (memory bounded in size and
 //! value). Learning freezes, with a reason, whenever the angle cannot be
 //! trusted or the machine jumped.
+//!
+//! What does not repeat: the learning cannot tell a one-off transient from
+//! an error that will be there again next revolution, and a revolution
+//! later it replays whatever it took in. A push the loop holds within the
+//! following-error limit (20 lbf, 3000 µin on `modern-hw`) learned at κ
+//! came back as a −760 µin correction, 707 µin into the part
+//! (docs/SAFETY.md, "A transient learned and replayed"). So each tick's
+//! error is clipped to ±C (`learning_clip_uin`) before it is learned: a
+//! bin's update is the mean of its ticks' κ·sat_C(e), so one revolution
+//! moves a bin by at most κ·C, and the Q-filter (a positive kernel of
+//! sum one) does not enlarge it; the replayed correction is then unlearned,
+//! revolution by revolution, since the loop following it makes the error
+//! −c. C sits above the largest error that does repeat, an interrupted
+//! cut's edges before they are learned (269 µin on `legacy-hw`, 116 on
+//! `modern-hw`, docs/TUNING.md), so the cut's learning is not touched
+//! there; a periodic error beyond C is still learned, by κ·C a
+//! revolution until it is inside the clip (a freeze on a large error
+//! instead would never learn it, and would drop whole revolutions).
 //!
 //! # Two priorities
 //! The loop tick uses the correction, expanded below it at the predicted
@@ -429,6 +447,8 @@ pub struct Learner {
     gain_q16: i32,
     lead: usize,
     q_shift: u32,
+    /// The clip on the error taken in, codes Q8 (1 ..= 2²⁸).
+    clip_q8: i32,
     /// The hum notch on the error (at 300 rpm the 120 Hz hum is exactly
     /// the 24th spindle harmonic: learned, it would move the slide).
     hum: Option<Notch>,
@@ -448,6 +468,7 @@ impl Learner {
             gain_q16: gain_q16.clamp(0, 65_535),
             lead: (cfg.learning_lead_bins as usize).clamp(MIN_LEAD, MASK),
             q_shift: cfg.learning_q_shift.clamp(1, 16),
+            clip_q8: cfg.learning_clip_q8.clamp(1, 1 << 28),
             hum: cfg.hum_notch.map(Notch::from_bits),
             last_bin: None,
             frozen: if gain_q16 > 0 {
@@ -539,8 +560,15 @@ impl Learner {
         let f = ((phi.0 >> (BIN_BITS - 16)) & 0xFFFF) as i32;
         // κ · e · Δφ / bin: Σ over a bin is κ·ē. κ·Δφ/2⁷ < 2³¹ (κ < 1 in
         // Q16, 0 < Δφ ≤ 2²²), and its product with e (|e| ≤ 2²⁸, Q8) over
-        // 2³³ is below 2²⁶.
-        let e_q8 = error_q8.clamp(-(1 << 28), 1 << 28);
+        // 2³³ is below 2²⁶. The clip (`learning_clip_uin`, ≤ 2²⁸) bounds
+        // what one revolution adds to a bin to κ·clip, whatever the error
+        // did: a one-off transient (a push the loop holds within the
+        // following-error limit) is replayed a revolution later by at most
+        // that, while an error that repeats is still learned, at that rate
+        // per revolution until it is inside the clip.
+        // (max/min, not clamp: clamp's min ≤ max assertion is a panic path
+        // the handler must not have; clip_q8 ≥ 1 by construction.)
+        let e_q8 = error_q8.max(-self.clip_q8).min(self.clip_q8);
         let k_dphi = (dphi >> 7) * self.gain_q16;
         let inc = ((i64::from(e_q8) * i64::from(k_dphi)) >> (BIN_BITS + 9)) as i32;
         // Shared between the two bins around the angle (|inc| < 2²⁶).
@@ -636,6 +664,109 @@ mod tests {
             assert!(worst < 10.0, "{ticks_per_rev}: {worst} codes of 1000");
             assert_eq!(r.revolutions(), 40 - 1);
         }
+    }
+
+    /// The learning of the design with `learning_clip_uin` = `clip_uin`
+    /// (κ 0.3, lead 3, Q-filter shift 2: the scenarios'), no hum notch,
+    /// and the Q8 codes of one µin.
+    fn clipped_learner(clip_uin: f64) -> (Learner, f64) {
+        let mut d = crate::servo::ServoDesign::brief(20_000);
+        d.learning_clip_uin = clip_uin;
+        d.hum_notch_q = 0.0;
+        let cfg = d.config().unwrap();
+        (Learner::new(&cfg), d.slide.codes_per_in() * 1e-6 * 256.0)
+    }
+
+    /// Runs `revs` revolutions of 4000 ticks (300 rpm at 20 kHz) with the
+    /// loop following the learned reference exactly (y = c, so the error
+    /// is `target(rev, tick) − c`, as in the convergence test above);
+    /// returns the table's largest |entry| after each revolution, µin.
+    fn run_revolutions(
+        r: &mut Learner,
+        t: &LearnedTable,
+        per_uin: f64,
+        revs: u32,
+        target_uin: impl Fn(u32, u32) -> f64,
+    ) -> std::vec::Vec<f64> {
+        const TICKS: u32 = 4000;
+        let dphi = (TURN / f64::from(TICKS)) as u32;
+        let mut peaks = std::vec::Vec::new();
+        for rev in 0..revs {
+            for k in 0..TICKS {
+                let phi = k * dphi;
+                let c = f64::from(t.correction(SpindleAngle(phi), dphi as i32).position_q8);
+                let e = target_uin(rev, k) * per_uin - c;
+                r.apply(&sample(phi, dphi as i32, e as i32, None), t);
+            }
+            let peak = t.snapshot().iter().map(|v| v.unsigned_abs()).max().unwrap();
+            peaks.push(f64::from(peak) / per_uin);
+        }
+        peaks
+    }
+
+    /// A one-off transient of the following-error push's size (3000 µin
+    /// for 40 ms, the slide pushed out of the cut: command − gauge < 0) in
+    /// revolution 2 of a cut whose error is otherwise zero: one
+    /// revolution's update is at most κ·C per bin (the mean of clipped
+    /// errors), so the correction replayed never exceeds κ·C (45 µin at
+    /// C = 150, against κ·3000 = 900 unclipped; one LSB of rounding), and
+    /// the revolutions after, in which the loop following the correction
+    /// makes the error −c, unlearn it.
+    #[test]
+    fn a_one_off_transient_is_replayed_by_at_most_the_gain_times_the_clip() {
+        let clip_uin = 150.0;
+        let (mut r, per_uin) = clipped_learner(clip_uin);
+        let t = LearnedTable::new();
+        // 40 ms at 20 kHz, from a fifth of the revolution on.
+        let push = |rev: u32, k: u32| {
+            if rev == 2 && (800..1600).contains(&k) {
+                -3000.0
+            } else {
+                0.0
+            }
+        };
+        let peaks = run_revolutions(&mut r, &t, per_uin, 8, push);
+        let bound = 0.3 * clip_uin + 1.0 / per_uin;
+        let worst = peaks.iter().copied().fold(0.0, f64::max);
+        assert!(
+            worst <= bound,
+            "the push replayed as {worst:.1} µin of correction, beyond κ·C = {bound:.1} µin (per revolution: {peaks:.1?})"
+        );
+        // It was learned up to the clip, not ignored: a fresh plateau
+        // takes 0.84·κ of the error in its first revolution, clipped or
+        // not (the Q-filter smooths each completed bin against its
+        // successor while that is still half updated).
+        assert!(peaks[2] >= 0.8 * 0.3 * clip_uin, "{peaks:.1?}");
+        // Then unlearned: less every revolution, under half after five.
+        assert!(
+            peaks[3..].windows(2).all(|w| w[1] < w[0]) && peaks[3] < peaks[2],
+            "{peaks:.1?}"
+        );
+        assert!(peaks[7] <= 0.5 * peaks[2], "{peaks:.1?}");
+    }
+
+    /// An error that repeats, with peaks 2.5 times the clip (the clip
+    /// rate-limits the learning to κ·C per revolution, it does not stop
+    /// it), is still learned: after 40 revolutions the table is the error
+    /// within 2 % (the Q-filter's forgetting at harmonic 2 leaves 0.8 %).
+    #[test]
+    fn a_periodic_error_beyond_the_clip_is_still_learned() {
+        let clip_uin = 150.0;
+        let (mut r, per_uin) = clipped_learner(clip_uin);
+        let t = LearnedTable::new();
+        let amp = 2.5 * clip_uin;
+        let shape = |k: u32| amp * libm::sin(2.0 * core::f64::consts::TAU * f64::from(k) / 4000.0);
+        let peaks = run_revolutions(&mut r, &t, per_uin, 40, |_, k| shape(k));
+        // The first revolution's update is clipped to κ·C.
+        assert!(peaks[0] <= 0.3 * clip_uin + 1.0 / per_uin, "{peaks:.1?}");
+        let dphi = (TURN / 4000.0) as u32;
+        let worst = (0..4000u32)
+            .map(|k| {
+                let c = f64::from(t.correction(SpindleAngle(k * dphi), 0).position_q8) / per_uin;
+                (shape(k) - c).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 0.02 * amp, "{worst:.2} µin left of {amp} µin");
     }
 
     /// The velocity and acceleration of the correction are the angular
