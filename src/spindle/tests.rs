@@ -65,6 +65,19 @@ fn encoder_read_at_the_tick_gives_a_smooth_angle_within_a_count() {
     assert!(worst_dd < 0.05 * count_deg, "second difference {worst_dd}°");
 }
 
+/// A captured-edge encoder of `cpr` counts on a 1 MHz clock, 30-2000 rpm.
+fn captured_at_1mhz(cpr: u32, index_angle: SpindleAngle) -> EncoderConfig {
+    EncoderConfig {
+        counts_per_rev: cpr,
+        ticks_per_s: 1_000_000,
+        min_rpm: 30,
+        max_rpm: 2_000,
+        index_tolerance_counts: 2,
+        index_angle,
+        edge_stamps: EdgeStamps::Captured,
+    }
+}
+
 /// Fuzz finding: a count that jumps by half the counter's range (a
 /// glitch) right after the tracked position was held at the bottom of
 /// its count put the distance to the new count at i64::MIN, and the
@@ -361,15 +374,7 @@ mod prop {
             delta in -(1i64 << 31)..(1i64 << 31),
             frac in -(1i64 << 32) + 1..(1i64 << 32),
         ) {
-            let per_count = EncoderAngle::new(EncoderConfig {
-                counts_per_rev: cpr,
-                ticks_per_s: 1_000_000,
-                min_rpm: 30,
-                max_rpm: 2_000,
-                index_tolerance_counts: 2,
-                index_angle: SpindleAngle(0),
-                edge_stamps: EdgeStamps::Captured,
-            })
+            let per_count = EncoderAngle::new(captured_at_1mhz(cpr, SpindleAngle(0)))
             .unwrap()
             .per_count_q32;
             let exact = (((i128::from(delta) << 32) + i128::from(frac)) * i128::from(per_count)) >> 32;
@@ -395,15 +400,7 @@ mod prop {
             steps in proptest::collection::vec(1u32..400, 200..600),
         ) {
             let ticks_per_s = 1_000_000u32;
-            let mut e = EncoderAngle::new(EncoderConfig {
-                counts_per_rev: cpr,
-                ticks_per_s,
-                min_rpm: 30,
-                max_rpm: 2_000,
-                index_tolerance_counts: 2,
-                index_angle: SpindleAngle::from_degrees(index_deg),
-                edge_stamps: EdgeStamps::Captured,
-            })
+            let mut e = EncoderAngle::new(captured_at_1mhz(cpr, SpindleAngle::from_degrees(index_deg)))
             .unwrap();
             // Counts per tick; the index at t = 0, count 0. Counts and
             // edges in integers: c(t) = ⌊t·cpr·rpm / 60·f⌋ and its edge
@@ -572,16 +569,7 @@ fn a_coasting_spindle_is_a_speed_fault_as_it_leaves_the_band_not_a_revolution_la
 /// did the same: cpr 6780, 160 rpm, an edge at 62 501 read at 62 500).
 #[test]
 fn an_edge_stamped_just_after_the_read_is_not_a_stall() {
-    let mut e = EncoderAngle::new(EncoderConfig {
-        counts_per_rev: 6_780,
-        ticks_per_s: 1_000_000,
-        min_rpm: 30,
-        max_rpm: 2_000,
-        index_tolerance_counts: 2,
-        index_angle: SpindleAngle(0),
-        edge_stamps: EdgeStamps::Captured,
-    })
-    .unwrap();
+    let mut e = EncoderAngle::new(captured_at_1mhz(6_780, SpindleAngle(0))).unwrap();
     e.on_index(0, 0).unwrap();
     // 160 rpm: a count every 55.3 ticks.
     for c in 1..100u32 {
