@@ -50,12 +50,13 @@ const TARGETS: [(&str, &str, In); 10] = [
     ("link_tap", "7TickTap10after_tick", In::Both),
     // The background's steps (thread mode, preempted by every handler;
     // each call counts its own instructions only): the host link's
-    // station, every call of the run (each monomorphisation: the checked
+    // station (`poll_with_store`, which `poll` calls with no store), every
+    // call of the run (each monomorphisation: the checked
     // run's scripted host and the UART session), and the servo design a
     // parameter set runs inside it (measured at boot, `params::at_boot`).
     // The watchdog's timeout must hold the longest with the handlers' load
     // (docs/SAFETY.md, "Fault campaign").
-    ("station_poll", "7station16Station$LT$_$GT$4poll", In::Both),
+    ("station_poll", "7station16Station$LT$_$GT$15poll_with_store", In::Both),
     ("servo_design", "11ServoDesign6config", In::Both),
     // The whole timer handlers: timer 0 = loop tick plus the slide model's
     // step (the simulated world, not firmware) and the board glue; timer 1 =
