@@ -272,7 +272,7 @@ where
                 vec![(m.x, y0), (m.x, y1)],
                 6,
                 4,
-                RGBColor(200, 0, 0).stroke_width(2).into(),
+                RGBColor(200, 0, 0).stroke_width(2),
             ))
             .map_err(err)?;
         if top {

@@ -310,7 +310,7 @@ where
         ],
         8,
         5,
-        level.stroke_width(2).into(),
+        level.stroke_width(2),
     ))
     .map_err(|e| anyhow::anyhow!("{e}"))?
     .label(format!(

@@ -486,7 +486,7 @@ fn write_trace(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
         &format!("fault_{}", o.row.fault),
         &Figure {
             title: &format!("fault: {}", o.row.fault),
-            subtitle: &o.row.injection,
+            subtitle: o.row.injection,
             x_label: "time after the injection, ms",
             panels: &panels,
             markers: &markers,
