@@ -56,7 +56,11 @@ const TARGETS: [(&str, &str, In); 10] = [
     // parameter set runs inside it (measured at boot, `params::at_boot`).
     // The watchdog's timeout must hold the longest with the handlers' load
     // (docs/SAFETY.md, "Fault campaign").
-    ("station_poll", "7station16Station$LT$_$GT$15poll_with_store", In::Both),
+    (
+        "station_poll",
+        "7station16Station$LT$_$GT$15poll_with_store",
+        In::Both,
+    ),
     ("servo_design", "11ServoDesign6config", In::Both),
     // The whole timer handlers: timer 0 = loop tick plus the slide model's
     // step (the simulated world, not firmware) and the board glue; timer 1 =
