@@ -7,7 +7,8 @@ use crate::scenario::Scenario;
 use anyhow::ensure;
 
 /// Relative errors of the plant against the scenario's model (−0.15 = 15 %
-/// less).
+/// less; a leading minus is accepted by `crate::cli`'s rule for every
+/// option).
 #[derive(Clone, Copy, Debug, Default, PartialEq, clap::Args)]
 pub struct Perturbation {
     /// The amplifier's voltage gain differs by this fraction (−0.15: 15 %
@@ -15,16 +16,14 @@ pub struct Perturbation {
     #[arg(
         long = "plant-gain-error",
         value_name = "FRACTION",
-        default_value_t = 0.0,
-        allow_hyphen_values = true
+        default_value_t = 0.0
     )]
     pub gain: f64,
     /// The moving mass differs by this fraction.
     #[arg(
         long = "plant-mass-error",
         value_name = "FRACTION",
-        default_value_t = 0.0,
-        allow_hyphen_values = true
+        default_value_t = 0.0
     )]
     pub mass: f64,
     /// The coil-frame mode (its pole and zero pairs) sits higher by this
@@ -32,8 +31,7 @@ pub struct Perturbation {
     #[arg(
         long = "plant-mode-error",
         value_name = "FRACTION",
-        default_value_t = 0.0,
-        allow_hyphen_values = true
+        default_value_t = 0.0
     )]
     pub mode: f64,
 }

@@ -7,7 +7,7 @@
 //! as the fit: it says nothing of what the fit cannot see (friction, the
 //! cut's forces).
 
-use host_sim::cmd::response::{sweep_digital, Margins, DIGITAL_AMPLITUDE_IN};
+use host_sim::cmd::response::{fmt_opt as opt, sweep_digital, Margins, DIGITAL_AMPLITUDE_IN};
 use host_sim::fwrig::Controller;
 use host_sim::scenario::Scenario;
 use host_sim::track::{run as track, TrackSpec};
@@ -95,10 +95,6 @@ pub fn predict(data_sheet: &Scenario, p: &Plant, design: &ServoDesign) -> Result
         track_uin,
         track_no_learning_uin,
     })
-}
-
-fn opt(v: Option<f64>, digits: usize) -> String {
-    v.map_or_else(|| "none".into(), |v| format!("{v:.digits$}"))
 }
 
 /// The prediction as `tune` prints it, the design in force beside the

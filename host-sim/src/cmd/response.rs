@@ -655,7 +655,8 @@ fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+/// A margin or crossing with `digits` decimals, or that the sweep had none.
+pub fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or("none in the sweep".into(), |x| format!("{x:.digits$}"))
 }
 
