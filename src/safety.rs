@@ -66,6 +66,19 @@ pub enum Fault {
     /// Centring: a slide did not settle in the allowed time (jammed slide,
     /// open motor or tachometer).
     CentringSlideTimeout,
+    /// Contour monitoring (`servo::monitor`): the tool went below the
+    /// commanded surface, into the stock, by more than the depth guard.
+    DepthGuard,
+    /// Contour monitoring: the following error oscillates (its windowed
+    /// RMS about its slow mean above the limit): the loop rings against
+    /// the process (a blunt edge, another material) or the slide.
+    Oscillation,
+    /// Contour monitoring: the gauge's 20-bit code has not changed for
+    /// longer than a driven slide's noise allows.
+    GaugeFrozen,
+    /// Contour monitoring: no new X for too many revolutions while the
+    /// table command is live (the X count stopped while X feeds).
+    XStalled,
 }
 
 /// What the machine does about a fault.
@@ -76,6 +89,10 @@ pub enum Fault {
 pub enum Reaction {
     /// Keep the loop closed, ramp the command to null, hold there.
     RampToNull,
+    /// Keep the loop closed and take the tool out of the stock: the
+    /// command ramps at the slew limit to the retract position
+    /// (`retract_z_in`, away from the stock), and holds there.
+    Retract,
     /// Open the loop: DAC to zero volts, amplifier disabled.
     DisableAmplifier,
 }
@@ -113,6 +130,16 @@ impl Fault {
             | Fault::CentringWorse
             | Fault::CentringNoConvergence
             | Fault::CentringSlideTimeout => Reaction::DisableAmplifier,
+            // The loop's sensing and actuation are sound but the tool is
+            // where it must not be (or the command is for another radius):
+            // out of the stock is the only place the tool is safe, and a
+            // loop ringing against the process spring stops ringing once
+            // the spring is gone.
+            Fault::DepthGuard | Fault::Oscillation | Fault::XStalled => Reaction::Retract,
+            // A loop on a reading that no longer follows the slide drives
+            // it blind: amplifier off, and the cutting force (the part
+            // pushes the tool away from itself) takes the tool out.
+            Fault::GaugeFrozen => Reaction::DisableAmplifier,
         }
     }
 
@@ -150,6 +177,10 @@ impl Fault {
             }
             Fault::CentringNoConvergence => "centring: the level was not reached in the allowed number of cycles",
             Fault::CentringSlideTimeout => "centring: a slide did not come to rest in the allowed time",
+            Fault::DepthGuard => "depth guard: the tool went into the stock below the commanded surface by more than the guard",
+            Fault::Oscillation => "sustained oscillation of the following error (windowed RMS above its limit): the loop rings against the process or the slide",
+            Fault::GaugeFrozen => "gauge frozen: its code has not changed for longer than a driven slide's noise allows",
+            Fault::XStalled => "X stalled: no new X for too many revolutions while the table command is live",
         }
     }
 }
@@ -264,6 +295,10 @@ pub enum DesignError {
     SignCheck,
     /// Last, so that the variants before keep their wire numbers.
     BandwidthFast,
+    /// A contour-monitoring parameter out of its range (`depth_guard_uin`,
+    /// `oscillation_uin`, `gauge_frozen_ms`, `x_stall_revs`,
+    /// `retract_z_in`).
+    Monitor,
 }
 
 #[cfg(test)]
@@ -275,7 +310,7 @@ mod tests {
 
     /// One of each fault (the refused table twice: `Missing` has words
     /// of its own).
-    const ALL: [Fault; 26] = [
+    const ALL: [Fault; 30] = [
         Fault::Table(TableError::Missing),
         Fault::Table(TableError::Truncated { needed: 64, got: 3 }),
         Fault::Parameters(ParamError::BlockMagic),
@@ -305,6 +340,10 @@ mod tests {
             stored: 1,
             computed: 2,
         }),
+        Fault::DepthGuard,
+        Fault::Oscillation,
+        Fault::GaugeFrozen,
+        Fault::XStalled,
     ];
 
     /// Each cause has words of its own (the host prints them, and a
