@@ -243,6 +243,11 @@ fn check_row(spec: &host_sim::cut::CutSpec, case: Case, o: &host_sim::faults::Ou
                 carry * 1e6
             )
         }
+        // The process rows' reaction: `faults_process.rs` judges them.
+        Reaction::Retract => {
+            assert!(last.amp_enabled, "{r:?}");
+            format!("{}: retract {t_safe_ms:.1} ms", r.fault)
+        }
         Reaction::RampToNull => {
             assert!(last.amp_enabled && last.command_in == 0.0, "{r:?}");
             // From the latch (or, a table refused at boot, from the arm:

@@ -940,3 +940,40 @@ fn hand_off_never_tears_under_concurrency() {
     });
     assert_eq!(lp.fault(), None);
 }
+
+/// A gauge whose code stops changing while the loop is closed latches
+/// `GaugeFrozen` (amplifier off) after `gauge_frozen_ms` (100 ticks at
+/// 20 kHz) and the tick after the learning handler sees it, not before.
+#[test]
+fn a_frozen_gauge_disables_the_amplifier_after_its_ticks() {
+    struct Stuck;
+    impl GaugeAdc for Stuck {
+        fn read(&mut self) -> Result<GaugeSample, BusError> {
+            Ok(GaugeSample {
+                code: 1000,
+                overrange: false,
+            })
+        }
+    }
+    let mut fw = armed_without_sign_check();
+    let (mut g, mut d) = (Gauge::at(1000), Dac::default());
+    for _ in 0..500 {
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+    }
+    assert_eq!(fw.fault(), None);
+    let n = fw.config().monitor.gauge_frozen_ticks;
+    let mut latched_at = None;
+    for k in 0..3 * n {
+        fw.loop_tick(&TickInput::NONE, &mut Stuck, &mut d);
+        if fw.fault().is_some() {
+            latched_at = Some(k);
+            break;
+        }
+    }
+    assert_eq!(fw.fault(), Some(Fault::GaugeFrozen));
+    // The first stuck read may repeat the last live one; n repeats, then
+    // one tick for the hand-off.
+    let k = latched_at.unwrap();
+    assert!((n - 1..=n + 1).contains(&k), "{k} against {n}");
+    assert!(!fw.amplifier_enable());
+}

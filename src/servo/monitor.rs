@@ -24,8 +24,9 @@
 //! * **X stalled**: `x_stall_revs` revolutions with the table command live
 //!   and no new X → retract.
 //!
-//! Each fault is raised once; the monitor starts again when the tick
-//! reports a latched fault in its samples or the loop arms anew.
+//! Each fault is raised once per arming. While a fault is latched (its
+//! reaction runs) only the frozen gauge is still watched: the retract is
+//! driven on the gauge.
 
 use super::design::MonitorConfig;
 use super::repetitive::{Freeze, LearnSample};
@@ -64,8 +65,8 @@ pub struct Monitor {
     last_phi: Option<u32>,
     /// Revolutions with the command live since the last new X.
     revs: u32,
-    /// A fault was raised and not yet seen latched.
-    raised: bool,
+    /// The faults raised since the arming (a bit each: [`Self::once`]).
+    raised: u8,
 }
 
 impl Monitor {
@@ -81,7 +82,7 @@ impl Monitor {
             same: 0,
             last_phi: None,
             revs: 0,
-            raised: false,
+            raised: 0,
         }
     }
 
@@ -89,33 +90,58 @@ impl Monitor {
         *self = Self::new(self.cfg);
     }
 
+    /// Forgets what the contour checks have seen (a reaction runs).
+    fn reset_contour(&mut self) {
+        self.deep = 0;
+        self.mean = 0;
+        self.ms = 0;
+        self.ringing = 0;
+        self.seeded = false;
+        self.last_phi = None;
+        self.revs = 0;
+    }
+
     /// A new coefficient set (X moved) reached the handler.
     pub fn new_x(&mut self) {
         self.revs = 0;
     }
 
-    /// One tick's sample; the fault it shows, once.
+    /// One tick's sample; the fault it shows, each fault once per arming.
     #[inline]
     pub fn sample(&mut self, s: &LearnSample) -> Option<Fault> {
-        let freeze = s.freeze();
-        if freeze == Some(Freeze::Fault) || s.requests().clears() {
-            // A latched fault (the tick's reaction runs) or a new arming.
+        if s.requests().clears() {
             self.reset();
-            if freeze == Some(Freeze::Fault) {
-                return None;
-            }
+        }
+        let frozen = self.frozen(s.gauge_code());
+        if s.freeze() == Some(Freeze::Fault) {
+            // A latched fault's reaction runs: where the tool goes is its
+            // business now, but a gauge that stops following the slide
+            // must still turn the amplifier off (the retract is driven on
+            // the gauge).
+            self.reset_contour();
+            return self.once(frozen);
         }
         let e_q8 = s.error_q8();
         let depth = self.depth(e_q8);
         let osc = self.oscillation(e_q8);
-        let frozen = self.frozen(s.gauge_code());
-        let stalled = self.stalled(s, freeze);
-        if self.raised {
+        let stalled = self.stalled(s);
+        self.once(frozen.or(depth).or(osc).or(stalled))
+    }
+
+    /// `f` unless it was raised since the last arming.
+    #[inline(always)]
+    fn once(&mut self, f: Option<Fault>) -> Option<Fault> {
+        let bit = match f? {
+            Fault::DepthGuard => 1,
+            Fault::Oscillation => 2,
+            Fault::GaugeFrozen => 4,
+            _ => 8,
+        };
+        if self.raised & bit != 0 {
             return None;
         }
-        let fault = depth.or(osc).or(frozen).or(stalled);
-        self.raised = fault.is_some();
-        fault
+        self.raised |= bit;
+        f
     }
 
     /// Retract's sign: the stock lies the other way.
@@ -169,11 +195,11 @@ impl Monitor {
     }
 
     #[inline(always)]
-    fn stalled(&mut self, s: &LearnSample, freeze: Option<Freeze>) -> Option<Fault> {
+    fn stalled(&mut self, s: &LearnSample) -> Option<Fault> {
         if self.cfg.x_stall_revs == 0 {
             return None;
         }
-        let phi = match (freeze, s.angle()) {
+        let phi = match (s.freeze(), s.angle()) {
             (None, Some((p, _))) => p.0,
             // Not live (null command, not engaged, no angle): no
             // revolution counts, and the next live one starts afresh.

@@ -38,7 +38,10 @@ fn the_defaults_convert_to_codes_and_ticks() {
     let osc = 40e-6 * CPI;
     assert_eq!(c.oscillation_sq, (osc * osc).round() as u64);
     assert_eq!(c.gauge_frozen_ticks, 100);
-    assert_eq!(c.x_stall_revs, 20);
+    assert_eq!(
+        c.x_stall_revs, 0,
+        "off unless the part program says X feeds"
+    );
     assert_eq!(c.retract_code, (0.009 * CPI).round() as i32);
 }
 
@@ -100,7 +103,8 @@ fn oscillation_trips_above_its_rms_and_not_below_nor_on_an_offset() {
         let mut m = Monitor::new(c);
         for k in 0..ticks {
             // 400 Hz at 20 kHz: a loop ring.
-            let e = offset_uin + amp_uin * (core::f64::consts::TAU * 400.0 * f64::from(k) / 20e3).sin();
+            let e =
+                offset_uin + amp_uin * (core::f64::consts::TAU * 400.0 * f64::from(k) / 20e3).sin();
             if let Some(f) = m.sample(&live(uin_q8(e), k as i32, 0)) {
                 return Some((f, k));
             }
@@ -112,12 +116,19 @@ fn oscillation_trips_above_its_rms_and_not_below_nor_on_an_offset() {
     // The window's mean square reaches (1/1.2)² of its final value after
     // ln(1/(1 − 1/1.44)) = 1.19 windows, and must stay above for one.
     assert!(k < 3 << OSC_SHIFT, "{k}");
-    assert_eq!(run(0.8 * limit_uin * 2f64.sqrt(), 0.0, 40 << OSC_SHIFT), None);
+    assert_eq!(
+        run(0.8 * limit_uin * 2f64.sqrt(), 0.0, 40 << OSC_SHIFT),
+        None
+    );
     assert_eq!(run(0.0, 3.0 * limit_uin, 40 << OSC_SHIFT), None);
     let mut m = Monitor::new(c);
     for k in 0..40 << OSC_SHIFT {
         let e = if k < 1000 { 0.0 } else { 3.0 * limit_uin };
-        assert_eq!(m.sample(&live(uin_q8(e), k, 0)), None, "step at 1000, tick {k}");
+        assert_eq!(
+            m.sample(&live(uin_q8(e), k, 0)),
+            None,
+            "step at 1000, tick {k}"
+        );
     }
 }
 
@@ -145,7 +156,8 @@ fn a_gauge_code_held_for_its_ticks_is_frozen_and_one_less_is_not() {
 /// null command counts nothing; 0 turns the check off.
 #[test]
 fn x_stalls_after_its_revolutions_of_live_command_without_a_new_x() {
-    let c = cfg();
+    let mut c = cfg();
+    c.x_stall_revs = 20;
     let revs = c.x_stall_revs;
     let turn = |m: &mut Monitor, g: &mut i32, freeze: Option<Freeze>| {
         let mut out = None;
@@ -188,10 +200,11 @@ fn x_stalls_after_its_revolutions_of_live_command_without_a_new_x() {
     }
 }
 
-/// A latched fault in the samples (the tick's reaction) re-arms the
-/// monitor: the same fault is raised again after it.
+/// While a fault is latched the contour checks rest (its reaction
+/// drives the tool) but a frozen gauge is still raised; a new arming
+/// raises a fault raised before again.
 #[test]
-fn a_latched_fault_rearms_the_monitor() {
+fn a_latched_fault_rests_the_contour_checks_but_not_the_frozen_gauge() {
     let c = cfg();
     let g = c.depth_guard_q8 + 1;
     let mut m = Monitor::new(c);
@@ -200,9 +213,23 @@ fn a_latched_fault_rearms_the_monitor() {
     assert_eq!(deep(&mut m, 2), None);
     assert_eq!(deep(&mut m, 3), Some(Fault::DepthGuard));
     assert_eq!(deep(&mut m, 4), None);
-    let latched = LearnSample::new(g, None, Some(Freeze::Fault), LearnRequests::NONE);
-    assert_eq!(m.sample(&latched), None);
-    assert_eq!(deep(&mut m, 5), None);
-    assert_eq!(deep(&mut m, 6), None);
-    assert_eq!(deep(&mut m, 7), Some(Fault::DepthGuard));
+    let latched = |k: i32| {
+        LearnSample::new(10 * g, None, Some(Freeze::Fault), LearnRequests::NONE).with_gauge(k)
+    };
+    for k in 0..c.gauge_frozen_ticks {
+        assert_eq!(m.sample(&latched(k as i32)), None, "moving gauge, deep");
+    }
+    // The first sets the code; n repeats of it trip.
+    for _ in 0..c.gauge_frozen_ticks {
+        assert_eq!(m.sample(&latched(7)), None);
+    }
+    assert_eq!(m.sample(&latched(7)), Some(Fault::GaugeFrozen));
+    let mut arm = LearnRequests::NONE;
+    arm.clear();
+    assert_eq!(
+        m.sample(&LearnSample::new(g, None, None, arm).with_gauge(8)),
+        None
+    );
+    assert_eq!(deep(&mut m, 9), None);
+    assert_eq!(deep(&mut m, 10), Some(Fault::DepthGuard));
 }
