@@ -54,7 +54,11 @@ fn the_hard_inclusion_is_detected_and_safe_within_the_depth_of_cut_on_both_machi
         let (_, o) = run(sc, Case::FollowingError);
         assert_eq!(o.row.detected, Some(true), "{sc}: {:?}", o.row);
         assert_eq!(o.row.safe_state, Some(true), "{sc}: {:?}", o.row);
-        assert!(Case::FollowingError.expects(o.latched.unwrap()), "{sc}: {:?}", o.latched);
+        assert!(
+            Case::FollowingError.expects(o.latched.unwrap()),
+            "{sc}: {:?}",
+            o.latched
+        );
         within_depth(sc, &o);
     }
 }
@@ -99,7 +103,10 @@ fn a_stopped_x_count_retracts_after_its_revolutions_of_live_command() {
             (n - step_revs - 1.0) * rev_s,
             (n + 1.0) * rev_s + retract_s(&spec),
         );
-        assert!(t >= lo && t <= hi, "{sc}: {t} s to safe, expected {lo} .. {hi}");
+        assert!(
+            t >= lo && t <= hi,
+            "{sc}: {t} s to safe, expected {lo} .. {hi}"
+        );
         within_depth(sc, &o);
     }
 }
