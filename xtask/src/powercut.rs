@@ -338,3 +338,16 @@ pub fn check() -> Result<String> {
         lines.join("; ")
     ))
 }
+
+/// `cargo xtask flash-cut`: [`check`] with the image built first.
+pub fn run() -> Result<u8> {
+    crate::tools::require(&[
+        crate::tools::Tool::Target,
+        crate::tools::Tool::FlipLink,
+        crate::tools::Tool::Qemu,
+        crate::tools::Tool::DefmtPrint,
+    ])?;
+    crate::images::build_qemu()?;
+    eprintln!("QEMU power cuts: {}", check()?);
+    Ok(0)
+}
