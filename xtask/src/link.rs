@@ -510,12 +510,7 @@ mod tests {
 /// `cargo xtask link-test`: the QEMU table-region runs, the parameter
 /// fault path and the host-link end-to-end test of `cargo xtask test`, alone.
 pub fn run_test() -> Result<u8> {
-    crate::tools::require(&[
-        crate::tools::Tool::Target,
-        crate::tools::Tool::FlipLink,
-        crate::tools::Tool::Qemu,
-        crate::tools::Tool::DefmtPrint,
-    ])?;
+    crate::tools::require_for_qemu_log()?;
     crate::images::build_qemu()?;
     let (code, lines) = crate::qemu::run_qemu()?;
     if code != 0 {

@@ -12,10 +12,10 @@
 //!   bit-exact on the emulated target and checks that an altered code is
 //!   caught (`replay.rs`); then hangs each handler and checks that the
 //!   watchdog trips (`watchdog.rs`).
-//! * `size`    – flash and RAM use of both images (builds them first).
+//! * `size`    – flash and RAM use of the three images (builds them first).
 //! * `isr-cost [--json] [--variant V] [--profile R [--call N]]` –
 //!   instructions per interrupt handler under QEMU.
-//! * `no-panic` – builds both images and proves that no panic path is
+//! * `no-panic` – builds the three images and proves that no panic path is
 //!   reachable from their interrupt handlers (`nopanic.rs`); part of `test`.
 //! * `cycles` – no import cycle between the modules of any crate, and the
 //!   biggest source file (`cycles.rs`); part of `test`.
@@ -28,11 +28,13 @@
 //! error with exit status 2, never ignored.
 
 mod cycles;
+mod doccmds;
 mod docnames;
 mod elf;
 mod faultpath;
 mod figures;
 mod fuzz;
+mod generated;
 mod images;
 mod isr_cost;
 mod link;
@@ -81,12 +83,19 @@ struct Cli {
 enum Cmd {
     /// Host tests, board firmware, QEMU image run, no-panic check, sizes and
     /// a short fuzz run (installs what it can, names what is missing).
+    ///
+    /// The last line is `tests: N passed, N failed, N skipped`.
     Test {
         /// Seconds each fuzz target runs (0 skips the fuzz step).
         #[arg(long, default_value_t = fuzz::TEST_SECONDS, value_name = "N")]
         fuzz_seconds: u32,
     },
     /// Build and run the QEMU image; exit status passed through.
+    ///
+    /// Checks its log against boards/qemu/expected.log, replays host-sim's
+    /// recorded runs bit-exact on the emulated Cortex-M4F (and checks that
+    /// an altered code is caught), hangs each handler and checks that the
+    /// watchdog trips.
     Qemu {
         /// Rewrite boards/qemu/expected.log with this run's log.
         #[arg(long)]
@@ -96,7 +105,8 @@ enum Cmd {
         #[arg(long, value_name = "FILE")]
         vcd: Option<PathBuf>,
     },
-    /// Flash and RAM use of both images.
+    /// Flash and RAM use of the three images (zslide-fw, zslide-centre,
+    /// zslide-qemu).
     Size,
     /// Instructions per interrupt handler under QEMU (takes minutes: the
     /// image runs under an instruction trace).
@@ -115,8 +125,12 @@ enum Cmd {
     /// saves, across boots (part of `test`, alone).
     FlashCut,
     /// Rerun the commands behind the figures marked in README.md and
-    /// docs/*.md and rewrite them (`--check`: list what drifted, exit 1);
-    /// also checks the names the docs cite exist.
+    /// docs/*.md and rewrite them (`--check`: list what drifted, exit 1).
+    ///
+    /// Also rewrites the generated sections (parameters, faults, commands),
+    /// checks that the names the docs cite exist, and parses every command
+    /// they show with the program's own parser (the `sh quick` blocks also
+    /// run). `cargo xtask test` runs `--check --quick`.
     Figures(figures::Args),
     /// Import cycles between the modules of every crate (part of `test`).
     Cycles,

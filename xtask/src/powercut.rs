@@ -341,12 +341,7 @@ pub fn check() -> Result<String> {
 
 /// `cargo xtask flash-cut`: [`check`] with the image built first.
 pub fn run() -> Result<u8> {
-    crate::tools::require(&[
-        crate::tools::Tool::Target,
-        crate::tools::Tool::FlipLink,
-        crate::tools::Tool::Qemu,
-        crate::tools::Tool::DefmtPrint,
-    ])?;
+    crate::tools::require_for_qemu_log()?;
     crate::images::build_qemu()?;
     eprintln!("QEMU power cuts: {}", check()?);
     Ok(0)

@@ -11,7 +11,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::images::build_qemu;
-use crate::tools::{require, Tool};
+use crate::tools::require_for_qemu_log;
 use crate::{faultpath, qemu_dir, qemu_elf, replay, root, step, trace, watchdog, Result};
 
 const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
@@ -256,7 +256,7 @@ pub fn check_snapshot(lines: &[String], bless: bool) -> Result<()> {
 }
 
 pub fn run(bless: bool, vcd: Option<&Path>) -> Result<u8> {
-    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])?;
+    require_for_qemu_log()?;
     build_qemu()?;
     let (code, lines) = run_qemu()?;
     eprintln!("QEMU image exited with status {code}");

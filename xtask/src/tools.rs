@@ -190,3 +190,9 @@ pub fn require(tools: &[Tool]) -> Result<()> {
 pub fn require_for_qemu() -> Result<()> {
     require(&[Tool::Target, Tool::FlipLink, Tool::Qemu])
 }
+
+/// The tools a QEMU run with its log decoded needs: the target, flip-link,
+/// QEMU and defmt-print.
+pub fn require_for_qemu_log() -> Result<()> {
+    require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])
+}
