@@ -184,12 +184,12 @@ fn spans_of(line: &str) -> Vec<String> {
 
 /// Whether a shell line or a span runs one of the checked programs.
 fn names_a_tool(s: &str) -> bool {
-    s.split([';', '|', '&', '(', '{'])
-        .any(|c| match first_words(c).as_slice() {
-            ["cargo", "sim" | "xtask" | "run" | "test", ..] => true,
-            ["host-sim" | "zslide", _, ..] => true,
-            _ => false,
-        })
+    s.split([';', '|', '&', '(', '{']).any(|c| {
+        matches!(
+            first_words(c).as_slice(),
+            ["cargo", "sim" | "xtask" | "run" | "test", ..] | ["host-sim" | "zslide", _, ..]
+        )
+    })
 }
 
 fn first_words(s: &str) -> Vec<&str> {
@@ -638,9 +638,13 @@ pub fn check_one(shown: &Shown, aliases: &HashMap<String, Vec<String>>) -> Vec<S
     problems
 }
 
+/// What [`check`] finds: the commands shown, `doc:line: ...` for each bad
+/// one, and the quick blocks with their doc.
+pub type Found = (usize, Vec<String>, Vec<(String, QuickBlock)>);
+
 /// `doc:line: ...` for every bad command of every doc, and the docs' quick
-/// blocks as (`doc:line`, script).
-pub fn check() -> Result<(usize, Vec<String>, Vec<(String, QuickBlock)>)> {
+/// blocks as (`doc`, block).
+pub fn check() -> Result<Found> {
     let aliases = aliases(&root())?;
     let mut count = 0;
     let mut out = Vec::new();

@@ -282,7 +282,9 @@ pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
     ));
     let mut runs: HashMap<String, serde_json::Value> = HashMap::new();
     let mut drift = Vec::new();
-    let mut edits: HashMap<PathBuf, Vec<((usize, usize), String)>> = HashMap::new();
+    // Per doc: (byte range of a value, its new text).
+    type Edits = Vec<((usize, usize), String)>;
+    let mut edits: HashMap<PathBuf, Edits> = HashMap::new();
     for f in &chosen {
         let cmd = f.attr("cmd").unwrap_or_default().to_string();
         if !runs.contains_key(&cmd) {
@@ -308,7 +310,7 @@ pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
     if !check {
         for (doc, mut e) in edits {
             let mut text = texts[&doc].clone();
-            e.sort_by(|a, b| b.0 .0.cmp(&a.0 .0));
+            e.sort_by_key(|edit| std::cmp::Reverse(edit.0 .0));
             for ((a, b), new) in e {
                 text.replace_range(a..b, &new);
             }

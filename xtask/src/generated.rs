@@ -395,7 +395,10 @@ mod tests {
         assert!(t.contains("`--holes "), "{t}");
         assert!(options(Program::HostSim, &["cutt"]).is_err());
         let c = commands(Program::Xtask, &[]).unwrap();
-        assert!(c.contains("| `cargo xtask figures` |"), "{c}");
+        assert!(
+            c.contains("| `cargo xtask figures [--check] [--quick]` |"),
+            "{c}"
+        );
         assert!(render("nonsense").is_err());
     }
 }

@@ -485,6 +485,24 @@ impl Checks {
     }
 }
 
+// ------------------------------------------------------- cargo xtask link-test
+
+/// `cargo xtask link-test`: the QEMU table-region runs, the parameter
+/// fault path and the host-link end-to-end test of `cargo xtask test`, alone.
+pub fn run_test() -> Result<u8> {
+    crate::tools::require_for_qemu_log()?;
+    crate::images::build_qemu()?;
+    let (code, lines) = crate::qemu::run_qemu()?;
+    if code != 0 {
+        return Err(format!("the QEMU image exited with status {code}"));
+    }
+    let n = crate::table_checks::qemu_table_checks(&lines)?
+        + crate::faultpath::params_check()?
+        + end_to_end()?;
+    eprintln!("{n} passed, 0 failed");
+    Ok(0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -503,22 +521,4 @@ mod tests {
         let e = check_session_files(&table, Some(&table)).unwrap_err();
         assert!(e.contains("this is a coefficient table (ZSCT)"), "{e}");
     }
-}
-
-// ------------------------------------------------------- cargo xtask link-test
-
-/// `cargo xtask link-test`: the QEMU table-region runs, the parameter
-/// fault path and the host-link end-to-end test of `cargo xtask test`, alone.
-pub fn run_test() -> Result<u8> {
-    crate::tools::require_for_qemu_log()?;
-    crate::images::build_qemu()?;
-    let (code, lines) = crate::qemu::run_qemu()?;
-    if code != 0 {
-        return Err(format!("the QEMU image exited with status {code}"));
-    }
-    let n = crate::table_checks::qemu_table_checks(&lines)?
-        + crate::faultpath::params_check()?
-        + end_to_end()?;
-    eprintln!("{n} passed, 0 failed");
-    Ok(0)
 }

@@ -42,6 +42,7 @@ mod mutants;
 mod nopanic;
 mod powercut;
 mod qemu;
+mod qemu_cmd;
 mod replay;
 mod size;
 mod stack;
@@ -143,7 +144,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.cmd {
         Cmd::Test { fuzz_seconds } => suite::run(fuzz_seconds),
-        Cmd::Qemu { bless, vcd } => qemu::run(bless, vcd.as_deref()),
+        Cmd::Qemu { bless, vcd } => qemu_cmd::run(bless, vcd.as_deref()),
         Cmd::Size => size::run(),
         Cmd::IsrCost(args) => isr_cost::run(&args),
         Cmd::NoPanic => nopanic::run(),

@@ -1,8 +1,6 @@
-//! `cargo xtask qemu [--bless] [--vcd FILE]`: the QEMU image run, its
-//! decoded defmt log compared (timestamps stripped) with
-//! `boards/qemu/expected.log`; then the replay, watchdog and fault-path
-//! checks. Also the QEMU command line and runner every other QEMU check
-//! uses.
+//! The QEMU command line and runner every QEMU check uses, and the log
+//! snapshot: the decoded defmt log compared (timestamps stripped) with
+//! `boards/qemu/expected.log`. The command itself is `qemu_cmd.rs`.
 
 use std::fs;
 use std::io::{BufRead, BufReader};
@@ -10,9 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::images::build_qemu;
-use crate::tools::require_for_qemu_log;
-use crate::{faultpath, qemu_dir, qemu_elf, replay, root, step, trace, watchdog, Result};
+use crate::{qemu_dir, qemu_elf, root, step, Result};
 
 const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
 
@@ -253,27 +249,6 @@ pub fn check_snapshot(lines: &[String], bless: bool) -> Result<()> {
     }
     msg.push_str("\n  (if the change is intended: cargo xtask qemu --bless)");
     Err(msg)
-}
-
-pub fn run(bless: bool, vcd: Option<&Path>) -> Result<u8> {
-    require_for_qemu_log()?;
-    build_qemu()?;
-    let (code, lines) = run_qemu()?;
-    eprintln!("QEMU image exited with status {code}");
-    if code == 0 {
-        check_snapshot(&lines, bless)?;
-        let summary = replay::check()?;
-        eprintln!("QEMU replay: {summary}");
-        let summary = watchdog::check()?;
-        eprintln!("QEMU watchdog: {summary}");
-        let summary = faultpath::check()?;
-        eprintln!("QEMU fault paths: {summary}");
-        if let Some(vcd) = vcd {
-            let (summary, _) = trace::qemu_vcd(vcd)?;
-            eprintln!("QEMU trace: {summary}");
-        }
-    }
-    Ok(code)
 }
 
 #[cfg(test)]
