@@ -56,6 +56,7 @@ const SPI4_PINS: [(usize, u8, u8); 3] = [(PE, 12, 5), (PE, 13, 5), (PE, 14, 5)];
 /// Statistics the report gives.
 #[derive(Default)]
 pub struct Stats {
+    pub slices: u64,
     pub loop_ticks: u64,
     pub max_tick_latency_ps: u64,
     pub tim3_pended_at: Option<u64>,

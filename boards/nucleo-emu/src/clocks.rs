@@ -22,8 +22,6 @@ pub struct Rcc {
     pub apb1lenr: u32,
     pub apb2enr: u32,
     pub apb4enr: u32,
-    /// Reset flags to report at the next boot (the power-on reset's).
-    pub watchdog_reset: bool,
 }
 
 const CR_HSION: u32 = 1 << 0;
@@ -51,7 +49,6 @@ impl Rcc {
             apb1lenr: 0,
             apb2enr: 0,
             apb4enr: 0,
-            watchdog_reset,
         }
     }
 

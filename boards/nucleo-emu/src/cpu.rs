@@ -129,29 +129,41 @@ impl<'a> Cpu<'a> {
             uc.mem_write(u64::from(*addr), data)
                 .map_err(|e| format!("load {} bytes at {addr:#010x}: {e:?}", data.len()))?;
         }
-        // WFI (0xBF30) wherever it is in the image: the hook marks the
-        // core asleep there.
-        let mut wfi = vec![false; BANK1.1 / 2];
+        // Bank 1's halfwords: a block's instructions are counted by their
+        // encodings (a first halfword 0b11101/0b11110/0b11111 is a 32-bit
+        // instruction), and a WFI (0xBF30) ending a block puts the core
+        // to sleep.
+        let mut code = vec![0u16; BANK1.1 / 2];
         for (addr, data) in segments {
             if !(BANK1.0..BANK1.0 + BANK1.1 as u32).contains(addr) {
                 continue;
             }
+            let o = ((addr - BANK1.0) / 2) as usize;
             for (i, hw) in data.chunks_exact(2).enumerate() {
-                if u16::from_le_bytes([hw[0], hw[1]]) == 0xBF30 {
-                    wfi[((addr - BANK1.0) as usize) / 2 + i] = true;
-                }
+                code[o + i] = u16::from_le_bytes([hw[0], hw[1]]);
             }
         }
-        uc.add_code_hook(0, u64::from(u32::MAX), move |uc: &mut Unicorn<Board>, addr: u64, _size: u32| {
+        uc.add_block_hook(move |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
+            let (a, size) = (addr as u32, size as usize);
+            let (mut n, mut wfi) = (0u64, false);
+            if a.wrapping_sub(BANK1.0) < BANK1.1 as u32 {
+                let mut i = ((a - BANK1.0) / 2) as usize;
+                let end = i + size / 2;
+                while i < end && i < code.len() {
+                    n += 1;
+                    wfi = code[i] == 0xBF30;
+                    i += if code[i] >> 11 >= 0b11101 { 2 } else { 1 };
+                }
+            } else {
+                n = (size / 2) as u64;
+            }
             let b = uc.get_data_mut();
-            b.instructions += 1;
-            b.t += b.cycle_ps;
-            let a = addr as u32;
-            let sleeping = a.wrapping_sub(BANK1.0) < BANK1.1 as u32 && wfi[((a - BANK1.0) / 2) as usize];
-            if sleeping {
+            b.instructions += n;
+            b.t += n * b.cycle_ps;
+            if wfi {
                 b.sleeping = true;
             }
-            if sleeping || b.t >= b.until {
+            if wfi || b.t >= b.until {
                 let _ = uc.emu_stop();
             }
         })
@@ -384,6 +396,7 @@ impl<'a> Cpu<'a> {
             let next = self.board().next_event().min(end);
             self.board().until = next;
             let pc = r(&self.uc, RegisterARM::PC);
+            self.board().stats.slices += 1;
             let res = self.uc.emu_start(u64::from(pc | 1), 0, 0, 0);
             let pc = r(&self.uc, RegisterARM::PC);
             if pc >= 0xFFFF_FF00 {

@@ -166,13 +166,34 @@ fn run() -> Result<bool, String> {
         None => None,
     };
     let session = listener.is_some();
+    // Commands on standard input (a test's hand on the machine):
+    // `break-gauge` sticks the gauge ADC's SDO high from now on;
+    // `press MS` holds the arm button for MS ms from now.
+    let (tx, commands) = std::sync::mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in std::io::stdin().lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
     let mut rtt = image.rtt.map(|cb| link::Rtt::new(cb, listener));
     let mut pending = Vec::new();
     let mut last_poll = 0u64;
     let end = args.ms * MS;
     let wall = std::time::Instant::now();
+    let mut bad_command = None;
     let stop = cpu.run(end, |cpu| {
         let t = cpu.board().t;
+        while let Ok(c) = commands.try_recv() {
+            let mut w = c.split_whitespace();
+            match (w.next(), w.next().map(str::parse::<f64>)) {
+                (Some("break-gauge"), None) => cpu.board().gauge_break_at = Some(t),
+                (Some("press"), Some(Ok(ms))) => cpu.board().world.button.push((t, t + (ms * MS as f64) as u64)),
+                _ => bad_command = Some(c),
+            }
+        }
         if t >= last_poll + 20_000_000 {
             last_poll = t;
             if let Some(r) = &mut rtt {
@@ -184,6 +205,9 @@ fn run() -> Result<bool, String> {
             }
         }
     });
+    if let Some(c) = bad_command {
+        return Err(format!("unknown command on stdin: {c:?} (break-gauge, press MS)"));
+    }
     let (stop, client_closed) = match stop {
         Some(s) if s == "client closed" => (None, true),
         s => (s, false),
@@ -223,6 +247,7 @@ fn run() -> Result<bool, String> {
         "client_closed": client_closed,
         "unmodelled_accesses": u32::from(unmodelled),
         "loop_ticks": b.stats.loop_ticks,
+        "cpu_slices": b.stats.slices,
         "max_tick_latency_ns": b.stats.max_tick_latency_ps / 1000,
         "index_pulses": b.stats.index_pulses,
         "x_events": b.world.x_events,
