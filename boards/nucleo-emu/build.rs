@@ -20,7 +20,10 @@ fn pac_dir() -> PathBuf {
             return p;
         }
     }
-    panic!("stm32h7-0.16.0 not in {} (a build-dependency fetches it)", src.display());
+    panic!(
+        "stm32h7-0.16.0 not in {} (a build-dependency fetches it)",
+        src.display()
+    );
 }
 
 /// `0x1c` or `0x04..0x104` at the start of a doc line.
@@ -63,7 +66,10 @@ fn block(file: &Path, prefix: &str, base: u32, out: &mut BTreeMap<u32, Vec<Strin
         if doc.contains("Cluster") && end.is_some() {
             let module = ty.to_lowercase();
             let dir = file.parent().unwrap();
-            let cluster = [dir.join(format!("{module}.rs")), dir.join(&module).join("mod.rs")];
+            let cluster = [
+                dir.join(format!("{module}.rs")),
+                dir.join(&module).join("mod.rs"),
+            ];
             for c in cluster {
                 if c.exists() {
                     block(&c, &format!("{prefix}{name}."), base + off, out);
@@ -95,7 +101,10 @@ fn main() {
                 .get(i + 1)
                 .and_then(|n| n.trim().strip_prefix("pub mod "))
             {
-                modules.insert(m.trim_end_matches(';').to_string(), pac.join("stm32h743").join(path));
+                modules.insert(
+                    m.trim_end_matches(';').to_string(),
+                    pac.join("stm32h743").join(path),
+                );
             }
         }
     }

@@ -37,6 +37,7 @@ mod isr_cost;
 mod link;
 mod mutants;
 mod nopanic;
+mod nucleo;
 mod powercut;
 mod replay;
 mod stack;
@@ -111,6 +112,9 @@ enum Cmd {
     Figures(figures::Args),
     /// Import cycles between the modules of every crate (part of `test`).
     Cycles,
+    /// The release zslide-fw ELF on the emulated NUCLEO-H743ZI2: boot, arm,
+    /// track, a gauge bus fault, a save and a power cycle over its RTT link.
+    Nucleo(nucleo::Args),
     /// Mutation testing of the core's safety-relevant modules
     /// (cargo-mutants, installed on demand; not part of `test`).
     Mutants(mutants::Args),
@@ -131,6 +135,7 @@ fn main() -> ExitCode {
         Cmd::Figures(args) => figures::run(&args),
         Cmd::Cycles => cycles::run(),
         Cmd::Mutants(args) => mutants::run(&args),
+        Cmd::Nucleo(args) => nucleo::run(&args),
     };
     match result {
         Ok(code) => ExitCode::from(code),
@@ -909,6 +914,33 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
         }
     }
 
+    // The release zslide-fw ELF on the emulated NUCLEO (`nucleo.rs`).
+    let mut nucleo_line = None;
+    if firmware_possible {
+        match nucleo::require_unicorn().and_then(|()| nucleo::build_emulator()) {
+            Ok(()) => {
+                let r = nucleo::check(nucleo::TEST_MS)?;
+                if !nucleo::report(&r) {
+                    return Err(
+                        "emulated NUCLEO: tracking outside its tolerance of the QEMU image's"
+                            .into(),
+                    );
+                }
+                board_checks += r["link_checks_passed"].as_u64().unwrap_or(0);
+                nucleo_line = Some(format!(
+                    "booted, armed, tracking {:.2} µin (QEMU {:.2}), {} of {} faults latched, {} checks, {:.0} ms of machine time",
+                    r["tracking_max_uin"].as_f64().unwrap_or(0.0),
+                    r["qemu_tracking_max_uin"].as_f64().unwrap_or(0.0),
+                    r["faults_latched"],
+                    r["faults_injected"],
+                    r["link_checks_passed"],
+                    r["machine_ms"].as_f64().unwrap_or(0.0)
+                ));
+            }
+            Err(e) => missing.push(e),
+        }
+    }
+
     // A short fuzz run of every target: a finding fails the run (after the
     // summary), each clean target counts as one passed test.
     let mut fuzz_line = String::from("NOT RUN (--fuzz-seconds 0)");
@@ -972,6 +1004,10 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     eprintln!(
         "VCD (the traced QEMU run, PASS; a host-sim machine VCD): {}",
         vcd_line.as_deref().unwrap_or("NOT RUN")
+    );
+    eprintln!(
+        "emulated NUCLEO (release zslide-fw): {}",
+        nucleo_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
     eprintln!("docs: {docs_line}");

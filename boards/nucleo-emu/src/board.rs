@@ -186,15 +186,24 @@ impl Board {
             None => "read of".into(),
         };
         let msg = match v {
-            Violation::Unmodelled => format!("unmodelled register access: {what} {} at {addr:#010x}", name_of(addr)),
-            Violation::Rule(r) => format!("RM0433/datasheet rule broken: {r} ({what} {} at {addr:#010x})", name_of(addr)),
+            Violation::Unmodelled => format!(
+                "unmodelled register access: {what} {} at {addr:#010x}",
+                name_of(addr)
+            ),
+            Violation::Rule(r) => format!(
+                "RM0433/datasheet rule broken: {r} ({what} {} at {addr:#010x})",
+                name_of(addr)
+            ),
         };
         self.violation = Some(msg);
         self.until = self.t;
     }
 
     fn note(&mut self, addr: u32) {
-        let e = self.touched.entry(addr).or_insert_with(|| (name_of(addr), 0));
+        let e = self
+            .touched
+            .entry(addr)
+            .or_insert_with(|| (name_of(addr), 0));
         e.1 += 1;
     }
 
@@ -228,7 +237,9 @@ impl Board {
         }
         let (periph, reg, base) = lookup(addr).ok_or(Violation::Unmodelled)?;
         if !self.rcc.clocked(periph) {
-            return Err(Violation::rule(format!("{periph} read with its bus clock off (RCC enable bit clear: reads 0)")));
+            return Err(Violation::rule(format!(
+                "{periph} read with its bus clock off (RCC enable bit clear: reads 0)"
+            )));
         }
         let shift = 8 * (addr - base);
         let ticks = self.ticks_at(t);
@@ -279,7 +290,9 @@ impl Board {
         let spindle = Self::spindle_count(t);
         match periph {
             "RCC" => {
-                let switched = self.rcc.write(reg, v, self.flash.acr, self.pwr.vos1_ready())?;
+                let switched = self
+                    .rcc
+                    .write(reg, v, self.flash.acr, self.pwr.vos1_ready())?;
                 if switched {
                     self.cycle_ps = 1_000_000_000_000 / self.rcc.sys_hz().max(1);
                 }
@@ -416,7 +429,10 @@ impl Board {
     /// TIM2's encoder-edge captures (CH3 = A, CH4 = B, both edges) up to
     /// now: the newest edge of each line, its flag set while unread.
     fn spindle_captures(&mut self, t: u64) {
-        for (line, ch, pin, enc) in [(0usize, 2usize, ENC_A_TIME, ENC_A), (1, 3, ENC_B_TIME, ENC_B)] {
+        for (line, ch, pin, enc) in [
+            (0usize, 2usize, ENC_A_TIME, ENC_A),
+            (1, 3, ENC_B_TIME, ENC_B),
+        ] {
             if !(self.af_ok(pin) && self.af_ok(enc)) {
                 continue;
             }
@@ -470,7 +486,10 @@ impl Board {
             let tp = self.timer_ps();
             let now = self.ticks_at(t);
             let mut due = None;
-            for (i, v) in [0, self.tim3.ccr[0], self.tim3.ccr[1]].into_iter().enumerate() {
+            for (i, v) in [0, self.tim3.ccr[0], self.tim3.ccr[1]]
+                .into_iter()
+                .enumerate()
+            {
                 if let Some(k) = self.tim3.tick_of(v, self.tim3_seen) {
                     if k <= now && due.is_none_or(|(dk, _)| k < dk) {
                         due = Some((k, i));

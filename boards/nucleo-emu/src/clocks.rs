@@ -71,7 +71,13 @@ impl Rcc {
         })
     }
 
-    pub fn write(&mut self, reg: &str, v: u32, flash_acr: u32, vos1: bool) -> Result<bool, Violation> {
+    pub fn write(
+        &mut self,
+        reg: &str,
+        v: u32,
+        flash_acr: u32,
+        vos1: bool,
+    ) -> Result<bool, Violation> {
         match reg {
             "cr" => {
                 // Ready bits follow the enables (an 8 MHz MCO is there).
@@ -86,7 +92,9 @@ impl Rcc {
                     cr |= CR_PLL1RDY;
                 }
                 if self.sws() == 0b011 && cr & CR_PLL1ON == 0 {
-                    return Err(Violation::rule("RCC_CR: PLL1 turned off while it clocks the system"));
+                    return Err(Violation::rule(
+                        "RCC_CR: PLL1 turned off while it clocks the system",
+                    ));
                 }
                 self.cr = cr;
             }
@@ -167,7 +175,11 @@ impl Rcc {
         }
     }
     fn hclk_hz_if(&self, sws: u32) -> u64 {
-        let sys = if sws == 0b011 { self.pll1_p_hz() } else { self.sys_hz() };
+        let sys = if sws == 0b011 {
+            self.pll1_p_hz()
+        } else {
+            self.sys_hz()
+        };
         sys / div(self.d1cfgr >> 8) / div(self.d1cfgr)
     }
     pub fn hclk_hz(&self) -> u64 {
@@ -286,7 +298,9 @@ impl Pwr {
                 // RM0433 §6.8.4: the supply configuration is written once
                 // after power-on; later writes are ignored.
                 if self.cr3_written && v != self.cr3 {
-                    return Err(Violation::rule("PWR_CR3 written a second time with another supply configuration"));
+                    return Err(Violation::rule(
+                        "PWR_CR3 written a second time with another supply configuration",
+                    ));
                 }
                 if v & 0b111 != 0b110 {
                     return Err(Violation::rule(format!(
@@ -298,7 +312,9 @@ impl Pwr {
             }
             "d3cr" => {
                 if !self.cr3_written {
-                    return Err(Violation::rule("PWR_D3CR (VOS) written before the supply configuration (RM0433 §6.8.4)"));
+                    return Err(Violation::rule(
+                        "PWR_D3CR (VOS) written before the supply configuration (RM0433 §6.8.4)",
+                    ));
                 }
                 self.d3cr = v & (0b11 << 14);
             }

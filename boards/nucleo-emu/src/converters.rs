@@ -5,8 +5,7 @@
 //!   bits 22..20 the register, 19..0 data; data taken on SCLK's falling
 //!   edge (CPOL 0 / CPHA 1, or CPOL 1 / CPHA 0); a frame that is not 24
 //!   clocks is ignored by the chip (datasheet, "Serial interface"); a read
-//!   request's register comes out on SDO in the next frame; SCLK ≤ 35 MHz
-//!   (write) and ≤ 16 MHz for a read-back's SDO (t_9 ... t_12).
+//!   request's register comes out on SDO in the next frame; SCLK ≤ 35 MHz.
 //!   Control register: RBUF 1, OPGND 2, DACTRI 3, BIN/2sC 4, SDODIS 5; power-on
 //!   value OPGND | DACTRI (output clamped to ground, tristated).
 //! * AD4020 (gauge ADC) in three-wire mode (SDI high): a conversion starts
@@ -33,10 +32,15 @@ fn check(name: &str, f: Format, modes: &[(bool, bool)], max_sck: u64) -> Result<
         )));
     }
     if f.bits != 8 && f.bits != 24 && f.bits != 12 {
-        return Err(Violation::rule(format!("{name}: data frames of {} bits do not add up to its 24-bit frame", f.bits)));
+        return Err(Violation::rule(format!(
+            "{name}: data frames of {} bits do not add up to its 24-bit frame",
+            f.bits
+        )));
     }
     if f.lsb_first {
-        return Err(Violation::rule(format!("{name}: LSB first (the chip shifts MSB first)")));
+        return Err(Violation::rule(format!(
+            "{name}: LSB first (the chip shifts MSB first)"
+        )));
     }
     if f.sck_hz > max_sck {
         return Err(Violation::rule(format!(
@@ -148,7 +152,9 @@ impl Ad5791 {
     pub fn clock(&mut self, f: Format, v: u32) -> Result<u32, Violation> {
         check("AD5791", f, &[(false, true), (true, false)], 35_000_000)?;
         if !self.frame.selected {
-            return Err(Violation::rule("AD5791: SCLK with SYNC high (the frame goes nowhere)"));
+            return Err(Violation::rule(
+                "AD5791: SCLK with SYNC high (the frame goes nowhere)",
+            ));
         }
         Ok(self.frame.clock(v, f.bits))
     }
@@ -261,7 +267,9 @@ impl Ad4020 {
             ));
         }
         if t < self.converted_at + T_CONV_PS {
-            return Err(Violation::rule("AD4020: read before t_CONV (320 ns) after CNV"));
+            return Err(Violation::rule(
+                "AD4020: read before t_CONV (320 ns) after CNV",
+            ));
         }
         if self.broken {
             return Ok((1 << f.bits) - 1);

@@ -88,7 +88,13 @@ impl<'a> Cpu<'a> {
             .map_err(|e| format!("unicorn: {e:?}"))?;
         // SAFETY: uc_ctl with CPU_MODEL takes one int; it is called before
         // any other use of the engine, as unicorn requires.
-        let e = unsafe { uc_ctl(uc.get_handle() as *mut libc::c_void, UC_CTL_CPU_MODEL_WRITE, UC_CPU_ARM_CORTEX_M7) };
+        let e = unsafe {
+            uc_ctl(
+                uc.get_handle() as *mut libc::c_void,
+                UC_CTL_CPU_MODEL_WRITE,
+                UC_CPU_ARM_CORTEX_M7,
+            )
+        };
         if e != uc_error::OK {
             return Err(format!("unicorn: cannot select the Cortex-M7 model: {e:?}"));
         }
@@ -119,9 +125,11 @@ impl<'a> Cpu<'a> {
                 Some(move |uc: &mut Unicorn<Board>, off: u64, sz: usize| {
                     u64::from(uc.get_data_mut().read((base + off) as u32, sz))
                 }),
-                Some(move |uc: &mut Unicorn<Board>, off: u64, sz: usize, v: u64| {
-                    uc.get_data_mut().write((base + off) as u32, sz, v as u32);
-                }),
+                Some(
+                    move |uc: &mut Unicorn<Board>, off: u64, sz: usize, v: u64| {
+                        uc.get_data_mut().write((base + off) as u32, sz, v as u32);
+                    },
+                ),
             )
             .map_err(|e| format!("mmio {base:#x}: {e:?}"))?;
         }
@@ -199,7 +207,11 @@ impl<'a> Cpu<'a> {
     /// 0 with PRIMASK set (only NMI and HardFault above), BASEPRI.
     fn exec_priority(&self, active: &[u32]) -> i32 {
         let b = self.uc.get_data();
-        let mut p = active.iter().map(|&n| i32::from(b.scs.priority(n))).min().unwrap_or(256);
+        let mut p = active
+            .iter()
+            .map(|&n| i32::from(b.scs.priority(n)))
+            .min()
+            .unwrap_or(256);
         if r(&self.uc, RegisterARM::PRIMASK) & 1 != 0 {
             p = p.min(0);
         }
@@ -293,7 +305,8 @@ impl<'a> Cpu<'a> {
         }
         if n == 16 + IRQ_TIM3 as u32 {
             if let Some(at) = b.stats.tim3_pended_at.take() {
-                b.stats.max_tick_latency_ps = b.stats.max_tick_latency_ps.max(b.t.saturating_sub(at));
+                b.stats.max_tick_latency_ps =
+                    b.stats.max_tick_latency_ps.max(b.t.saturating_sub(at));
             }
             b.stats.loop_ticks += 1;
         }
@@ -308,7 +321,9 @@ impl<'a> Cpu<'a> {
         let active = {
             let b = self.uc.get_data_mut();
             if b.active.pop().is_none() {
-                return Err(format!("branch to EXC_RETURN {exc_return:#010x} in thread mode"));
+                return Err(format!(
+                    "branch to EXC_RETURN {exc_return:#010x} in thread mode"
+                ));
             }
             b.active.clone()
         };
@@ -353,8 +368,16 @@ impl<'a> Cpu<'a> {
         if v[7] & (1 << 9) != 0 {
             size += 4;
         }
-        w(uc, RegisterARM::XPSR, (v[7] & !0x1FF & !(1 << 9)) | (1 << 24));
-        w(uc, RegisterARM::CONTROL, control | if fp { 0b100 } else { 0 });
+        w(
+            uc,
+            RegisterARM::XPSR,
+            (v[7] & !0x1FF & !(1 << 9)) | (1 << 24),
+        );
+        w(
+            uc,
+            RegisterARM::CONTROL,
+            control | if fp { 0b100 } else { 0 },
+        );
         w(uc, RegisterARM::SP, frame + size);
         w(uc, RegisterARM::PC, v[6] & !1);
         Ok(())

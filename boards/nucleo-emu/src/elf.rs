@@ -22,7 +22,10 @@ pub fn load(bytes: &[u8]) -> Result<Image, String> {
         if data.is_empty() {
             continue;
         }
-        let paddr = seg.elf_program_header().p_paddr.get(object::Endianness::Little);
+        let paddr = seg
+            .elf_program_header()
+            .p_paddr
+            .get(object::Endianness::Little);
         segments.push((paddr, data.to_vec()));
     }
     let rtt = file

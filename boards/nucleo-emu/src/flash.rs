@@ -99,7 +99,9 @@ impl Flash {
             "acr" => self.acr = v & 0x3F,
             "bank2.keyr" => {
                 if self.locked_until_reset {
-                    return Err(Violation::rule("FLASH_KEYR2 written after a wrong key sequence (locked until reset)"));
+                    return Err(Violation::rule(
+                        "FLASH_KEYR2 written after a wrong key sequence (locked until reset)",
+                    ));
                 }
                 match (self.key_state, v) {
                     (0, KEY1) => self.key_state = 1,
@@ -131,17 +133,23 @@ impl Flash {
                     return Ok(());
                 }
                 if v & CR_SER != 0 && v & CR_PG != 0 {
-                    return Err(Violation::rule("FLASH_CR2: SER and PG set together (RM0433 §4.3.10)"));
+                    return Err(Violation::rule(
+                        "FLASH_CR2: SER and PG set together (RM0433 §4.3.10)",
+                    ));
                 }
                 if v & CR_START != 0 {
                     if v & CR_SER == 0 {
-                        return Err(Violation::rule("FLASH_CR2: START without SER (no sector erase selected)"));
+                        return Err(Violation::rule(
+                            "FLASH_CR2: START without SER (no sector erase selected)",
+                        ));
                     }
                     if self.busy(t) {
                         return Err(Violation::rule("FLASH_CR2: START while bank 2 is busy"));
                     }
                     if self.buffer.is_some() {
-                        return Err(Violation::rule("FLASH_CR2: erase with a flash word half written (INCERR)"));
+                        return Err(Violation::rule(
+                            "FLASH_CR2: erase with a flash word half written (INCERR)",
+                        ));
                     }
                     let snb = ((v >> 8) & 0b111) as usize;
                     self.bank2[snb * SECTOR..(snb + 1) * SECTOR].fill(0xFF);
@@ -185,7 +193,9 @@ impl Flash {
             )));
         }
         if size != 4 || addr % 4 != 0 {
-            return Err(Violation::rule(format!("bank 2 written with a {size}-byte access at {addr:#010x}")));
+            return Err(Violation::rule(format!(
+                "bank 2 written with a {size}-byte access at {addr:#010x}"
+            )));
         }
         if self.busy(t) {
             return Err(Violation::rule("write into bank 2 while it is busy"));

@@ -44,7 +44,9 @@ impl Port {
         match (self.moder >> (2 * n)) & 0b11 {
             0b00 => PinMode::Input,
             0b01 => PinMode::Output,
-            0b10 => PinMode::Alternate(((self.afr[usize::from(n / 8)] >> (4 * (n % 8))) & 0xF) as u8),
+            0b10 => {
+                PinMode::Alternate(((self.afr[usize::from(n / 8)] >> (4 * (n % 8))) & 0xF) as u8)
+            }
             _ => PinMode::Analog,
         }
     }

@@ -72,7 +72,8 @@ impl Rtt {
     /// Takes what up channel `ch` holds.
     fn read_up(&self, uc: &mut Unicorn<Board>, ch: u32) -> Vec<u8> {
         let d = self.up(ch);
-        let (buf, size, wr_off, mut rd_off) = (rd(uc, d + 4), rd(uc, d + 8), rd(uc, d + 12), rd(uc, d + 16));
+        let (buf, size, wr_off, mut rd_off) =
+            (rd(uc, d + 4), rd(uc, d + 8), rd(uc, d + 12), rd(uc, d + 16));
         let mut out = Vec::new();
         if size == 0 {
             return out;
@@ -91,7 +92,8 @@ impl Rtt {
     /// Puts as much of `bytes` into down channel `ch` as fits; how much.
     fn write_down(&self, uc: &mut Unicorn<Board>, ch: u32, bytes: &[u8]) -> usize {
         let d = self.down(ch);
-        let (buf, size, mut wr_off, rd_off) = (rd(uc, d + 4), rd(uc, d + 8), rd(uc, d + 12), rd(uc, d + 16));
+        let (buf, size, mut wr_off, rd_off) =
+            (rd(uc, d + 4), rd(uc, d + 8), rd(uc, d + 12), rd(uc, d + 16));
         let mut n = 0;
         for &b in bytes {
             let next = (wr_off + 1) % size.max(1);

@@ -77,7 +77,11 @@ fn parse() -> Result<Args, String> {
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
         let mut v = || it.next().ok_or(format!("{k}: needs a value"));
-        let ms = |s: String| s.parse::<f64>().map(|x| (x * MS as f64) as u64).map_err(|e| format!("{s}: {e}"));
+        let ms = |s: String| {
+            s.parse::<f64>()
+                .map(|x| (x * MS as f64) as u64)
+                .map_err(|e| format!("{s}: {e}"))
+        };
         match k.as_str() {
             "--elf" => a.elf = v()?.into(),
             "--table" => a.table = Some(v()?.into()),
@@ -159,7 +163,8 @@ fn run() -> Result<bool, String> {
     let listener = match &args.socket {
         Some(p) => {
             let _ = std::fs::remove_file(p);
-            let l = std::os::unix::net::UnixListener::bind(p).map_err(|e| format!("{}: {e}", p.display()))?;
+            let l = std::os::unix::net::UnixListener::bind(p)
+                .map_err(|e| format!("{}: {e}", p.display()))?;
             l.set_nonblocking(true).map_err(|e| e.to_string())?;
             Some(l)
         }
@@ -190,7 +195,11 @@ fn run() -> Result<bool, String> {
             let mut w = c.split_whitespace();
             match (w.next(), w.next().map(str::parse::<f64>)) {
                 (Some("break-gauge"), None) => cpu.board().gauge_break_at = Some(t),
-                (Some("press"), Some(Ok(ms))) => cpu.board().world.button.push((t, t + (ms * MS as f64) as u64)),
+                (Some("press"), Some(Ok(ms))) => cpu
+                    .board()
+                    .world
+                    .button
+                    .push((t, t + (ms * MS as f64) as u64)),
                 _ => bad_command = Some(c),
             }
         }
@@ -200,13 +209,17 @@ fn run() -> Result<bool, String> {
                 r.poll(&mut cpu.uc, &mut pending);
                 if session && r.client_gone {
                     cpu.board().until = 0;
-                    cpu.board().violation.get_or_insert_with(|| String::from("client closed"));
+                    cpu.board()
+                        .violation
+                        .get_or_insert_with(|| String::from("client closed"));
                 }
             }
         }
     });
     if let Some(c) = bad_command {
-        return Err(format!("unknown command on stdin: {c:?} (break-gauge, press MS)"));
+        return Err(format!(
+            "unknown command on stdin: {c:?} (break-gauge, press MS)"
+        ));
     }
     let (stop, client_closed) = match stop {
         Some(s) if s == "client closed" => (None, true),
@@ -220,7 +233,10 @@ fn run() -> Result<bool, String> {
         let pc = cpu.uc.reg_read(R::PC).unwrap_or(0);
         let sp = cpu.uc.reg_read(R::SP).unwrap_or(0);
         let lr = cpu.uc.reg_read(R::LR).unwrap_or(0);
-        eprintln!("pc {pc:#x} sp {sp:#x} lr {lr:#x} active {:?}", cpu.board().active);
+        eprintln!(
+            "pc {pc:#x} sp {sp:#x} lr {lr:#x} active {:?}",
+            cpu.board().active
+        );
     }
     let b = cpu.board();
     if let Some(p) = &args.bank2 {

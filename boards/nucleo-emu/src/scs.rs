@@ -74,7 +74,9 @@ impl Scs {
     pub fn read(&mut self, off: u32, size: usize) -> Result<u32, Violation> {
         let word = |flags: &[bool; IRQS], base: u32| -> u32 {
             let i = ((off - base) / 4) as usize * 32;
-            (0..32).fold(0, |v, b| v | (u32::from(*flags.get(i + b).unwrap_or(&false)) << b))
+            (0..32).fold(0, |v, b| {
+                v | (u32::from(*flags.get(i + b).unwrap_or(&false)) << b)
+            })
         };
         Ok(match off {
             0xE010 => self.systick[0],
@@ -86,7 +88,9 @@ impl Scs {
             0xE280..=0xE29C => word(&self.pending, 0xE280),
             0xE400..=0xE4EF => {
                 let i = (off - 0xE400) as usize;
-                (0..size).fold(0, |v, k| v | (u32::from(*self.ipr.get(i + k).unwrap_or(&0)) << (8 * k)))
+                (0..size).fold(0, |v, k| {
+                    v | (u32::from(*self.ipr.get(i + k).unwrap_or(&0)) << (8 * k))
+                })
             }
             0xED00 => 0x411F_C271, // CPUID: Cortex-M7 r1p1 (H743 revision V)
             0xED08 => self.vtor,
@@ -158,7 +162,9 @@ impl Scs {
             0xED08 => self.vtor = v & !0x7F,
             0xED0C => {
                 if v >> 16 != 0x05FA {
-                    return Err(Violation::rule("SCB_AIRCR written without VECTKEY 0x05FA (the write is ignored)"));
+                    return Err(Violation::rule(
+                        "SCB_AIRCR written without VECTKEY 0x05FA (the write is ignored)",
+                    ));
                 }
                 self.aircr_prigroup = (v >> 8) & 0b111;
                 if v & (1 << 2) != 0 {

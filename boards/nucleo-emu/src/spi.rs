@@ -118,12 +118,10 @@ impl Spi {
                     self.rx.pop_front();
                     v
                 }
-                _ => {
-                    return Err(Violation::rule(format!(
-                        "{}_RXDR read with RXP = 0 (no received frame: the read returns stale data)",
-                        self.name
-                    )))
-                }
+                _ => return Err(Violation::rule(format!(
+                    "{}_RXDR read with RXP = 0 (no received frame: the read returns stale data)",
+                    self.name
+                ))),
             },
             _ => return Ok(None),
         }))
@@ -177,7 +175,10 @@ impl Spi {
                     return Err(locked("CFG2"));
                 }
                 if v & (1 << 22) == 0 {
-                    return Err(Violation::rule(format!("{}_CFG2: not master (the board's converters are slaves)", self.name)));
+                    return Err(Violation::rule(format!(
+                        "{}_CFG2: not master (the board's converters are slaves)",
+                        self.name
+                    )));
                 }
                 self.cfg2 = v;
             }
@@ -205,7 +206,10 @@ impl Spi {
                     )));
                 }
                 if t < self.busy_until {
-                    return Err(Violation::rule(format!("{}_TXDR written with TXP = 0", self.name)));
+                    return Err(Violation::rule(format!(
+                        "{}_TXDR written with TXP = 0",
+                        self.name
+                    )));
                 }
                 return Ok(Some(v & 0xFF));
             }

@@ -56,7 +56,9 @@ pub struct Syscfg {
 
 impl Syscfg {
     pub fn read(&self, reg: &str) -> Option<u32> {
-        let i = ["exticr1", "exticr2", "exticr3", "exticr4"].iter().position(|r| *r == reg)?;
+        let i = ["exticr1", "exticr2", "exticr3", "exticr4"]
+            .iter()
+            .position(|r| *r == reg)?;
         Some(self.exticr[i])
     }
     pub fn write(&mut self, reg: &str, v: u32) -> Result<(), Violation> {
@@ -113,7 +115,9 @@ impl Iwdg {
             "pr" => self.pr,
             "rlr" => self.rlr,
             // PVU | RVU for five LSI cycles after a write (RM0433 §45.4.4).
-            "sr" => u32::from(t < self.update_until[0]) | (u32::from(t < self.update_until[1]) << 1),
+            "sr" => {
+                u32::from(t < self.update_until[0]) | (u32::from(t < self.update_until[1]) << 1)
+            }
             _ => return None,
         })
     }

@@ -76,7 +76,9 @@ impl World {
 
     /// The gauge converted at `t` (the plant advanced there first).
     pub fn convert(&mut self) -> (i32, bool) {
-        let v = self.gauge.volts(self.t_ps / 1_000, self.slide.gauge_position_in());
+        let v = self
+            .gauge
+            .volts(self.t_ps / 1_000, self.slide.gauge_position_in());
         gauge::adc_convert(v)
     }
 
@@ -103,13 +105,21 @@ impl World {
     /// (its count, its time).
     pub fn last_edge(t: u64, b: bool) -> Option<(u64, u64)> {
         let (c, _) = Self::spindle(t);
-        let c = if (c % 2 == 1) == b { c } else { c.checked_sub(1)? };
+        let c = if (c % 2 == 1) == b {
+            c
+        } else {
+            c.checked_sub(1)?
+        };
         Some((c, Self::edge_of(c)))
     }
     /// The first index edge after `t`: (its count, its time).
     pub fn next_index(t: u64) -> (u64, u64) {
         let (c, _) = Self::spindle(t);
-        let k = if c < INDEX0 { 0 } else { (c - INDEX0) / CPR + 1 };
+        let k = if c < INDEX0 {
+            0
+        } else {
+            (c - INDEX0) / CPR + 1
+        };
         let ci = INDEX0 + k * CPR;
         (ci, Self::edge_of(ci))
     }
