@@ -26,6 +26,9 @@ pub const PPB: u32 = 0xE000_0000;
 pub const IRQ_EXTI2: usize = 8;
 pub const IRQ_TIM2: usize = 28;
 pub const IRQ_TIM3: usize = 29;
+/// How long an interrupt line may be high with its IRQ disabled before
+/// the run stops (boot enables them microseconds after their sources).
+const UNSERVED_PS: u64 = 1_000_000_000;
 
 /// Pins of `docs/BOARD.md` (port index, pin).
 const PA: usize = 0;
@@ -99,6 +102,9 @@ pub struct Board {
     tim3_seen: u64,
     index_seen: u64,
     x_level_until: u64,
+    /// Since when each board interrupt line has been high with its IRQ
+    /// disabled in the NVIC.
+    line_high_since: [Option<u64>; 3],
     enc_captured: [Option<u64>; 2],
     /// Registers the image touched: address -> (name, accesses).
     pub touched: std::collections::BTreeMap<u32, (String, u64)>,
@@ -158,6 +164,7 @@ impl Board {
             tim3_seen: 0,
             index_seen: 0,
             x_level_until: 0,
+            line_high_since: [None; 3],
             enc_captured: [None; 2],
             touched: Default::default(),
             gauge_break_at: None,
@@ -583,6 +590,29 @@ impl Board {
     /// Level-sensitive interrupt lines into the NVIC: a line high sets its
     /// IRQ pending unless it is pending or active already (ARMv7-M B3.4).
     pub fn lines(&mut self) {
+        let t = self.t;
+        for (i, (irq, name, level)) in [
+            (IRQ_TIM3, "TIM3", self.tim3.irq_level()),
+            (IRQ_TIM2, "TIM2", self.tim2.irq_level()),
+            (IRQ_EXTI2, "EXTI2", self.exti.irq_level(2)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            // A request the NVIC never takes: the handler's interrupt is
+            // not the one enabled (a wrong IRQ number in the image).
+            if level && !self.scs.enabled[irq] {
+                let since = *self.line_high_since[i].get_or_insert(t);
+                if t - since > UNSERVED_PS && self.violation.is_none() {
+                    self.violation = Some(format!(
+                        "{name} has requested IRQ {irq} for {} ms and the NVIC never enabled it (ISER): its handler never runs",
+                        UNSERVED_PS / 1_000_000_000
+                    ));
+                }
+            } else {
+                self.line_high_since[i] = None;
+            }
+        }
         for (irq, level) in [
             (IRQ_TIM3, self.tim3.irq_level()),
             (IRQ_TIM2, self.tim2.irq_level()),

@@ -118,10 +118,12 @@ impl Spi {
                     self.rx.pop_front();
                     v
                 }
-                _ => return Err(Violation::rule(format!(
+                _ => {
+                    return Err(Violation::rule(format!(
                     "{}_RXDR read with RXP = 0 (no received frame: the read returns stale data)",
                     self.name
-                ))),
+                )))
+                }
             },
             _ => return Ok(None),
         }))
