@@ -23,6 +23,8 @@
 //!   image's parameter saves, across boots (`powercut.rs`); part of `test`.
 //! * `fuzz --seconds N [--target T]` – builds and runs the cargo-fuzz
 //!   targets of `fuzz/` (`fuzz.rs`).
+//! * `nucleo [--json] [--ms N]` – the release zslide-fw ELF on the
+//!   emulated NUCLEO-H743ZI2 over its RTT link (`nucleo.rs`); part of `test`.
 //!
 //! Arguments are parsed strictly (clap): an unknown or mistyped flag is an
 //! error with exit status 2, never ignored.
@@ -1061,6 +1063,8 @@ mod tests {
             &["qemu-link", "--table", "t.zsct"],
             &["link-test"],
             &["flash-cut"],
+            &["nucleo"],
+            &["nucleo", "--json", "--ms", "500"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();

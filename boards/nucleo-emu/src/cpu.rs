@@ -90,7 +90,7 @@ impl<'a> Cpu<'a> {
         // any other use of the engine, as unicorn requires.
         let e = unsafe {
             uc_ctl(
-                uc.get_handle() as *mut libc::c_void,
+                uc.get_handle(),
                 UC_CTL_CPU_MODEL_WRITE,
                 UC_CPU_ARM_CORTEX_M7,
             )
