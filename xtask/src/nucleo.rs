@@ -267,6 +267,24 @@ pub fn qemu_tracking_uin() -> Result<f64> {
     Ok(codes * UIN_PER_CODE)
 }
 
+/// The first boot's defmt log (RTT up channel 0, as the probe read it),
+/// decoded when defmt-print is there (`cargo xtask test` installs it).
+fn boot_log() -> Option<String> {
+    let raw = fs::read(work_dir().join("boot1.defmt")).ok()?;
+    let mut p = Command::new("defmt-print")
+        .arg("-e")
+        .arg(crate::board_elf())
+        .args(["--log-format", "{t} {L} {s}", "stdin"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .ok()?;
+    p.stdin.take()?.write_all(&raw).ok()?;
+    let out = p.wait_with_output().ok()?;
+    Some(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
 fn sha256(path: &Path) -> Result<String> {
     use sha2::Digest;
     let bytes = fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -425,6 +443,12 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
     })?;
     let _ = fs::remove_file(dir.join("bank2-erased.bin"));
 
+    if let Some(log) = boot_log() {
+        eprintln!("emulated NUCLEO, first boot's defmt log (RTT channel 0):");
+        for l in log.lines() {
+            eprintln!("  {l}");
+        }
+    }
     let qemu = qemu_tracking_uin()?;
     let elf = crate::board_elf();
     let ms_total: f64 = [&first, &second, &third]
