@@ -921,6 +921,7 @@ fn cmd_test(fuzz_seconds: u32) -> Result<u8> {
     if firmware_possible {
         match nucleo::require_unicorn().and_then(|()| nucleo::build_emulator()) {
             Ok(()) => {
+                board_checks += nucleo::model_tests()?;
                 let r = nucleo::check(nucleo::TEST_MS)?;
                 if !nucleo::report(&r) {
                     return Err(

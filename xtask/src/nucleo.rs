@@ -114,6 +114,32 @@ pub fn build_emulator() -> Result<()> {
     )
 }
 
+/// The emulator's own tests (its converters against their datasheets'
+/// frames); the number that passed.
+pub fn model_tests() -> Result<u64> {
+    crate::step("emulated NUCLEO: its models' tests (cargo test, boards/nucleo-emu)");
+    let out = crate::cargo()
+        .current_dir(emu_dir())
+        .args([
+            "test",
+            "--release",
+            "--target-dir",
+            &crate::target_dir().join("nucleo-emu").to_string_lossy(),
+        ])
+        .output()
+        .map_err(|e| format!("cargo test (nucleo-emu): {e}"))?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let (mut passed, mut failed) = (0, 0);
+    for (p, f, _) in text.lines().filter_map(crate::parse_test_result) {
+        passed += p;
+        failed += f;
+    }
+    if !out.status.success() || failed > 0 {
+        return Err(format!("nucleo-emu's tests failed:\n{text}"));
+    }
+    Ok(passed)
+}
+
 /// A running emulator with its link socket.
 struct Emu {
     child: Child,

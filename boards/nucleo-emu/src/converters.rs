@@ -292,3 +292,83 @@ impl Ad4020 {
         Ok((self.result >> self.left) & ((1 << f.bits) - 1))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fmt(cpol: bool, cpha: bool, bits: u32, sck_hz: u64) -> Format {
+        Format {
+            cpol,
+            cpha,
+            bits,
+            lsb_first: false,
+            sck_hz,
+        }
+    }
+
+    /// Clocks a 24-bit frame in three bytes between SYNC edges.
+    fn frame(d: &mut Ad5791, f: u32) -> Result<u32, Violation> {
+        d.sync(true)?;
+        let mut out = 0;
+        for k in (0..3).rev() {
+            out = (out << 8) | d.clock(fmt(false, true, 8, 25_000_000), (f >> (8 * k)) & 0xFF)?;
+        }
+        d.sync(false)?;
+        Ok(out)
+    }
+
+    /// AD5791 datasheet: control register write (0b010, RBUF) releases the
+    /// output; code 0x80000 in two's complement is −full scale, −10 V on
+    /// the board's ±10 V span; the read-back comes in the next frame.
+    #[test]
+    fn ad5791_decodes_the_datasheet_frames() {
+        let mut d = Ad5791::new();
+        assert_eq!(d.volts(), 0.0, "power-on: clamped");
+        frame(&mut d, (0b001 << 20) | 0x8_0000).unwrap();
+        frame(&mut d, (0b010 << 20) | 0b10).unwrap();
+        assert_eq!(d.volts(), -10.0);
+        frame(&mut d, (0b001 << 20) | 0x4_0000).unwrap();
+        assert_eq!(d.volts(), 5.0);
+        frame(&mut d, (1 << 23) | (0b010 << 20)).unwrap();
+        let back = frame(&mut d, 0).unwrap();
+        assert_eq!(back, (1 << 23) | (0b010 << 20) | 0b10);
+    }
+
+    #[test]
+    fn ad5791_refuses_a_short_frame_and_the_wrong_clock_mode() {
+        let mut d = Ad5791::new();
+        d.sync(true).unwrap();
+        d.clock(fmt(false, true, 8, 25_000_000), 0x10).unwrap();
+        d.clock(fmt(false, true, 8, 25_000_000), 0x00).unwrap();
+        assert!(matches!(d.sync(false), Err(Violation::Rule(r)) if r.contains("16 SCLK")));
+        d.sync(true).unwrap();
+        assert!(
+            matches!(d.clock(fmt(false, false, 8, 25_000_000), 0), Err(Violation::Rule(r)) if r.contains("CPHA = 0"))
+        );
+        assert!(
+            matches!(d.clock(fmt(false, true, 8, 50_000_000), 0), Err(Violation::Rule(r)) if r.contains("35 MHz"))
+        );
+    }
+
+    /// AD4020 with status bits: 20-bit two's complement result, OV, then
+    /// 0b010; read in mode 0 after CNV falls and t_CONV has passed.
+    #[test]
+    fn ad4020_shifts_out_its_conversion_after_cnv() {
+        let mut a = Ad4020::new();
+        a.convert(0, -52_429, false);
+        let f = fmt(false, false, 8, 50_000_000);
+        assert!(a.clock(f, 1_000_000).is_err(), "CNV still high");
+        a.cnv_high = false;
+        assert!(a.clock(f, 100_000).is_err(), "before t_CONV");
+        let mut frame = 0;
+        for _ in 0..3 {
+            frame = (frame << 8) | a.clock(f, 1_000_000).unwrap();
+        }
+        assert_eq!(frame, (((-52_429i32) as u32 & 0xF_FFFF) << 4) | 0b010);
+        assert!(a.clock(f, 1_000_000).is_err(), "a 25th clock");
+        assert!(
+            matches!(a.clock(fmt(false, true, 8, 50_000_000), 1_000_000), Err(Violation::Rule(r)) if r.contains("CPHA = 1"))
+        );
+    }
+}
