@@ -162,6 +162,7 @@ impl Emu {
             .args(["--ms", &ms.to_string()])
             .arg("--socket")
             .arg(&socket)
+            .arg("--end-on-close")
             .arg("--log")
             .arg(dir.join(format!("{name}.defmt")))
             .stdin(Stdio::piped())

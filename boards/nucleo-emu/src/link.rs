@@ -25,6 +25,7 @@ pub struct Rtt {
     pub log: Vec<u8>,
     pub link_bytes: (u64, u64),
     pub client_gone: bool,
+    pub end_on_close: bool,
 }
 
 fn rd(uc: &Unicorn<Board>, a: u32) -> u32 {
@@ -46,6 +47,7 @@ impl Rtt {
             log: Vec::new(),
             link_bytes: (0, 0),
             client_gone: false,
+            end_on_close: false,
         }
     }
 
@@ -108,6 +110,16 @@ impl Rtt {
         n
     }
 
+    /// A client has come and gone: with `--end-on-close` the run ends, so
+    /// no other is accepted; otherwise the next one may connect.
+    fn client_gone_latched(&mut self) -> bool {
+        if self.end_on_close {
+            return self.client_gone;
+        }
+        self.client_gone = false;
+        false
+    }
+
     /// One probe pass: the log out, the link both ways.
     pub fn poll(&mut self, uc: &mut Unicorn<Board>, pending_down: &mut Vec<u8>) {
         if !self.ready(uc) {
@@ -115,7 +127,7 @@ impl Rtt {
         }
         let log = self.read_up(uc, 0);
         self.log.extend_from_slice(&log);
-        if self.client.is_none() {
+        if self.client.is_none() && !self.client_gone_latched() {
             if let Some(l) = &self.socket {
                 if let Ok((s, _)) = l.accept() {
                     let _ = s.set_nonblocking(true);

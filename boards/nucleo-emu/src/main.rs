@@ -12,8 +12,9 @@
 //! It prints one JSON object: how far the run got, what stopped it (an
 //! unmodelled register or a broken rule, by name and address), and what
 //! the board saw. With `--socket` the firmware's RTT link channel is there
-//! for `zslide --connect unix:PATH`, and the run ends when that client
-//! disconnects (or at `--ms`).
+//! for `zslide --connect unix:PATH` (one client at a time, the next one
+//! after a disconnect); with `--end-on-close` the run ends when the first
+//! client disconnects (or at `--ms`).
 
 mod board;
 mod clocks;
@@ -61,6 +62,7 @@ struct Args {
     press: Vec<(u64, u64)>,
     break_gauge_at: Option<u64>,
     log: Option<PathBuf>,
+    end_on_close: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -73,6 +75,7 @@ fn parse() -> Result<Args, String> {
         press: Vec::new(),
         break_gauge_at: None,
         log: None,
+        end_on_close: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -95,6 +98,7 @@ fn parse() -> Result<Args, String> {
             }
             "--break-gauge-at" => a.break_gauge_at = Some(ms(v()?)?),
             "--log" => a.log = Some(v()?.into()),
+            "--end-on-close" => a.end_on_close = true,
             _ => return Err(format!("unknown argument {k}")),
         }
     }
@@ -170,7 +174,7 @@ fn run() -> Result<bool, String> {
         }
         None => None,
     };
-    let session = listener.is_some();
+    let session = listener.is_some() && args.end_on_close;
     // Commands on standard input (a test's hand on the machine):
     // `break-gauge` sticks the gauge ADC's SDO high from now on;
     // `press MS` holds the arm button for MS ms from now.
@@ -183,7 +187,11 @@ fn run() -> Result<bool, String> {
             }
         }
     });
-    let mut rtt = image.rtt.map(|cb| link::Rtt::new(cb, listener));
+    let mut rtt = image.rtt.map(|cb| {
+        let mut r = link::Rtt::new(cb, listener);
+        r.end_on_close = args.end_on_close;
+        r
+    });
     let mut pending = Vec::new();
     let mut last_poll = 0u64;
     let end = args.ms * MS;
