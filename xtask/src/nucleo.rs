@@ -14,7 +14,8 @@
 //!    flash model; the client closes and the emulator ends;
 //! 5. a power cycle: the same bank 2, a new boot: the saved block in force;
 //! 6. a corrupt table (one byte of the default's coefficients flipped):
-//!    refused, `Fault::Table` latched, the slide held at null.
+//!    refused, `Fault::Table` latched, the slide held at null;
+//! 7. `zslide-centre` boots and runs its 10 kHz tick for 50 ms.
 //!
 //! Every run stops on a register access no model implements or on an
 //! access RM0433 or a converter's datasheet forbids, naming it.
@@ -476,13 +477,32 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
             eprintln!("  {l}");
         }
     }
+    crate::step("emulated NUCLEO: zslide-centre boots and ticks (50 ms)");
+    let out = Command::new(emu_bin())
+        .arg("--elf")
+        .arg(crate::centre_elf())
+        .args(["--ms", "50"])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| format!("cannot start {}: {e}", emu_bin().display()))?;
+    let centre: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .map_err(|e| format!("emulator report (zslide-centre): {e}"))?;
+    // Its tick is 10 kHz (`src/centre.rs`): 500 in 50 ms less the boot.
+    let ticks = centre["loop_ticks"].as_u64().unwrap_or(0);
+    checks.ok(
+        centre["stop"].is_null() && ticks >= 450,
+        &format!(
+            "zslide-centre: stop {}, {ticks} ticks in 50 ms",
+            centre["stop"]
+        ),
+    )?;
     let qemu = qemu_tracking_uin()?;
     let elf = crate::board_elf();
     let ms_total: f64 = [&first, &second, &third]
         .iter()
         .map(|r| r["machine_ms"].as_f64().unwrap_or(0.0))
         .sum();
-    let unmodelled: u64 = [&first, &second, &third]
+    let unmodelled: u64 = [&first, &second, &third, &centre]
         .iter()
         .map(|r| r["unmodelled_accesses"].as_u64().unwrap_or(0))
         .sum();
@@ -503,6 +523,7 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
         "boot1": first,
         "power_cycle": second,
         "corrupt_table": third,
+        "centre": centre,
     }))
 }
 
@@ -515,7 +536,7 @@ pub fn run(args: &Args) -> Result<u8> {
     let pass = report(&r);
     if args.json {
         let mut brief = r.clone();
-        for k in ["boot1", "power_cycle", "corrupt_table"] {
+        for k in ["boot1", "power_cycle", "corrupt_table", "centre"] {
             if let Some(o) = brief.as_object_mut() {
                 o.remove(k);
             }

@@ -5,6 +5,7 @@
 //! of emulated time (the loop timer, the spindle, the X feed, the
 //! watchdog) and the interrupt lines into the NVIC.
 
+use crate::adc::Adc;
 use crate::clocks::{Pwr, Rcc};
 use crate::converters::{Ad4020, Ad5686, Ad5791};
 use crate::flash::{Flash, BANK2_BASE, BANK2_SIZE};
@@ -75,6 +76,8 @@ pub struct Board {
     /// The CPU runs until this time, then the events are processed.
     pub until: u64,
     pub sleeping: bool,
+    /// The address of a WFI that ended the last block counted.
+    pub wfi_ran: Option<u32>,
     pub violation: Option<String>,
     pub rcc: Rcc,
     pwr: Pwr,
@@ -95,6 +98,8 @@ pub struct Board {
     pub dac: Ad5791,
     pub quad: Ad5686,
     pub adc: Ad4020,
+    /// ADC1 (the centring image's tachometers).
+    pub adc1: Adc,
     pub world: World,
     /// Exceptions active (numbers), innermost last.
     pub active: Vec<u32>,
@@ -139,6 +144,7 @@ impl Board {
             instructions: 0,
             until: 0,
             sleeping: false,
+            wfi_ran: None,
             violation: None,
             rcc: Rcc::new(false),
             pwr: Pwr::new(),
@@ -159,6 +165,7 @@ impl Board {
             dac: Ad5791::new(),
             quad: Ad5686::new(),
             adc: Ad4020::new(),
+            adc1: Adc::new(),
             world: World::new(),
             active: Vec::new(),
             tim3_seen: 0,
@@ -270,6 +277,8 @@ impl Board {
             "SPI3" => self.spi3.read(reg, t)?,
             "SPI4" => self.spi4.read(reg, t)?,
             "EXTI" => self.exti.read(reg),
+            "ADC1" => self.adc1.read(reg, t),
+            "ADC12_COMMON" => self.adc1.read_common(reg),
             "SYSCFG" => self.syscfg.read(reg),
             "IWDG" => self.iwdg.read(reg, t),
             "DBGMCU" => self.dbgmcu.read(reg),
@@ -330,6 +339,8 @@ impl Board {
             "TIM5" => self.tim5.write(reg, v, ticks, spindle)?,
             "SPI1" | "SPI3" | "SPI4" => self.spi_write(periph, reg, v)?,
             "EXTI" => self.exti.write(reg, v)?,
+            "ADC1" => self.adc1.write(reg, v, t)?,
+            "ADC12_COMMON" => self.adc1.write_common(reg, v)?,
             "SYSCFG" => self.syscfg.write(reg, v)?,
             "IWDG" => self.iwdg.write(reg, v, t)?,
             "DBGMCU" => self.dbgmcu.write(reg, v)?,

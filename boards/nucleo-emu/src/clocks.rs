@@ -18,6 +18,7 @@ pub struct Rcc {
     pub pllcfgr: u32,
     pub pll1divr: u32,
     pub rsr: u32,
+    pub ahb1enr: u32,
     pub ahb4enr: u32,
     pub apb1lenr: u32,
     pub apb2enr: u32,
@@ -45,6 +46,7 @@ impl Rcc {
             // PORRSTF, PINRSTF, BORRSTF, D1/D2RSTF: a power-on; IWDG1RSTF
             // after a watchdog reset.
             rsr: 0x00FE_0000 | if watchdog_reset { 1 << 26 } else { 0 },
+            ahb1enr: 0,
             ahb4enr: 0,
             apb1lenr: 0,
             apb2enr: 0,
@@ -63,6 +65,7 @@ impl Rcc {
             "pllcfgr" => self.pllcfgr,
             "pll1divr" => self.pll1divr,
             "rsr" | "c1_rsr" => self.rsr,
+            "ahb1enr" | "c1_ahb1enr" => self.ahb1enr,
             "ahb4enr" | "c1_ahb4enr" => self.ahb4enr,
             "apb1lenr" | "c1_apb1lenr" => self.apb1lenr,
             "apb2enr" | "c1_apb2enr" => self.apb2enr,
@@ -133,6 +136,7 @@ impl Rcc {
                     self.rsr = 0; // RMVF
                 }
             }
+            "ahb1enr" | "c1_ahb1enr" => self.ahb1enr = v,
             "ahb4enr" | "c1_ahb4enr" => self.ahb4enr = v,
             "apb1lenr" | "c1_apb1lenr" => self.apb1lenr = v,
             "apb2enr" | "c1_apb2enr" => self.apb2enr = v,
@@ -216,6 +220,7 @@ impl Rcc {
             "SPI1" => bit(self.apb2enr, 12),
             "SPI4" => bit(self.apb2enr, 13),
             "SYSCFG" => bit(self.apb4enr, 1),
+            "ADC1" | "ADC12_COMMON" => bit(self.ahb1enr, 5),
             _ => true,
         }
     }

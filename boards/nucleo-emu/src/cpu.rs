@@ -151,29 +151,39 @@ impl<'a> Cpu<'a> {
                 code[o + i] = u16::from_le_bytes([hw[0], hw[1]]);
             }
         }
+        // A stop requested from a block hook takes effect before that block
+        // runs (PC is its first instruction): so the stop is checked before
+        // the block's instructions are counted, and a WFI is known to have
+        // run when the next block starts right after it.
         uc.add_block_hook(move |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
             let (a, size) = (addr as u32, size as usize);
-            let (mut n, mut wfi) = (0u64, false);
+            let b = uc.get_data_mut();
+            if b.wfi_ran.take().is_some_and(|w| w.wrapping_add(2) == a) {
+                b.sleeping = true;
+                let _ = uc.emu_stop();
+                return;
+            }
+            if b.t >= b.until {
+                let _ = uc.emu_stop();
+                return;
+            }
+            let (mut n, mut last) = (0u64, None);
             if a.wrapping_sub(BANK1.0) < BANK1.1 as u32 {
                 let mut i = ((a - BANK1.0) / 2) as usize;
                 let end = i + size / 2;
                 while i < end && i < code.len() {
                     n += 1;
-                    wfi = code[i] == 0xBF30;
+                    last = Some(i);
                     i += if code[i] >> 11 >= 0b11101 { 2 } else { 1 };
                 }
             } else {
                 n = (size / 2) as u64;
             }
-            let b = uc.get_data_mut();
             b.instructions += n;
             b.t += n * b.cycle_ps;
-            if wfi {
-                b.sleeping = true;
-            }
-            if wfi || b.t >= b.until {
-                let _ = uc.emu_stop();
-            }
+            b.wfi_ran = last
+                .filter(|&i| code[i] == 0xBF30)
+                .map(|i| BANK1.0 + 2 * i as u32);
         })
         .map_err(|e| format!("hook: {e:?}"))?;
         uc.add_intr_hook(|uc: &mut Unicorn<Board>, intno: u32| {
@@ -430,13 +440,11 @@ impl<'a> Cpu<'a> {
             }
             match res {
                 Ok(()) => {
-                    if self.board().sleeping {
-                        // WFI's address: step over it if it did not run.
-                        let mut hw = [0u8; 2];
-                        let _ = self.uc.mem_read(u64::from(pc), &mut hw);
-                        if u16::from_le_bytes(hw) == 0xBF30 {
-                            w(&mut self.uc, RegisterARM::PC, pc + 2);
-                        }
+                    // Unicorn ends a run at a WFI it executed (its halt).
+                    let b = self.board();
+                    if b.wfi_ran.is_some_and(|w| w.wrapping_add(2) == pc) {
+                        b.wfi_ran = None;
+                        b.sleeping = true;
                     }
                 }
                 Err(uc_error::FETCH_UNMAPPED | uc_error::FETCH_PROT) if pc >= 0xFFFF_FF00 => {

@@ -16,6 +16,7 @@
 //! after a disconnect); with `--end-on-close` the run ends when the first
 //! client disconnects (or at `--ms`).
 
+mod adc;
 mod board;
 mod clocks;
 mod converters;
