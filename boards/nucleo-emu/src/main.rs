@@ -14,7 +14,8 @@
 //! the board saw. With `--socket` the firmware's RTT link channel is there
 //! for `zslide --connect unix:PATH` (one client at a time, the next one
 //! after a disconnect); with `--end-on-close` the run ends when the first
-//! client disconnects (or at `--ms`).
+//! client disconnects (or at `--ms`). `NUCLEO_EMU_DEBUG=1` prints the
+//! core's PC, SP, LR and active exceptions at the end (bring-up aid).
 
 mod adc;
 mod board;
