@@ -23,6 +23,8 @@
 //!   image's parameter saves, across boots (`powercut.rs`); part of `test`.
 //! * `fuzz --seconds N [--target T]` – builds and runs the cargo-fuzz
 //!   targets of `fuzz/` (`fuzz.rs`).
+//! * `nucleo [--json] [--ms N]` – the release zslide-fw ELF on the
+//!   emulated NUCLEO-H743ZI2 over its RTT link (`nucleo.rs`); part of `test`.
 //!
 //! Arguments are parsed strictly (clap): an unknown or mistyped flag is an
 //! error with exit status 2, never ignored.
@@ -40,6 +42,7 @@ mod isr_cost;
 mod link;
 mod mutants;
 mod nopanic;
+mod nucleo;
 mod powercut;
 mod qemu;
 mod qemu_cmd;
@@ -135,6 +138,9 @@ enum Cmd {
     Figures(figures::Args),
     /// Import cycles between the modules of every crate (part of `test`).
     Cycles,
+    /// The release zslide-fw ELF on the emulated NUCLEO-H743ZI2: boot, arm,
+    /// track, a gauge bus fault, a save and a power cycle over its RTT link.
+    Nucleo(nucleo::Args),
     /// Mutation testing of the core's safety-relevant modules
     /// (cargo-mutants, installed on demand; not part of `test`).
     Mutants(mutants::Args),
@@ -154,6 +160,7 @@ fn main() -> ExitCode {
         Cmd::FlashCut => powercut::run(),
         Cmd::Figures(args) => figures::run(&args),
         Cmd::Cycles => cycles::run(),
+        Cmd::Nucleo(args) => nucleo::run(&args),
         Cmd::Mutants(args) => mutants::run(&args),
     };
     match result {
@@ -232,6 +239,8 @@ mod tests {
             &["qemu-link", "--table", "t.zsct"],
             &["link-test"],
             &["flash-cut"],
+            &["nucleo"],
+            &["nucleo", "--json", "--ms", "500"],
         ] {
             assert!(parse(cmd).is_ok(), "{cmd:?}");
             let mut bogus = cmd.to_vec();

@@ -9,13 +9,13 @@ use crate::qemu::{check_snapshot, run_qemu};
 use crate::size::print_sizes;
 use crate::tools::{ensure, Tool};
 use crate::{
-    cargo, cycles, faultpath, figures, fuzz, link, nopanic, powercut, replay, root, step,
+    cargo, cycles, faultpath, figures, fuzz, link, nopanic, nucleo, powercut, replay, root, step,
     table_checks, target_dir, trace, watchdog, Result,
 };
 
 /// (passed, failed, ignored) of a libtest summary line,
 /// "test result: ok. 11 passed; 0 failed; 0 ignored; 0 measured; ...".
-fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
+pub fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
     let rest = line.strip_prefix("test result: ")?;
     let (mut passed, mut failed, mut ignored) = (0, 0, 0);
     for part in rest.split(';') {
@@ -141,6 +141,34 @@ pub fn run(fuzz_seconds: u32) -> Result<u8> {
         }
     }
 
+    // The release zslide-fw ELF on the emulated NUCLEO (`nucleo.rs`).
+    let mut nucleo_line = None;
+    if firmware_possible {
+        match nucleo::require_unicorn().and_then(|()| nucleo::build_emulator()) {
+            Ok(()) => {
+                board_checks += nucleo::model_tests()?;
+                let r = nucleo::check(nucleo::TEST_MS)?;
+                if !nucleo::report(&r) {
+                    return Err(
+                        "emulated NUCLEO: tracking outside its tolerance of the QEMU image's"
+                            .into(),
+                    );
+                }
+                board_checks += r["link_checks_passed"].as_u64().unwrap_or(0);
+                nucleo_line = Some(format!(
+                    "booted, armed, tracking {:.2} µin (QEMU {:.2}), {} of {} faults latched, {} checks, {:.0} ms of machine time",
+                    r["tracking_max_uin"].as_f64().unwrap_or(0.0),
+                    r["qemu_tracking_max_uin"].as_f64().unwrap_or(0.0),
+                    r["faults_latched"],
+                    r["faults_injected"],
+                    r["link_checks_passed"],
+                    r["machine_ms"].as_f64().unwrap_or(0.0)
+                ));
+            }
+            Err(e) => missing.push(e),
+        }
+    }
+
     // A short fuzz run of every target: a finding fails the run (after the
     // summary), each clean target counts as one passed test.
     let mut fuzz_line = String::from("NOT RUN (--fuzz-seconds 0)");
@@ -204,6 +232,10 @@ pub fn run(fuzz_seconds: u32) -> Result<u8> {
     eprintln!(
         "VCD (the traced QEMU run, PASS; a host-sim machine VCD): {}",
         vcd_line.as_deref().unwrap_or("NOT RUN")
+    );
+    eprintln!(
+        "emulated NUCLEO (release zslide-fw): {}",
+        nucleo_line.as_deref().unwrap_or("NOT RUN")
     );
     eprintln!("fuzz: {fuzz_line}");
     eprintln!("docs: {docs_line}");

@@ -40,6 +40,7 @@ pub const CRATES: &[&str] = &[
     "replay",
     "xtask",
     "boards/qemu",
+    "boards/nucleo-emu",
     "fuzz",
 ];
 
