@@ -131,7 +131,7 @@ pub fn model_tests() -> Result<u64> {
         .map_err(|e| format!("cargo test (nucleo-emu): {e}"))?;
     let text = String::from_utf8_lossy(&out.stdout);
     let (mut passed, mut failed) = (0, 0);
-    for (p, f, _) in text.lines().filter_map(crate::suite::parse_test_result) {
+    for (p, f, _) in text.lines().filter_map(crate::tools::parse_test_result) {
         passed += p;
         failed += f;
     }

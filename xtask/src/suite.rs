@@ -7,32 +7,11 @@ use std::time::Instant;
 use crate::images::{build_board, build_qemu};
 use crate::qemu::{check_snapshot, run_qemu};
 use crate::size::print_sizes;
-use crate::tools::{ensure, Tool};
+use crate::tools::{ensure, parse_test_result, Tool};
 use crate::{
     cargo, cycles, faultpath, figures, fuzz, link, nopanic, nucleo, powercut, replay, root, step,
     table_checks, target_dir, trace, watchdog, Result,
 };
-
-/// (passed, failed, ignored) of a libtest summary line,
-/// "test result: ok. 11 passed; 0 failed; 0 ignored; 0 measured; ...".
-pub fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
-    let rest = line.strip_prefix("test result: ")?;
-    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
-    for part in rest.split(';') {
-        let mut words = part.split_whitespace().rev();
-        let (Some(what), Some(n)) = (words.next(), words.next()) else {
-            continue;
-        };
-        let Ok(n) = n.parse::<u64>() else { continue };
-        match what {
-            "passed" => passed = n,
-            "failed" => failed = n,
-            "ignored" => ignored = n,
-            _ => {}
-        }
-    }
-    Some((passed, failed, ignored))
-}
 
 /// `cargo test --workspace`, its output shown as it comes; returns the
 /// summed counts of its "test result:" lines.
