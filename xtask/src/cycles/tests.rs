@@ -186,7 +186,11 @@ fn workspace_list(toml: &str, key: &str) -> Vec<String> {
         .unwrap_or_else(|| panic!("no {key} in the root Cargo.toml"));
     let body = &toml[start..];
     let body = &body[..body.find(']').unwrap()];
-    body.split('"').skip(1).step_by(2).map(String::from).collect()
+    body.split('"')
+        .skip(1)
+        .step_by(2)
+        .map(String::from)
+        .collect()
 }
 
 #[test]
@@ -197,5 +201,8 @@ fn every_crate_of_the_workspace_is_checked() {
     want.sort();
     let mut have: Vec<String> = super::CRATES.iter().map(|c| c.to_string()).collect();
     have.sort();
-    assert_eq!(have, want, "cycles::CRATES against the workspace's members and exclude");
+    assert_eq!(
+        have, want,
+        "cycles::CRATES against the workspace's members and exclude"
+    );
 }
