@@ -186,13 +186,17 @@ fn return_overshoot_in(spec: &host_sim::cut::CutSpec, offset_in: f64) -> f64 {
     offset_in * (-zeta * std::f64::consts::PI / (1.0 - zeta * zeta).sqrt()).exp()
 }
 
+/// A fault a row may latch, the reaction SAFETY.md gives it, and words its
+/// reason must hold.
+type FaultRule = (fn(Fault) -> bool, Reaction, &'static str);
+
 /// What docs/SAFETY.md's fault table says a row must end in, written here
 /// by hand (not read from `Fault::reaction`, `Fault::reason` or
 /// `Case::expects`, the code under test).
 struct Expected {
     /// The faults the row may latch: each with the reaction SAFETY.md gives
     /// it and words its reason must hold. Empty: nothing may latch.
-    faults: &'static [(fn(Fault) -> bool, Reaction, &'static str)],
+    faults: &'static [FaultRule],
     /// Detected by the board's model (watchdog, panic handler), not the core.
     board_model: bool,
     /// What detects it, for the deadline of [`detection_deadline_ms`].
@@ -237,10 +241,7 @@ fn expected(case: Case) -> Expected {
     use zslide::safety::Device;
     use zslide::table::TableError;
     use Reaction::{DisableAmplifier as Off, RampToNull as Null};
-    let (faults, detect): (
-        &'static [(fn(Fault) -> bool, Reaction, &'static str)],
-        Detect,
-    ) = match case {
+    let (faults, detect): (&'static [FaultRule], Detect) = match case {
         Case::CorruptTable => (
             &[(
                 |f| matches!(f, Fault::Table(TableError::PayloadCrc { .. })),

@@ -59,10 +59,13 @@ fn ensure_nextest() -> Result<()> {
 
 /// Runs `cmd` with its stdout and stderr shown as they come, and sums what
 /// `parse` reads from their lines (`None`: no line parsed).
+/// (passed, failed, skipped).
+type Counts = (u64, u64, u64);
+
 fn tally(
     cmd: &mut Command,
-    parse: fn(&str) -> Option<(u64, u64, u64)>,
-) -> Result<(std::process::ExitStatus, Option<(u64, u64, u64)>)> {
+    parse: fn(&str) -> Option<Counts>,
+) -> Result<(std::process::ExitStatus, Option<Counts>)> {
     let mut child = cmd
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -99,7 +102,7 @@ fn tally(
     Ok((status, sum))
 }
 
-fn add(sum: &mut Option<(u64, u64, u64)>, x: Option<(u64, u64, u64)>) {
+fn add(sum: &mut Option<Counts>, x: Option<Counts>) {
     if let Some((p, f, i)) = x {
         let s = sum.get_or_insert((0, 0, 0));
         *s = (s.0 + p, s.1 + f, s.2 + i);
