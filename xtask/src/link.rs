@@ -17,8 +17,8 @@ use zslide::link::proto::{
 };
 use zslide::params;
 use zslide_host::capture;
-use zslide_host::cli::{run_line, Link};
-use zslide_host::client::{unexpected, Client};
+use zslide_host::cli::run_line;
+use zslide_host::client::{unexpected, Client, Link};
 use zslide_host::words::status_text;
 
 use crate::Result;

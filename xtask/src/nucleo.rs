@@ -29,8 +29,8 @@ use std::time::{Duration, Instant};
 use zslide::link::proto::{CaptureState, LoopPhase, Reply, Request, Status, Trigger};
 use zslide::params::ParamSource;
 use zslide::safety::{Device, Fault};
-use zslide_host::cli::{run_line, Link};
-use zslide_host::client::{unexpected, Client};
+use zslide_host::cli::run_line;
+use zslide_host::client::{unexpected, Client, Link};
 
 use crate::Result;
 
@@ -131,7 +131,7 @@ pub fn model_tests() -> Result<u64> {
         .map_err(|e| format!("cargo test (nucleo-emu): {e}"))?;
     let text = String::from_utf8_lossy(&out.stdout);
     let (mut passed, mut failed) = (0, 0);
-    for (p, f, _) in text.lines().filter_map(crate::tools::parse_test_result) {
+    for (p, f, _) in text.lines().filter_map(crate::nextest::parse_test_result) {
         passed += p;
         failed += f;
     }

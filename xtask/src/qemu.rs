@@ -1,14 +1,12 @@
-//! The QEMU command line and runner every QEMU check uses, and the log
-//! snapshot: the decoded defmt log compared (timestamps stripped) with
-//! `boards/qemu/expected.log`. The command itself is `qemu_cmd.rs`.
+//! The QEMU command line and runner every QEMU check uses. The log
+//! snapshot is `snapshot.rs`, the command itself `qemu_cmd.rs`.
 
-use std::fs;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::{qemu_dir, qemu_elf, root, step, Result};
+use crate::{qemu_elf, root, step, Result};
 
 const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
 
@@ -207,57 +205,4 @@ pub fn run_qemu_elf_at(
     }
     let code = status.code().map(|c| c.clamp(0, 255) as u8).unwrap_or(1);
     Ok((code, lines))
-}
-
-/// A decoded log line without its timestamp (the first field).
-pub fn strip_timestamp(line: &str) -> &str {
-    match line.split_once(' ') {
-        Some((t, rest)) if t.chars().all(|c| c.is_ascii_digit() || c == '.') => rest,
-        _ => line,
-    }
-}
-
-pub fn check_snapshot(lines: &[String], bless: bool) -> Result<()> {
-    let path = qemu_dir().join("expected.log");
-    let got: Vec<&str> = lines.iter().map(|l| strip_timestamp(l)).collect();
-    let text = got.join("\n") + "\n";
-    if bless {
-        fs::write(&path, &text).map_err(|e| format!("{}: {e}", path.display()))?;
-        eprintln!("wrote {}", path.display());
-        return Ok(());
-    }
-    let want = fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    if want == text {
-        eprintln!("QEMU log matches {} ({} lines)", path.display(), got.len());
-        return Ok(());
-    }
-    let mut msg = format!("QEMU log differs from {}:", path.display());
-    for (i, (w, g)) in want.lines().zip(got.iter()).enumerate() {
-        if w != *g {
-            msg.push_str(&format!(
-                "\n  line {}:\n    expected: {w}\n    got:      {g}",
-                i + 1
-            ));
-        }
-    }
-    if want.lines().count() != got.len() {
-        msg.push_str(&format!(
-            "\n  expected {} lines, got {}",
-            want.lines().count(),
-            got.len()
-        ));
-    }
-    msg.push_str("\n  (if the change is intended: cargo xtask qemu --bless)");
-    Err(msg)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn timestamps_are_stripped_only_when_present() {
-        assert_eq!(strip_timestamp("0.200019 INFO  PASS"), "INFO  PASS");
-        assert_eq!(strip_timestamp("INFO  tick 1: x"), "INFO  tick 1: x");
-    }
 }

@@ -5,9 +5,9 @@
 use std::path::Path;
 
 use crate::images::build_qemu;
-use crate::qemu::{check_snapshot, run_qemu};
+use crate::qemu::run_qemu;
 use crate::tools::require_for_qemu_log;
-use crate::{faultpath, replay, trace, watchdog, Result};
+use crate::{faultpath, replay, snapshot, trace, watchdog, Result};
 
 pub fn run(bless: bool, vcd: Option<&Path>) -> Result<u8> {
     require_for_qemu_log()?;
@@ -15,7 +15,7 @@ pub fn run(bless: bool, vcd: Option<&Path>) -> Result<u8> {
     let (code, lines) = run_qemu()?;
     eprintln!("QEMU image exited with status {code}");
     if code == 0 {
-        check_snapshot(&lines, bless)?;
+        snapshot::check(&lines, bless)?;
         let summary = replay::check()?;
         eprintln!("QEMU replay: {summary}");
         let summary = watchdog::check()?;

@@ -1,47 +1,15 @@
 //! `cargo xtask test`: everything CI runs, with one tally at the end.
 
-use std::io::{BufRead, BufReader};
-use std::process::Stdio;
 use std::time::Instant;
 
 use crate::images::{build_board, build_qemu};
-use crate::qemu::{check_snapshot, run_qemu};
+use crate::qemu::run_qemu;
 use crate::size::print_sizes;
-use crate::tools::{ensure, parse_test_result, Tool};
+use crate::tools::{ensure, Tool};
 use crate::{
-    cargo, cycles, faultpath, figures, fuzz, link, nopanic, nucleo, powercut, replay, root, step,
-    table_checks, target_dir, trace, watchdog, Result,
+    cycles, faultpath, figures, fuzz, link, nextest, nopanic, nucleo, powercut, replay, root,
+    snapshot, step, table_checks, target_dir, trace, watchdog, Result,
 };
-
-/// `cargo test --workspace`, its output shown as it comes; returns the
-/// summed counts of its "test result:" lines.
-/// `cargo test --workspace`.
-fn host_tests() -> Result<(u64, u64, u64)> {
-    let mut child = cargo()
-        .current_dir(root())
-        .args(["test", "--workspace"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .map_err(|e| format!("cannot start cargo test: {e}"))?;
-    let out = child.stdout.take().ok_or("no cargo test stdout")?;
-    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
-    for line in BufReader::new(out)
-        .lines()
-        .map_while(std::result::Result::ok)
-    {
-        println!("{line}");
-        if let Some((p, f, i)) = parse_test_result(&line) {
-            passed += p;
-            failed += f;
-            ignored += i;
-        }
-    }
-    let status = child.wait().map_err(|e| format!("cargo test: {e}"))?;
-    if !status.success() {
-        return Err(format!("cargo test --workspace failed ({status})"));
-    }
-    Ok((passed, failed, ignored))
-}
 
 pub fn run(fuzz_seconds: u32) -> Result<u8> {
     let started = Instant::now();
@@ -67,8 +35,7 @@ pub fn run(fuzz_seconds: u32) -> Result<u8> {
     let modules = cycles::check_crates(&root(), cycles::CRATES)?;
     modules.print();
 
-    step("host tests: cargo test --workspace");
-    let results = host_tests()?;
+    let results = nextest::host_tests()?;
     // The docs' cheap figures (the full set: `cargo xtask figures --check`),
     // their generated sections, cited names and shown commands: each figure
     // counts as a test, and the other checks as one test together.
@@ -100,7 +67,7 @@ pub fn run(fuzz_seconds: u32) -> Result<u8> {
         if code != 0 {
             return Err(format!("the QEMU image exited with status {code}"));
         }
-        check_snapshot(&lines, false)?;
+        snapshot::check(&lines, false)?;
         qemu_code = Some(code);
         board_checks += u64::from(table_checks::qemu_table_checks(&lines)?);
         board_checks += u64::from(faultpath::params_check()?);
@@ -241,16 +208,4 @@ pub fn run(fuzz_seconds: u32) -> Result<u8> {
         failed + fuzz_failed + cycle_failed + docs_failed
     );
     Ok(code)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn test_result_lines_are_summed_by_field() {
-        let line = "test result: ok. 19 passed; 2 failed; 3 ignored; 0 measured; 0 filtered out; finished in 0.01s";
-        assert_eq!(parse_test_result(line), Some((19, 2, 3)));
-        assert_eq!(parse_test_result("running 19 tests"), None);
-    }
 }

@@ -196,24 +196,3 @@ pub fn require_for_qemu() -> Result<()> {
 pub fn require_for_qemu_log() -> Result<()> {
     require(&[Tool::Target, Tool::FlipLink, Tool::Qemu, Tool::DefmtPrint])
 }
-
-/// (passed, failed, ignored) of a libtest summary line,
-/// "test result: ok. 11 passed; 0 failed; 0 ignored; 0 measured; ...".
-pub fn parse_test_result(line: &str) -> Option<(u64, u64, u64)> {
-    let rest = line.strip_prefix("test result: ")?;
-    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
-    for part in rest.split(';') {
-        let mut words = part.split_whitespace().rev();
-        let (Some(what), Some(n)) = (words.next(), words.next()) else {
-            continue;
-        };
-        let Ok(n) = n.parse::<u64>() else { continue };
-        match what {
-            "passed" => passed = n,
-            "failed" => failed = n,
-            "ignored" => ignored = n,
-            _ => {}
-        }
-    }
-    Some((passed, failed, ignored))
-}

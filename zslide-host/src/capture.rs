@@ -3,15 +3,58 @@
 
 use std::fs;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use zslide::link::proto::{CaptureInfo, CaptureState, Reply, Request, Sample, Trigger};
 
-use crate::cli::{CaptureArgs, Link};
-use crate::client::unexpected;
-use crate::words::{deg, inch, uin, V_PER_CODE};
+use crate::client::{unexpected, Link};
+use crate::report::say_to;
+use crate::words::{deg, inch, uin, CODES_PER_UIN, V_PER_CODE};
 use crate::Result;
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct CaptureArgs {
+    /// Loop ticks to record.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub samples: u16,
+    /// Of them, before the trigger (not with `--trigger immediate`).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub pre: u16,
+    /// `immediate`, `fault`, or `ferr:UIN` (|command − position| ≥ UIN µin).
+    #[arg(long, value_name = "T", value_parser = parse_trigger)]
+    pub trigger: Trigger,
+    /// The CSV file to write.
+    #[arg(long, value_name = "FILE")]
+    pub csv: PathBuf,
+    /// Also plot it: FILE.svg and FILE.png.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    /// Seconds to wait for the trigger.
+    #[arg(long, value_name = "S", default_value_t = 30)]
+    pub wait_s: u64,
+}
+
+pub fn parse_trigger(s: &str) -> std::result::Result<Trigger, String> {
+    match s {
+        "immediate" => Ok(Trigger::Immediate),
+        "fault" => Ok(Trigger::Fault),
+        _ => {
+            let uin = s
+                .strip_prefix("ferr:")
+                .ok_or_else(|| format!("{s:?}: expected immediate, fault or ferr:UIN"))?;
+            let v: f64 = uin
+                .parse()
+                .map_err(|_| format!("{uin:?} is not a number of µin"))?;
+            if !(v > 0.0 && v <= 10_000.0) {
+                return Err(format!("ferr:{v}: the level must be in (0, 10000] µin"));
+            }
+            Ok(Trigger::FollowingError {
+                level: (v * CODES_PER_UIN).round().max(1.0) as u32,
+            })
+        }
+    }
+}
 
 /// The capture as CSV: time from the trigger, loop tick, command,
 /// position, error (µin), output (V), φ (deg), X (in).
@@ -98,7 +141,7 @@ pub fn check(a: &CaptureArgs) -> Result<()> {
 }
 
 pub fn run(link: &mut Link, a: &CaptureArgs, out: &mut dyn Write) -> Result<()> {
-    let mut say = |s: String| crate::cli::say_to(out, &s);
+    let mut say = |s: String| say_to(out, &s);
     check(a)?;
     // The output is opened before the capture is armed: a bad path is
     // refused before the machine is asked for anything.

@@ -224,3 +224,50 @@ pub fn unexpected(r: &Reply) -> String {
         r => format!("unexpected reply {r:?}"),
     }
 }
+
+/// The link, opened on first use.
+pub struct Link {
+    addr: String,
+    timeout: Duration,
+    client: Option<Client>,
+}
+
+impl Link {
+    pub fn new(addr: &str, timeout: Duration) -> Self {
+        Self {
+            addr: addr.into(),
+            timeout,
+            client: None,
+        }
+    }
+
+    /// An open connection (tests drive a session they opened).
+    pub fn from_client(c: Client) -> Self {
+        Self {
+            addr: String::new(),
+            timeout: Duration::ZERO,
+            client: Some(c),
+        }
+    }
+
+    pub fn client(&mut self) -> Result<&mut Client> {
+        match &mut self.client {
+            Some(c) => Ok(c),
+            slot => Ok(slot.insert(Client::connect(&self.addr, self.timeout)?)),
+        }
+    }
+}
+
+pub(crate) fn set(c: &mut Client, id: u16, value: f64) -> Result<f64> {
+    match c.call(&Request::Set { id, value })? {
+        Reply::Param { value, .. } => Ok(value),
+        r => Err(unexpected(&r)),
+    }
+}
+
+pub(crate) fn get(c: &mut Client, id: u16) -> Result<f64> {
+    match c.call(&Request::Get { id })? {
+        Reply::Param { value, .. } => Ok(value),
+        r => Err(unexpected(&r)),
+    }
+}

@@ -28,9 +28,9 @@ use zslide::params;
 use zslide::servo::design::DAC_CODES_PER_V;
 use zslide::servo::ServoDesign;
 
-use crate::cli::{get, say_to, set, Link};
-use crate::client::{unexpected, Client};
+use crate::client::{get, set, unexpected, Client, Link};
 use crate::fit::{self, Known, Plant, Point};
+use crate::report::say_to;
 use crate::Result;
 
 #[derive(clap::Args, Debug, Clone)]

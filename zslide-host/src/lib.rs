@@ -9,11 +9,13 @@ pub mod client;
 #[cfg(feature = "defmt-log")]
 pub mod defmt_log;
 pub mod fit;
+pub mod flash;
 pub mod identify;
 pub mod predict;
 #[cfg(feature = "probe")]
 pub mod probe;
 pub mod regions;
+pub mod report;
 pub mod scope;
 pub mod words;
 

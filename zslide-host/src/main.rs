@@ -3,7 +3,9 @@
 use clap::Parser;
 use std::process::ExitCode;
 use std::time::Duration;
-use zslide_host::cli::{execute, Cli, Link, CLOSED_OUTPUT};
+use zslide_host::cli::{execute, Cli};
+use zslide_host::client::Link;
+use zslide_host::report::CLOSED_OUTPUT;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();

@@ -22,8 +22,8 @@ use ratatui::widgets::{Axis, Block, Chart, Dataset, GraphType, Paragraph};
 
 use zslide::link::proto::{CaptureInfo, CaptureState, Reply, Request, Sample, Trigger};
 
-use crate::cli::Link;
 use crate::client::unexpected;
+use crate::client::Link;
 use crate::words::{deg, uin, V_PER_CODE};
 use crate::Result;
 
@@ -66,7 +66,7 @@ pub struct ScopeArgs {
     #[arg(long, value_name = "N", default_value_t = 400, value_parser = clap::value_parser!(u16).range(2..=1024))]
     pub samples: u16,
     /// `immediate` (free-running), `fault`, or `ferr:UIN`.
-    #[arg(long, value_name = "T", default_value = "immediate", value_parser = crate::cli::parse_trigger)]
+    #[arg(long, value_name = "T", default_value = "immediate", value_parser = crate::capture::parse_trigger)]
     pub trigger: Trigger,
     /// Of the ticks, before the trigger (not with `immediate`).
     #[arg(long, value_name = "N", default_value_t = 0)]

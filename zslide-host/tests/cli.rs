@@ -5,7 +5,9 @@ use clap::error::ErrorKind;
 use clap::{CommandFactory, Parser};
 use std::time::Duration;
 use zslide::link::proto::{CaptureInfo, CaptureState, Sample, Trigger};
-use zslide_host::cli::{parse_trigger, run_line, Cli, Link};
+use zslide_host::capture::parse_trigger;
+use zslide_host::cli::{run_line, Cli};
+use zslide_host::client::Link;
 
 fn parse(args: &[&str]) -> Result<Cli, ErrorKind> {
     Cli::try_parse_from(std::iter::once("zslide").chain(args.iter().copied())).map_err(|e| e.kind())

@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 
 use host_sim::serve::Setup;
 use zslide::link::proto::LoopPhase;
-use zslide_host::cli::{run_line, Link};
+use zslide_host::cli::run_line;
+use zslide_host::client::Link;
 use zslide_host::words::CODES_PER_UIN;
 
 mod machine;
