@@ -134,6 +134,27 @@ fn capture_csv_converts_codes_to_units() {
         "-0.000050,100,10000.0000,0.0000,10000.0000,-5.000000,90.0000,1.5000000"
     );
     assert!(rows[2].starts_with("0.000000,101,"));
+    // A tick before the first X reading: X left empty, not 0 in.
+    let unknown = Sample {
+        x_bits: zslide::link::proto::X_UNKNOWN,
+        ..s
+    };
+    let csv = zslide_host::capture::csv(&info, &[s, unknown], 20_000);
+    assert!(csv.lines().nth(2).unwrap().ends_with(",90.0000,"), "{csv}");
+
+    // The scope's snapshot: every panel on the screen, the DAC's with it.
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../target/zslide-host-test/scope-snapshot");
+    std::fs::create_dir_all(&dir).unwrap();
+    use zslide_host::scope::Signal;
+    let signals = [Signal::Command, Signal::Position, Signal::Error, Signal::Dac];
+    zslide_host::scope::snapshot_plot(&dir.join("scope-1"), &signals, &info, &[s, s], 20_000)
+        .unwrap();
+    let svg = std::fs::read_to_string(dir.join("scope-1.svg")).unwrap();
+    for title in ["command, µin", "position, µin", "following error, µin", "DAC, V"] {
+        assert!(svg.contains(title), "no {title} panel");
+    }
+    assert!(dir.join("scope-1.png").exists());
 }
 
 /// `--pre` with an immediate trigger used to come back quietly shorter

@@ -11,7 +11,6 @@
 
 use super::part::{cmm_phi_deg, CmmGrid};
 use crate::plot::Series;
-use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -142,7 +141,7 @@ where
         .x_labels(13)
         .x_label_formatter(&|v| format!("{v:.0}"))
         .y_labels(7)
-        .y_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| crate::plot::tick_label(*v, xs[xs.len() - 1] - xs[0]))
         .disable_mesh()
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
@@ -202,24 +201,13 @@ pub fn write(dir: &Path, grid: &CmmGrid, xs: &[f64], title: &str) -> anyhow::Res
         xs.len(),
         grid.err_uin.first().map_or(0, Vec::len)
     );
-    crate::plot::register_font();
-    let size = (980, 560);
-    let svg = dir.join("error_map.svg");
-    draw(
-        SVGBackend::new(&svg, size).into_drawing_area(),
-        grid,
-        xs,
-        title,
-    )
-    .with_context(|| format!("writing {}", svg.display()))?;
-    let png = dir.join("error_map.png");
-    draw(
-        BitMapBackend::new(&png, size).into_drawing_area(),
-        grid,
-        xs,
-        title,
-    )
-    .with_context(|| format!("writing {}", png.display()))?;
+    crate::plot::write_svg_png(
+        dir,
+        "error_map",
+        (980, 560),
+        |a| draw(a, grid, xs, title),
+        |a| draw(a, grid, xs, title),
+    )?;
     let series: Vec<Series> = xs
         .iter()
         .enumerate()

@@ -285,5 +285,23 @@ pub fn pick(
             e.total_uin, e.truncation_uin, e.interpolation_uin, e.quantization_uin
         );
     }
+    if tried.is_empty() {
+        // Not one candidate was a table the format holds: say why for
+        // each grid step.
+        let refusals: Vec<String> = steps
+            .iter()
+            .filter_map(|&step| {
+                with(step, 1)
+                    .format_spec()
+                    .validate()
+                    .err()
+                    .map(|e| format!("step {step} in: {e}"))
+            })
+            .collect();
+        why += &format!(
+            ": no grid step gives a table the format accepts over X {x_lo}..{x_hi} in ({})",
+            refusals.join("; ")
+        );
+    }
     Err(why)
 }
