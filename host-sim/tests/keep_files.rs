@@ -77,7 +77,7 @@ fn a_table_refused_keeps_the_old_table() {
         &dir,
         &[("keep.zsct", "old table")],
         &["part-table", s(&p), "--out", s(&t)],
-        "table refused: the bound 0.005 µin leaves nothing",
+        "firmware_allowance_uin = 0.01: must be in",
     );
 }
 

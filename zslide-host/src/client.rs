@@ -140,10 +140,14 @@ impl Client {
                         return Err("the firmware sent an over-long frame".into());
                     }
                 }
+                // A signal arriving mid-read (Ctrl-C) is noted by its
+                // handler; the reply is still read.
                 Err(e)
                     if matches!(
                         e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
                     ) => {}
                 Err(e) => return Err(format!("link: {e}")),
             }
@@ -199,18 +203,27 @@ impl Client {
     }
 
     fn exchange(&mut self, req: &Request) -> Result<Reply> {
+        let before = self.seq;
         self.seq = self.seq.wrapping_add(1).max(1);
         let mut out = [0u8; MAX_FRAME];
         let frame = proto::encode(self.seq, req, &mut out).ok_or("request does not encode")?;
         self.send_raw(frame)?;
-        let (seq, reply) = self.receive()?;
-        if seq != self.seq {
-            return Err(format!(
-                "reply number {seq} to request number {}: out of step",
-                self.seq
-            ));
+        loop {
+            let (seq, reply) = self.receive()?;
+            // The late reply to the request before, which a command
+            // stopped part-way (an error, a signal) did not wait for: a
+            // request's own reply is read only once.
+            if seq == before && before != 0 {
+                continue;
+            }
+            if seq != self.seq {
+                return Err(format!(
+                    "reply number {seq} to request number {}: out of step",
+                    self.seq
+                ));
+            }
+            return Ok(reply);
         }
-        Ok(reply)
     }
 
     pub fn status(&mut self) -> Result<Status> {
