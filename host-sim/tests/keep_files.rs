@@ -31,6 +31,8 @@ fn host_sim(args: &[&str]) -> Output {
 /// with `why` in its words, every file as it was and nothing else
 /// in `dir`.
 fn refused_keeps(dir: &Path, files: &[(&str, &str)], args: &[&str], why: &str) {
+    let _ = std::fs::remove_dir_all(dir);
+    std::fs::create_dir_all(dir).unwrap();
     for (name, text) in files {
         std::fs::write(dir.join(name), text).unwrap();
     }
@@ -88,12 +90,12 @@ fn a_trace_refused_or_interrupted_keeps_the_old_vcd() {
     refused_keeps(
         &dir,
         &[("keep.vcd", "old vcd")],
-        &["trace2vcd", "--log", s(&dir.join("missing.log")), "--out", s(&vcd)],
+        &["trace2vcd", s(&dir.join("missing.log")), "--out", s(&vcd)],
         "cannot open",
     );
     // Reading a log from stdin, Ctrl-C before it ends.
     let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["trace2vcd", "--log", "-", "--out", s(&vcd)])
+        .args(["trace2vcd", "-", "--out", s(&vcd)])
         .stdin(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -105,8 +107,13 @@ fn a_trace_refused_or_interrupted_keeps_the_old_vcd() {
         .status()
         .unwrap();
     assert!(ok.success());
-    let st = child.wait().unwrap();
-    assert_eq!(st.code(), Some(130), "{st:?}");
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(std::fs::read_to_string(&vcd).unwrap(), "old vcd");
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "a partial file left");
 }
@@ -137,6 +144,8 @@ fn refused_runs_keep_the_old_plots_and_data() {
         &[("r.csv", "old csv"), ("r.svg", "old svg")],
         &[
             "response",
+            "--loop",
+            "digital",
             "--csv",
             s(&dir.join("r.csv")),
             "--svg",
