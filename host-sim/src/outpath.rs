@@ -221,7 +221,7 @@ mod tests {
         let d = scratch("fail");
         let f = d.join("keep.csv");
         std::fs::write(&f, b"good").unwrap();
-        let e = replace_with(&f, |tmp| {
+        let e = replace_with(&f, |tmp| -> anyhow::Result<()> {
             std::fs::write(tmp, b"half")?;
             bail!("refused part-way")
         })
