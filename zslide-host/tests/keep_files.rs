@@ -147,11 +147,13 @@ fn a_refused_table_or_block_keeps_the_old_file() {
 }
 
 #[test]
-fn table_build_takes_every_kind_of_part_file_and_prints_no_csv() {
+fn table_build_takes_a_part_file_of_another_kind_than_the_paraboloid_and_prints_no_csv() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let dir = scratch("table-build");
     let mut link = Link::new("unix:/nonexistent", Duration::from_secs(1));
-    for part in ["toric-lens", "sinusoidal-grid"] {
+    // The part (a toric lens); its table costs 10 s of CPU in a
+    // debug build, so one part only.
+    for part in ["toric-lens"] {
         let out = dir.join(format!("{part}.zsct"));
         let said = run_line(
             &mut link,
