@@ -5,10 +5,10 @@
 //! (PNG): DejaVu Sans, embedded by the `dejavu` crate, so a plot never
 //! depends on what fonts a machine has.
 
+use crate::outpath::{replace, replace_with};
 use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use crate::outpath::{replace, replace_with};
 use std::path::Path;
 
 /// Registers the embedded font as `sans-serif`, once per process. Call
@@ -40,7 +40,11 @@ pub fn segments<'a, S: Into<ShapeStyle> + Copy + 'a>(
     points: &'a [(f64, f64)],
     style: S,
 ) -> impl Iterator<Item = PathElement<(f64, f64)>> + 'a {
-    let one = if points.len() == 1 { Some(vec![points[0]; 2]) } else { None };
+    let one = if points.len() == 1 {
+        Some(vec![points[0]; 2])
+    } else {
+        None
+    };
     points
         .windows(2)
         .map(|w| w.to_vec())
@@ -162,11 +166,15 @@ pub fn write_svg_png(
 ) -> anyhow::Result<()> {
     register_font();
     let path = dir.join(format!("{name}.svg"));
-    replace_with(&path, |tmp| svg(SVGBackend::new(tmp, size).into_drawing_area()))
-        .with_context(|| format!("writing {}", path.display()))?;
+    replace_with(&path, |tmp| {
+        svg(SVGBackend::new(tmp, size).into_drawing_area())
+    })
+    .with_context(|| format!("writing {}", path.display()))?;
     let path = dir.join(format!("{name}.png"));
-    replace_with(&path, |tmp| png(BitMapBackend::new(tmp, size).into_drawing_area()))
-        .with_context(|| format!("writing {}", path.display()))
+    replace_with(&path, |tmp| {
+        png(BitMapBackend::new(tmp, size).into_drawing_area())
+    })
+    .with_context(|| format!("writing {}", path.display()))
 }
 
 /// Writes `<dir>/<name>.svg` and `.png` only (the caller writes its own
@@ -341,9 +349,15 @@ where
 {
     let e = |e| anyhow::anyhow!("{e:?}");
     root.fill(&WHITE).map_err(e)?;
-    let fs = measured.iter().map(|m| m.f_hz).chain(model.iter().map(|p| p.0));
+    let fs = measured
+        .iter()
+        .map(|m| m.f_hz)
+        .chain(model.iter().map(|p| p.0));
     let (f0, f1) = fs.fold((f64::MAX, f64::MIN), |(a, b), f| (a.min(f), b.max(f)));
-    anyhow::ensure!(f0 > 0.0 && f1 > f0, "a Bode plot needs frequencies above 0 Hz");
+    anyhow::ensure!(
+        f0 > 0.0 && f1 > f0,
+        "a Bode plot needs frequencies above 0 Hz"
+    );
     let ys = measured
         .iter()
         .map(|m| m.value)
@@ -414,7 +428,11 @@ where
     ))
     .map_err(e)?;
     co.draw_series(measured.iter().map(|m| {
-        let c = if m.coherence >= coherence_min { MEASURED.filled() } else { LOW_COHERENCE.stroke_width(2) };
+        let c = if m.coherence >= coherence_min {
+            MEASURED.filled()
+        } else {
+            LOW_COHERENCE.stroke_width(2)
+        };
         Circle::new((m.f_hz, m.coherence.clamp(0.0, 1.05)), 4, c)
     }))
     .map_err(e)?;

@@ -65,7 +65,13 @@ fn a_table_refused_keeps_the_old_table() {
     refused_keeps(
         &dir,
         &[("keep.zsct", "old table")],
-        &["coeffs", "--config", "tables/toric-lens.toml", "--out", s(&t)],
+        &[
+            "coeffs",
+            "--config",
+            "tables/toric-lens.toml",
+            "--out",
+            s(&t),
+        ],
         "is a part file (docs/PARTS.md)",
     );
     // A bound the firmware's allowance alone uses up.
@@ -100,7 +106,12 @@ fn a_trace_refused_or_interrupted_keeps_the_old_vcd() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    child.stdin.as_mut().unwrap().write_all(b"0.000001 ").unwrap();
+    child
+        .stdin
+        .as_mut()
+        .unwrap()
+        .write_all(b"0.000001 ")
+        .unwrap();
     std::thread::sleep(Duration::from_millis(300));
     let ok = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
@@ -115,7 +126,11 @@ fn a_trace_refused_or_interrupted_keeps_the_old_vcd() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert_eq!(std::fs::read_to_string(&vcd).unwrap(), "old vcd");
-    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "a partial file left");
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "a partial file left"
+    );
 }
 
 #[test]
@@ -170,10 +185,21 @@ fn serve_refuses_a_bad_speed_before_its_banner_and_writes_no_flash_file() {
     refused_keeps(
         &dir,
         &[],
-        &["serve", "--params-flash", s(&flash), "--speed", "-2", "--listen", "tcp:127.0.0.1:1"],
+        &[
+            "serve",
+            "--params-flash",
+            s(&flash),
+            "--speed",
+            "-2",
+            "--listen",
+            "tcp:127.0.0.1:1",
+        ],
         "--speed -2: must be in (0, 100]",
     );
     let out = host_sim(&["serve", "--speed", "-2", "--listen", "tcp:127.0.0.1:1"]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!err.contains("in another shell"), "the banner came first: {err}");
+    assert!(
+        !err.contains("in another shell"),
+        "the banner came first: {err}"
+    );
 }

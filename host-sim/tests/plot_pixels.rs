@@ -64,7 +64,9 @@ fn a_noisy_capture_png_draws_nothing_off_its_curve() {
     let mut state = 12345u64;
     let points: Vec<(f64, f64)> = (0..1024)
         .map(|i| {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let u = (state >> 11) as f64 / (1u64 << 53) as f64;
             (i as f64 * 0.05, 72.0 * u - 36.0)
         })
@@ -113,7 +115,9 @@ fn a_noisy_capture_png_draws_nothing_off_its_curve() {
         .map(|&&(x, y)| {
             let y = f64::from(y);
             segs.iter()
-                .filter(|[a, b]| (f64::from(x) - a.0.min(b.0)) > -tol && (f64::from(x) - a.0.max(b.0)) < tol)
+                .filter(|[a, b]| {
+                    (f64::from(x) - a.0.min(b.0)) > -tol && (f64::from(x) - a.0.max(b.0)) < tol
+                })
                 .map(|[a, b]| (a.1.min(b.1) - y).max(y - a.1.max(b.1)))
                 .fold(f64::INFINITY, f64::min)
         })

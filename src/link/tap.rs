@@ -19,9 +19,7 @@
 //! division, no panic path, which `cargo xtask no-panic` checks). They live
 //! in [`TapShared`] with the capture ring, so a board needs one `static`.
 
-use super::proto::{
-    CaptureState, LoopPhase, LoopSnapshot as Snapshot, Sample, Trigger, X_UNKNOWN,
-};
+use super::proto::{CaptureState, LoopPhase, LoopSnapshot as Snapshot, Sample, Trigger, X_UNKNOWN};
 use crate::firmware::looptick::LoopState;
 use crate::safety::Fault;
 use crate::servo::{Phase, ServoConfig};

@@ -5,9 +5,7 @@ use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use zslide::link::proto::{
-    CaptureInfo, CaptureState, Reply, Request, Sample, Trigger, X_UNKNOWN,
-};
+use zslide::link::proto::{CaptureInfo, CaptureState, Reply, Request, Sample, Trigger, X_UNKNOWN};
 
 use crate::cli::{CaptureArgs, Link};
 use crate::client::unexpected;

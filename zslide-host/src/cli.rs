@@ -111,7 +111,8 @@ pub struct BuildArgs {
 /// `table build`: the table image written whole, its report on `out`.
 fn table_build(a: &BuildArgs, out: &mut dyn Write) -> Result<()> {
     let shown = a.config.display();
-    let text = std::fs::read_to_string(&a.config).map_err(|e| format!("{shown}: cannot read: {e}"))?;
+    let text =
+        std::fs::read_to_string(&a.config).map_err(|e| format!("{shown}: cannot read: {e}"))?;
     host_sim::outpath::check_file("--out", &a.out).map_err(|e| format!("{e:#}"))?;
     // A table configuration has a [grid]; a part file has none.
     let is_config = text
@@ -142,7 +143,10 @@ fn table_build(a: &BuildArgs, out: &mut dyn Write) -> Result<()> {
     for line in host_sim::cmd::parttable::report_text(&r).lines() {
         say_to(out, line)?;
     }
-    say_to(out, &format!("wrote {} ({} bytes)", a.out.display(), image.len()))
+    say_to(
+        out,
+        &format!("wrote {} ({} bytes)", a.out.display(), image.len()),
+    )
 }
 
 #[derive(clap::Subcommand, Debug)]

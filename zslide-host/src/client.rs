@@ -12,8 +12,8 @@ use std::os::unix::net::UnixStream;
 use std::time::{Duration, Instant};
 
 use zslide::link::proto::{
-    self, CaptureInfo, CaptureState, FaultRecord, Reply, Request, Sample, Status,
-    Trigger, MAX_FRAME,
+    self, CaptureInfo, CaptureState, FaultRecord, Reply, Request, Sample, Status, Trigger,
+    MAX_FRAME,
 };
 
 use crate::Result;

@@ -423,8 +423,21 @@ pub fn write_plots(stem: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Re
     let (phase, _) = measured_phases(ms, known, p);
     let mag: Vec<f64> = ms.iter().map(|m| 20.0 * m.h.norm().log10()).collect();
     for (suffix, label, ys, line) in [
-        ("mag", "gauge/DAC (dB)", &mag, model.iter().map(|&(f, (db, _))| (f, db)).collect::<Vec<_>>()),
-        ("phase", "phase (deg, unwrapped)", &phase, model.iter().map(|&(f, (_, ph))| (f, ph)).collect()),
+        (
+            "mag",
+            "gauge/DAC (dB)",
+            &mag,
+            model
+                .iter()
+                .map(|&(f, (db, _))| (f, db))
+                .collect::<Vec<_>>(),
+        ),
+        (
+            "phase",
+            "phase (deg, unwrapped)",
+            &phase,
+            model.iter().map(|&(f, (_, ph))| (f, ph)).collect(),
+        ),
     ] {
         let pts: Vec<BodePoint> = ms
             .iter()

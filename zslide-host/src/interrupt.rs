@@ -14,7 +14,12 @@ use signal_hook::consts::{SIGINT, SIGTERM};
 /// The signal received (0: none), and whether any was.
 fn slots() -> &'static (Arc<AtomicUsize>, Arc<AtomicBool>) {
     static SLOTS: OnceLock<(Arc<AtomicUsize>, Arc<AtomicBool>)> = OnceLock::new();
-    SLOTS.get_or_init(|| (Arc::new(AtomicUsize::new(0)), Arc::new(AtomicBool::new(false))))
+    SLOTS.get_or_init(|| {
+        (
+            Arc::new(AtomicUsize::new(0)),
+            Arc::new(AtomicBool::new(false)),
+        )
+    })
 }
 
 /// Installs the handlers: once, at the start of the `zslide` binary (a

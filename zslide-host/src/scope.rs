@@ -171,7 +171,9 @@ fn scope_loop(
                         return Ok(format!("{frames} frames, {snapshots} snapshots"))
                     }
                     KeyCode::Char(' ') => held = !held,
-                    KeyCode::Char('+') => samples = (samples.saturating_mul(2)).min(zslide::link::CAPTURE as u16),
+                    KeyCode::Char('+') => {
+                        samples = (samples.saturating_mul(2)).min(zslide::link::CAPTURE as u16)
+                    }
                     KeyCode::Char('-') => samples = (samples / 2).max(2),
                     KeyCode::Char('s') => {
                         if let Some((info, s)) = &shown {

@@ -64,7 +64,10 @@ fn measured_points_are_drawn_at_their_frequencies_with_low_coherence_marked() {
         // mark for each kind.
         assert_eq!(good.len(), 2 * (n - 1) + 1, "{part}: filled points");
         assert_eq!(low.len(), 2 + 1, "{part}: marked points");
-        assert!(low.iter().all(|c| c.4 != good[0].3), "{part}: marked in another colour");
+        assert!(
+            low.iter().all(|c| c.4 != good[0].3),
+            "{part}: marked in another colour"
+        );
         // The panel's points (the upper ones at each x: the coherence
         // panel is below) on a log axis: x = a + b·log10 f to a pixel.
         let mut xs: Vec<f64> = good.iter().map(|c| c.0).collect();
@@ -79,7 +82,10 @@ fn measured_points_are_drawn_at_their_frequencies_with_low_coherence_marked() {
         let b = (xs[n - 2] - xs[0]) / (lf[n - 2] - lf[0]);
         for (x, l) in xs.iter().zip(&lf) {
             let want = xs[0] + b * (l - lf[0]);
-            assert!((x - want).abs() < 1.0, "{part}: point at {x} px, log axis puts it at {want}");
+            assert!(
+                (x - want).abs() < 1.0,
+                "{part}: point at {x} px, log axis puts it at {want}"
+            );
         }
     }
 }

@@ -147,11 +147,21 @@ fn capture_csv_converts_codes_to_units() {
         .join("../target/zslide-host-test/scope-snapshot");
     std::fs::create_dir_all(&dir).unwrap();
     use zslide_host::scope::Signal;
-    let signals = [Signal::Command, Signal::Position, Signal::Error, Signal::Dac];
+    let signals = [
+        Signal::Command,
+        Signal::Position,
+        Signal::Error,
+        Signal::Dac,
+    ];
     zslide_host::scope::snapshot_plot(&dir.join("scope-1"), &signals, &info, &[s, s], 20_000)
         .unwrap();
     let svg = std::fs::read_to_string(dir.join("scope-1.svg")).unwrap();
-    for title in ["command, µin", "position, µin", "following error, µin", "DAC, V"] {
+    for title in [
+        "command, µin",
+        "position, µin",
+        "following error, µin",
+        "DAC, V",
+    ] {
         assert!(svg.contains(title), "no {title} panel");
     }
     assert!(dir.join("scope-1.png").exists());

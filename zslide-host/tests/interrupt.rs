@@ -109,7 +109,10 @@ fn ctrl_c_during_identify_stops_the_excitation_and_keeps_the_old_files() {
     assert_eq!(code, Some(130), "{err}");
     assert!(err.contains("excitation stopped"), "{err}");
     assert!(err.contains("stopped by SIGINT"), "{err}");
-    eprintln!("identify: SIGINT to exit {:.0} ms", took.as_secs_f64() * 1e3);
+    eprintln!(
+        "identify: SIGINT to exit {:.0} ms",
+        took.as_secs_f64() * 1e3
+    );
 
     let mut link = Link::new(&m.addr, Duration::from_secs(10));
     let c = link.client().unwrap();
@@ -145,7 +148,11 @@ fn ctrl_c_during_identify_stops_the_excitation_and_keeps_the_old_files() {
         std::fs::read_to_string(stem.with_extension("plant")).unwrap(),
         "amp_gain = 1\n"
     );
-    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 3, "a partial file left behind");
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        3,
+        "a partial file left behind"
+    );
 }
 
 #[test]
@@ -177,7 +184,10 @@ fn sigterm_during_a_following_error_capture_releases_it_and_keeps_the_old_csv() 
     let (code, err, took) = finish(child, t);
     assert_eq!(code, Some(143), "{err}");
     assert!(err.contains("armed capture released"), "{err}");
-    eprintln!("capture: SIGTERM to exit {:.0} ms", took.as_secs_f64() * 1e3);
+    eprintln!(
+        "capture: SIGTERM to exit {:.0} ms",
+        took.as_secs_f64() * 1e3
+    );
     let mut link = Link::new(&m.addr, Duration::from_secs(10));
     let c = link.client().unwrap();
     let st = c.status().unwrap().capture.state;
@@ -194,6 +204,13 @@ fn sigterm_during_a_following_error_capture_releases_it_and_keeps_the_old_csv() 
         })
         .unwrap();
     assert!(matches!(r, zslide::link::proto::Reply::Capture(_)), "{r:?}");
-    assert_eq!(std::fs::read_to_string(&csv).unwrap(), "the user's capture\n");
-    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "a partial file left behind");
+    assert_eq!(
+        std::fs::read_to_string(&csv).unwrap(),
+        "the user's capture\n"
+    );
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "a partial file left behind"
+    );
 }

@@ -93,13 +93,19 @@ fn a_capture_refused_by_the_link_or_without_a_trigger_keeps_the_old_csv() {
     // More samples than the firmware's ring: refused with its limit.
     let e = run_line(
         &mut link,
-        &format!("capture --samples 5000 --trigger immediate --csv {}", csv.display()),
+        &format!(
+            "capture --samples 5000 --trigger immediate --csv {}",
+            csv.display()
+        ),
     )
     .unwrap_err();
     assert!(e.contains("1..=1024"), "{e}");
     let e = run_line(
         &mut link,
-        &format!("capture --samples 0 --trigger immediate --csv {}", csv.display()),
+        &format!(
+            "capture --samples 0 --trigger immediate --csv {}",
+            csv.display()
+        ),
     )
     .unwrap_err();
     assert!(e.contains("1..=1024"), "{e}");
@@ -129,10 +135,17 @@ fn a_refused_table_or_block_keeps_the_old_file() {
     let mut link = Link::new("unix:/nonexistent", Duration::from_secs(1));
     let e = run_line(
         &mut link,
-        &format!("table build --config {} --out {}", tight.display(), table.display()),
+        &format!(
+            "table build --config {} --out {}",
+            tight.display(),
+            table.display()
+        ),
     )
     .unwrap_err();
-    assert!(e.contains("firmware_allowance_uin = 0.01: must be in"), "{e}");
+    assert!(
+        e.contains("firmware_allowance_uin = 0.01: must be in"),
+        "{e}"
+    );
     std::fs::remove_file(&tight).unwrap();
     unchanged(&[(&table, "the user's table")]);
 

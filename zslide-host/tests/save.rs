@@ -51,7 +51,10 @@ fn a_saved_parameter_survives_a_restart_and_a_save_while_armed_is_refused() {
         let second = run_line(&mut link, "params save").unwrap();
         assert_ne!(crc(&second), crc(&saved));
         let status = run_line(&mut link, "link status").unwrap();
-        assert!(status.contains(&format!("CRC {}", crc(&second))), "{status}");
+        assert!(
+            status.contains(&format!("CRC {}", crc(&second))),
+            "{status}"
+        );
         run_line(&mut link, "params set following_error_ms 3").unwrap();
         run_line(&mut link, "params save").unwrap();
 

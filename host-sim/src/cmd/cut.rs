@@ -347,12 +347,7 @@ fn print_table(s: &Summary) {
 /// and its values, with the decimals the values' size needs (a part
 /// within a µin reads in tenths and hundredths, the 1983 part's hundreds
 /// in whole µin).
-pub fn cmm_table(
-    x_in: &[f64],
-    phi_deg: &[f64],
-    grid: &[Vec<Option<f64>>],
-    holes: bool,
-) -> String {
+pub fn cmm_table(x_in: &[f64], phi_deg: &[f64], grid: &[Vec<Option<f64>>], holes: bool) -> String {
     use std::fmt::Write as _;
     let max_abs = grid
         .iter()
@@ -676,8 +671,14 @@ mod tests {
         assert!(!lines[0].contains("hole"), "{t}");
         let head: Vec<&str> = lines[1].split_whitespace().collect();
         assert_eq!(head, ["φ\\X", "0.1875", "in", "0.375", "in"], "{t}");
-        assert_eq!(lines[2].split_whitespace().collect::<Vec<_>>(), ["0°", "-0.70", "-0.10"]);
-        assert_eq!(lines[3].split_whitespace().collect::<Vec<_>>(), ["10°", "0.00", "hole"]);
+        assert_eq!(
+            lines[2].split_whitespace().collect::<Vec<_>>(),
+            ["0°", "-0.70", "-0.10"]
+        );
+        assert_eq!(
+            lines[3].split_whitespace().collect::<Vec<_>>(),
+            ["10°", "0.00", "hole"]
+        );
         // The 1983 part's hundreds of µin stay whole.
         let t = cmm_table(&[1.0], &[0.0], &[vec![Some(-523.4)]], true);
         assert!(t.lines().nth(2).unwrap().ends_with(" -523"), "{t}");

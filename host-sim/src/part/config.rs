@@ -305,7 +305,10 @@ fn at_the_key(text: &str, e: &toml::de::Error) -> Option<String> {
             .find(|(_, v)| matches!(v.get_ref(), DeValue::String(s) if *s == value))?;
         (
             k.span(),
-            format!("{section}.{}: {msg} (a bare number, in the unit its name ends with)", k.get_ref()),
+            format!(
+                "{section}.{}: {msg} (a bare number, in the unit its name ends with)",
+                k.get_ref()
+            ),
         )
     } else {
         return None;
@@ -313,7 +316,9 @@ fn at_the_key(text: &str, e: &toml::de::Error) -> Option<String> {
     let line = text[..key.start].matches('\n').count() + 1;
     let col = key.start - text[..key.start].rfind('\n').map_or(0, |n| n + 1) + 1;
     let src = text.lines().nth(line - 1).unwrap_or("");
-    Some(format!("TOML parse error at line {line}, column {col}\n  |\n{line} | {src}\n  |\n{what}"))
+    Some(format!(
+        "TOML parse error at line {line}, column {col}\n  |\n{line} | {src}\n  |\n{what}"
+    ))
 }
 
 impl PartFile {

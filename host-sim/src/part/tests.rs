@@ -646,7 +646,10 @@ fn a_wrong_unit_key_and_a_unit_in_a_value_are_reported_at_their_own_line() {
     let part = part.replace("amplitude_mm = 0.01", "amplitude_in = \"0.8 mil\"");
     let e = super::config::PartFile::from_toml(&part).unwrap_err();
     assert!(e.starts_with("TOML parse error at line 3, column 1"), "{e}");
-    assert!(e.contains("surface.amplitude_in: invalid type: string \"0.8 mil\""), "{e}");
+    assert!(
+        e.contains("surface.amplitude_in: invalid type: string \"0.8 mil\""),
+        "{e}"
+    );
 }
 
 #[test]
@@ -660,6 +663,9 @@ fn a_range_no_grid_step_divides_is_refused_with_that_reason() {
         .load("x06", &dir)
         .unwrap();
     let why = lp.pick().unwrap_err();
-    assert!(why.contains("no grid step gives a table the format accepts over X 0..0.6 in"), "{why}");
+    assert!(
+        why.contains("no grid step gives a table the format accepts over X 0..0.6 in"),
+        "{why}"
+    );
     assert!(why.contains("must divide"), "{why}");
 }
