@@ -293,7 +293,7 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
             let mut l = link.borrow_mut();
             if let Some(f) = l.store_flash().filter(|f| Some(f.ops) != flash_ops) {
                 flash_ops = Some(f.ops);
-                crate::outpath::replace(path, &f.bytes)?;
+                crate::outpath::replace(path, f.bytes)?;
             }
         }
         let out = link.borrow_mut().take_received();

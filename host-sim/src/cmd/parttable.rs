@@ -93,7 +93,7 @@ pub fn make(lp: &LoadedPart) -> anyhow::Result<(PartTable, Vec<u8>, Report)> {
     // table it took can miss the bound between its samples. Only the
     // dense measurement decides.
     let budget = lp.bound_uin - lp.allowance_uin;
-    if !(errors.total_uin <= budget) {
+    if errors.total_uin.is_nan() || errors.total_uin > budget {
         return Err(anyhow!(
             "part {}: table refused: the table picked ({} harmonics, step {} in) measures {:.4} µin \
              total on the dense check (8 points per interval, 1440 φ; truncation {:.4}, \

@@ -270,4 +270,33 @@ mod tests {
         assert_eq!(nice_limit(1.3), 2.0);
         assert_eq!(nice_limit(450.0), 500.0);
     }
+
+    #[test]
+    fn the_radius_axis_ticks_of_a_part_within_two_inches_are_distinct() {
+        // A part's radii, 0 .. 1.5 in: whole-inch labels read "0 0 1 1 1 1 0".
+        let xs = [0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5];
+        let g = grid(|_, x| Some(-0.1 - 0.4 * x));
+        let dir = std::env::temp_dir().join(format!("errmap-ticks-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        write(&dir, &g, &xs, "part").unwrap();
+        let svg = std::fs::read_to_string(dir.join("error_map.svg")).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        // The Y axis' tick labels: text elements right-aligned at the axis.
+        let labels: Vec<&str> = svg
+            .split("<text")
+            .skip(1)
+            .filter(|t| t.contains("text-anchor=\"end\""))
+            .filter_map(|t| t.split('>').nth(1)?.split('<').next())
+            .collect();
+        assert!(labels.len() >= 4, "{labels:?}");
+        let mut sorted = labels.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(
+            sorted.len(),
+            labels.len(),
+            "repeated Y tick labels: {labels:?}"
+        );
+        assert!(labels.iter().any(|l| l.contains('.')), "{labels:?}");
+    }
 }
