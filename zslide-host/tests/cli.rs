@@ -7,6 +7,10 @@ use std::time::Duration;
 use zslide::link::proto::{CaptureInfo, CaptureState, Sample, Trigger};
 use zslide_host::cli::{parse_trigger, run_line, Cli, Link};
 
+/// `identify`'s Bode plots read back (one test binary: a link each).
+#[path = "cli/bode_plot.rs"]
+mod bode_plot;
+
 fn parse(args: &[&str]) -> Result<Cli, ErrorKind> {
     Cli::try_parse_from(std::iter::once("zslide").chain(args.iter().copied())).map_err(|e| e.kind())
 }
