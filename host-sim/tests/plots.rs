@@ -6,6 +6,10 @@
 use std::path::Path;
 use std::process::Command;
 
+/// The PNGs' pixels against their data (one test binary: a link each).
+#[path = "plots/pixels.rs"]
+mod pixels;
+
 fn host_sim(args: &[&str]) {
     let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(args)

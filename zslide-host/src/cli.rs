@@ -87,14 +87,67 @@ pub enum Cmd {
 
 #[derive(clap::Subcommand, Debug)]
 pub enum TableCmd {
-    /// Generate a table (`host-sim coeffs`'s generator): `--config
-    /// PART.toml --out PART.zsct`.
-    Build(host_sim::cmd::coeffs::Args),
+    /// Make the table of a part file (docs/PARTS.md, every surface kind;
+    /// the smallest table that meets its bound, as `host-sim part-table`),
+    /// or of a table configuration of `host-sim coeffs` (tables/default.toml):
+    /// `--config PART.toml --out PART.zsct`.
+    Build(BuildArgs),
     /// Check a table file as the firmware checks it (parser, CRC, sign
     /// check, region size) and print its identity.
     Check { file: PathBuf },
     /// Check a table file, then write it to the NUCLEO's table region.
     Flash(FlashArgs),
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct BuildArgs {
+    /// The part file, or a `host-sim coeffs` table configuration.
+    #[arg(long, value_name = "FILE")]
+    pub config: PathBuf,
+    /// The table image to write.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+/// `table build`: the table image written whole, its report on `out`.
+fn table_build(a: &BuildArgs, out: &mut dyn Write) -> Result<()> {
+    let shown = a.config.display();
+    let text =
+        std::fs::read_to_string(&a.config).map_err(|e| format!("{shown}: cannot read: {e}"))?;
+    host_sim::outpath::check_file("--out", &a.out).map_err(|e| format!("{e:#}"))?;
+    // A table configuration has a [grid]; a part file has none.
+    let is_config = text
+        .parse::<toml::Table>()
+        .is_ok_and(|t| t.contains_key("grid"));
+    if is_config {
+        // `host-sim coeffs --config FILE --out FILE --report`, its own
+        // defaults for the rest.
+        #[derive(clap::Parser)]
+        struct Coeffs {
+            #[command(flatten)]
+            a: host_sim::cmd::coeffs::Args,
+        }
+        let c = <Coeffs as clap::Parser>::try_parse_from([
+            "coeffs".as_ref(),
+            "--config".as_ref(),
+            a.config.as_os_str(),
+            "--out".as_ref(),
+            a.out.as_os_str(),
+            "--report".as_ref(),
+        ] as [&std::ffi::OsStr; 6])
+        .map_err(|e| e.to_string())?;
+        return host_sim::cmd::coeffs::run(c.a).map_err(|e| format!("{e:#}"));
+    }
+    let lp = host_sim::part::config::load_part(&a.config).map_err(|e| format!("{e:#}"))?;
+    let (_, image, r) = host_sim::cmd::parttable::make(&lp).map_err(|e| format!("{e:#}"))?;
+    crate::write_file(&a.out, &image)?;
+    for line in host_sim::cmd::parttable::report_text(&r).lines() {
+        say_to(out, line)?;
+    }
+    say_to(
+        out,
+        &format!("wrote {} ({} bytes)", a.out.display(), image.len()),
+    )
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -178,9 +231,7 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
     let mut say = |s: String| say_to(out, &s);
     match cmd {
         Cmd::Table { cmd } => match cmd {
-            TableCmd::Build(a) => {
-                host_sim::cmd::coeffs::run(a.clone()).map_err(|e| format!("{e:#}"))
-            }
+            TableCmd::Build(a) => table_build(a, out),
             TableCmd::Check { file } => {
                 let id = regions::check_table_file(file, &NUCLEO)?;
                 say(format!("{}: {id}", file.display()))?;
@@ -288,8 +339,7 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
                     .map(|s| regions::parse_setting(s))
                     .collect::<Result<Vec<_>>>()?;
                 let bytes = regions::param_block(&entries)?;
-                std::fs::write(file, &bytes)
-                    .map_err(|e| format!("{}: cannot write: {e}", file.display()))?;
+                crate::write_file(file, &bytes)?;
                 say(format!(
                     "{}: {} bytes, {} parameters",
                     file.display(),

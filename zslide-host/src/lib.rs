@@ -11,6 +11,7 @@ pub mod defmt_log;
 pub mod fit;
 pub mod flash;
 pub mod identify;
+pub mod interrupt;
 pub mod predict;
 #[cfg(feature = "probe")]
 pub mod probe;
@@ -20,3 +21,9 @@ pub mod scope;
 pub mod words;
 
 pub type Result<T> = std::result::Result<T, String>;
+
+/// Writes `bytes` as the whole of `path`, or leaves `path` as it was
+/// (`host_sim::outpath`, the one way both tools write their files).
+pub fn write_file(path: &std::path::Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+    host_sim::outpath::replace(path, bytes).map_err(|e| format!("{e:#}"))
+}

@@ -111,7 +111,11 @@ pub struct Summary {
     /// Finish by CMM radius, µin RMS.
     pub finish_rms_by_x_uin: Vec<Option<f64>>,
     pub simulated_s: f64,
+    /// The simulation's wall time.
     pub wall_s: f64,
+    /// The whole command's wall time to the summary: the simulation and
+    /// what came before it (a part's table made, the scenario loaded).
+    pub command_wall_s: f64,
     /// `simulated_s / wall_s`.
     pub real_time_factor: f64,
     /// Σ of the stretches' wall times: `simulated_s / cpu_s` is the
@@ -167,6 +171,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         },
         simulated_s: o.simulated_s,
         wall_s: o.wall_s,
+        command_wall_s: o.wall_s,
         real_time_factor: o.simulated_s / o.wall_s,
         cpu_s: o.cpu_s,
         faults: o.faults.clone(),
@@ -287,6 +292,7 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let wall0 = std::time::Instant::now();
     let spec = spec_of(&args, args.controller)?;
     if args.budget {
         let b = crate::cut::budget::run(&spec, &|s| eprintln!("budget: {s}"))?;
@@ -313,10 +319,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         extras.trace_s = 0.5;
     }
     let o = simulate(&spec, &extras)?;
-    let s = summarise(&spec, &o);
+    let mut s = summarise(&spec, &o);
     if let Some(dir) = &args.out {
         write_outputs(dir, &args, &spec, &o)?;
     }
+    s.command_wall_s = wall0.elapsed().as_secs_f64();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
     } else {
@@ -330,24 +337,71 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn print_table(s: &Summary) {
-    println!(
-        "CMM contour error, µin (positive = excess stock; φ rows, X columns; 'hole' = inside an open bolt hole)"
+    print!(
+        "{}",
+        cmm_table(&s.x_in, &s.phi_deg, &s.cmm_grid_uin, s.part.is_none())
     );
-    print!("{:>6}", "φ\\X");
-    for x in &s.x_in {
-        print!("{:>8}", format!("{x} in"));
-    }
-    println!();
-    for (phi, row) in s.phi_deg.iter().zip(&s.cmm_grid_uin) {
-        print!("{:>6}", format!("{phi}°"));
-        for v in row {
-            match v {
-                Some(e) => print!("{e:>8.0}"),
-                None => print!("{:>8}", "hole"),
-            }
+}
+
+/// The CMM grid as text: a column per radius wide enough for its heading
+/// and its values, with the decimals the values' size needs (a part
+/// within a µin reads in tenths and hundredths, the 1983 part's hundreds
+/// in whole µin).
+pub fn cmm_table(x_in: &[f64], phi_deg: &[f64], grid: &[Vec<Option<f64>>], holes: bool) -> String {
+    use std::fmt::Write as _;
+    let max_abs = grid
+        .iter()
+        .flatten()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let digits = if max_abs >= 100.0 {
+        0
+    } else if max_abs >= 10.0 {
+        1
+    } else {
+        2
+    };
+    let heads: Vec<String> = x_in.iter().map(|x| format!("{x} in")).collect();
+    let w = heads
+        .iter()
+        .map(|h| h.chars().count())
+        .chain(std::iter::once(format!("{:.digits$}", -max_abs).len()))
+        .max()
+        .unwrap_or(4)
+        + 2;
+    let mut t = format!(
+        "CMM contour error, µin (positive = excess stock; φ rows, X columns{})\n",
+        if holes {
+            "; 'hole' = inside an open bolt hole"
+        } else {
+            ""
         }
-        println!();
+    );
+    let _ = write!(t, "{:>6}", "φ\\X");
+    for h in &heads {
+        let _ = write!(t, "{h:>w$}");
     }
+    t.push('\n');
+    for (phi, row) in phi_deg.iter().zip(grid) {
+        let _ = write!(t, "{:>6}", format!("{phi}°"));
+        for v in row {
+            let _ = match v {
+                Some(e) => {
+                    let v = format!("{e:.digits$}");
+                    // No "-0.00": a value that rounds to zero has no sign.
+                    let v = if v.trim_start_matches(['-', '0', '.']).is_empty() {
+                        v.trim_start_matches('-').to_string()
+                    } else {
+                        v
+                    };
+                    write!(t, "{v:>w$}")
+                }
+                None => write!(t, "{:>w$}", "hole"),
+            };
+        }
+        t.push('\n');
+    }
+    t
 }
 
 /// The brief's contour goal (§6), µin either side: the same for both parts.
@@ -375,19 +429,30 @@ fn opt(v: Option<f64>) -> String {
 fn print_summary(s: &Summary, o: &CutOutcome) {
     println!();
     println!(
-        "{} / {} / {} rpm / holes {} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
+        "{} / {} / {} rpm / {} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
         s.scenario,
         s.controller.name(),
         s.rpm,
-        s.holes.name(),
+        match &s.part {
+            Some(p) => format!("part {p}"),
+            None => format!("holes {}", s.holes.name()),
+        },
         if s.full { "full pass" } else { "bands" },
         o.stretches,
         if o.stretches == 1 { "" } else { "es" },
         s.depth_in,
         s.feed_per_rev_in * 1e6
     );
+    // The 1983 figures are of the 1983 part: a part of one's own has none.
+    let (part_1983, finish_1983) = match s.part {
+        Some(_) => (String::new(), ""),
+        None => (
+            format!(" ({})", part_1983(s.holes)),
+            " (1983: 7 centre .. 60 edge)",
+        ),
+    };
     println!(
-        "contour error      {} .. {} µin{} ({})",
+        "contour error      {} .. {} µin{}{part_1983}",
         opt(s.contour_error_min_uin),
         opt(s.contour_error_max_uin),
         match (s.contour_goal_uin, s.contour_goal_met) {
@@ -395,7 +460,6 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
             (Some(g), Some(false)) => format!(": goal ±{g} µin MISSED"),
             _ => String::new(),
         },
-        part_1983(s.holes)
     );
     let by_x: Vec<String> = s
         .finish_rms_by_x_uin
@@ -404,7 +468,7 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         .map(|(f, x)| format!("{x}: {}", opt(*f)))
         .collect();
     println!(
-        "finish             {} µin RMS (by X in: {}) (1983: 7 centre .. 60 edge)",
+        "finish             {} µin RMS (by X in: {}){finish_1983}",
         opt(s.finish_rms_uin),
         by_x.join(", ")
     );
@@ -428,11 +492,18 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         }
     );
     println!(
-        "simulated          {:.1} s in {:.1} s wall: {:.0}x real time ({:.0}x per core)",
+        "simulated          {:.1} s in {:.1} s wall: {:.0}x real time ({:.0}x per core); \
+         {:.1} s wall for the whole command{}",
         s.simulated_s,
         s.wall_s,
         s.real_time_factor,
-        s.simulated_s / s.cpu_s
+        s.simulated_s / s.cpu_s,
+        s.command_wall_s,
+        if s.part.is_some() {
+            " (with the part's table and the plots)"
+        } else {
+            ""
+        }
     );
 }
 
@@ -465,12 +536,16 @@ fn write_outputs(
     spec: &CutSpec,
     o: &CutOutcome,
 ) -> anyhow::Result<()> {
+    // A part of one's own has no bolt holes: its name says what was cut.
+    let setting = match &spec.part {
+        Some(p) => format!("part {}", p.name),
+        None => holes_words(spec.holes).to_string(),
+    };
     let what = format!(
-        "{}, {}, {} rpm, {}",
+        "{}, {}, {} rpm, {setting}",
         spec.scenario.file.name,
         spec.controller.name(),
         spec.rpm,
-        holes_words(spec.holes)
     );
     if let Some(r) = &o.rect {
         // A rectangular grid: its points as CSV, and the trace of the
@@ -512,7 +587,7 @@ fn write_outputs(
             "{}, {} rpm, {}: contour error at X = {} in",
             spec.scenario.file.name,
             spec.rpm,
-            holes_words(spec.holes),
+            setting,
             spec.cmm_x()[j7]
         ),
         "φ, deg",
@@ -578,4 +653,35 @@ fn write_trace(
             markers: &[],
         },
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cmm_table;
+
+    #[test]
+    fn a_sub_microinch_grid_reads_in_hundredths_under_separated_headings() {
+        let t = cmm_table(
+            &[0.1875, 0.375],
+            &[0.0, 10.0],
+            &[vec![Some(-0.7), Some(-0.1)], vec![Some(-0.004), None]],
+            false,
+        );
+        let lines: Vec<&str> = t.lines().collect();
+        assert!(!lines[0].contains("hole"), "{t}");
+        let head: Vec<&str> = lines[1].split_whitespace().collect();
+        assert_eq!(head, ["φ\\X", "0.1875", "in", "0.375", "in"], "{t}");
+        assert_eq!(
+            lines[2].split_whitespace().collect::<Vec<_>>(),
+            ["0°", "-0.70", "-0.10"]
+        );
+        assert_eq!(
+            lines[3].split_whitespace().collect::<Vec<_>>(),
+            ["10°", "0.00", "hole"]
+        );
+        // The 1983 part's hundreds of µin stay whole.
+        let t = cmm_table(&[1.0], &[0.0], &[vec![Some(-523.4)]], true);
+        assert!(t.lines().nth(2).unwrap().ends_with(" -523"), "{t}");
+        assert!(t.lines().next().unwrap().contains("'hole'"), "{t}");
+    }
 }

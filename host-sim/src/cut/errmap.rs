@@ -11,7 +11,6 @@
 
 use super::part::{cmm_phi_deg, CmmGrid};
 use crate::plot::Series;
-use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -142,7 +141,7 @@ where
         .x_labels(13)
         .x_label_formatter(&|v| format!("{v:.0}"))
         .y_labels(7)
-        .y_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| crate::plot::tick_label(*v, xs[xs.len() - 1] - xs[0]))
         .disable_mesh()
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
@@ -202,24 +201,13 @@ pub fn write(dir: &Path, grid: &CmmGrid, xs: &[f64], title: &str) -> anyhow::Res
         xs.len(),
         grid.err_uin.first().map_or(0, Vec::len)
     );
-    crate::plot::register_font();
-    let size = (980, 560);
-    let svg = dir.join("error_map.svg");
-    draw(
-        SVGBackend::new(&svg, size).into_drawing_area(),
-        grid,
-        xs,
-        title,
-    )
-    .with_context(|| format!("writing {}", svg.display()))?;
-    let png = dir.join("error_map.png");
-    draw(
-        BitMapBackend::new(&png, size).into_drawing_area(),
-        grid,
-        xs,
-        title,
-    )
-    .with_context(|| format!("writing {}", png.display()))?;
+    crate::plot::write_svg_png(
+        dir,
+        "error_map",
+        (980, 560),
+        |a| draw(a, grid, xs, title),
+        |a| draw(a, grid, xs, title),
+    )?;
     let series: Vec<Series> = xs
         .iter()
         .enumerate()
@@ -281,5 +269,34 @@ mod tests {
         assert_eq!(nice_limit(8.0), 10.0);
         assert_eq!(nice_limit(1.3), 2.0);
         assert_eq!(nice_limit(450.0), 500.0);
+    }
+
+    #[test]
+    fn the_radius_axis_ticks_of_a_part_within_two_inches_are_distinct() {
+        // A part's radii, 0 .. 1.5 in: whole-inch labels read "0 0 1 1 1 1 0".
+        let xs = [0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5];
+        let g = grid(|_, x| Some(-0.1 - 0.4 * x));
+        let dir = std::env::temp_dir().join(format!("errmap-ticks-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        write(&dir, &g, &xs, "part").unwrap();
+        let svg = std::fs::read_to_string(dir.join("error_map.svg")).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        // The Y axis' tick labels: text elements right-aligned at the axis.
+        let labels: Vec<&str> = svg
+            .split("<text")
+            .skip(1)
+            .filter(|t| t.contains("text-anchor=\"end\""))
+            .filter_map(|t| t.split('>').nth(1)?.split('<').next())
+            .collect();
+        assert!(labels.len() >= 4, "{labels:?}");
+        let mut sorted = labels.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(
+            sorted.len(),
+            labels.len(),
+            "repeated Y tick labels: {labels:?}"
+        );
+        assert!(labels.iter().any(|l| l.contains('.')), "{labels:?}");
     }
 }

@@ -513,13 +513,11 @@ pub fn run_stretch(
     }
     let trace = match &extras.vcd {
         Some((path, from, to)) => {
-            let file = std::io::BufWriter::new(
-                std::fs::File::create(path)
-                    .with_context(|| format!("cannot write {}", path.display()))?,
-            );
+            let (partial, file) = crate::outpath::Partial::create(path)?;
             let t0 = ((rec_start_s + from) * 1e9) as u64;
             let t1 = ((rec_start_s + to) * 1e9) as u64;
-            Some(crate::vcd::machine::attach(&mut s, file, t0, t1)?)
+            let tr = crate::vcd::machine::attach(&mut s, std::io::BufWriter::new(file), t0, t1)?;
+            Some((partial, tr))
         }
         None => None,
     };
@@ -531,8 +529,9 @@ pub fn run_stretch(
         s.run_until(&mut w, t);
         progress(chunk.min(t_end) as f64 * 1e-9);
     }
-    if let Some(tr) = trace {
+    if let Some((partial, tr)) = trace {
         crate::vcd::machine::detach(&mut s, tr)?;
+        partial.commit()?;
     }
     let mut faults = Vec::new();
     if let Some(f) = w.fw.fault() {
