@@ -7,7 +7,6 @@ use std::path::Path;
 use std::process::Command;
 
 /// The PNGs' pixels against their data (one test binary: a link each).
-#[path = "plots/pixels.rs"]
 mod pixels;
 
 fn host_sim(args: &[&str]) {

@@ -10,7 +10,6 @@ use zslide_host::cli::{run_line, Cli};
 use zslide_host::client::Link;
 
 /// `identify`'s Bode plots read back (one test binary: a link each).
-#[path = "cli/bode_plot.rs"]
 mod bode_plot;
 
 fn parse(args: &[&str]) -> Result<Cli, ErrorKind> {
