@@ -91,6 +91,23 @@ pub struct Args {
     /// with k_t and k_e each scaled × 0.1 .. × 2 (`cut::sensitivity`).
     #[arg(long, conflicts_with = "budget")]
     pub force_sensitivity: bool,
+    /// Measure the hole zone: the surface across the bolt circle's ring on
+    /// a dense grid, by distance from the hole edges (`cut::holezone`;
+    /// its own band runs, about five times the CMM bands' machine time).
+    #[arg(long, value_enum, default_value_t = HoleZoneArg::On)]
+    pub hole_zone: HoleZoneArg,
+    /// Scale the force model's edge constant k_e by this factor (the
+    /// process stiffness the loop does not know exactly; `--force-sensitivity`
+    /// sweeps it for the CMM band alone).
+    #[arg(long, default_value_t = 1.0)]
+    pub ke_scale: f64,
+}
+
+/// Whether `cut` measures the hole zone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum HoleZoneArg {
+    On,
+    Off,
 }
 
 /// The JSON summary (brief §5).
@@ -140,6 +157,12 @@ pub struct Summary {
     /// the polar fields above are then empty.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grid: Option<crate::cut::gridcut::RectMeasured>,
+    /// The hole zone (`cut::holezone`): null where the scenario has no
+    /// holes, or with `--hole-zone off` (`hole_zone_measured` false).
+    pub hole_zone: Option<crate::cut::holezone::HoleZone>,
+    pub hole_zone_measured: bool,
+    /// The edge constant k_e the cut used, lbf/in (`--ke-scale`).
+    pub k_e_lbf_per_in: f64,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
@@ -188,6 +211,9 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         command_sign: spec.command_sign,
         measure: spec.measure,
         grid: o.rect.clone(),
+        hole_zone: o.zone.as_ref().map(|z| z.summary()),
+        hole_zone_measured: spec.hole_zone,
+        k_e_lbf_per_in: spec.scenario.cutting.k_e_lbf_per_in,
     }
 }
 
@@ -233,6 +259,15 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     }
     spec.command_sign = args.command_sign;
     spec.measure = args.measure;
+    anyhow::ensure!(
+        args.ke_scale.is_finite() && args.ke_scale > 0.0 && args.ke_scale <= 10.0,
+        "--ke-scale {}: must be in (0, 10]",
+        args.ke_scale
+    );
+    spec.scenario.cutting.k_e_lbf_per_in *= args.ke_scale;
+    // The budget and the sweep compare the CMM grid run by run; the zone
+    // is the single cut's.
+    spec.hole_zone = args.hole_zone == HoleZoneArg::On && !args.budget && !args.force_sensitivity;
     Ok(spec)
 }
 
@@ -413,6 +448,14 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         s.following_error_rms_uin, s.following_error_peak_uin
     );
     println!("cutting force      {:.2} lbf mean", s.mean_force_lbf);
+    match (&s.hole_zone, s.hole_zone_measured) {
+        (Some(z), _) => println!(
+            "hole zone          {}",
+            crate::cut::holezone::summary_line(z)
+        ),
+        (None, true) => println!("hole zone          none (the part has no holes)"),
+        (None, false) => println!("hole zone          not measured (--hole-zone off)"),
+    }
     println!(
         "errors             {} (beyond the loop); command sign {}; measured {}",
         s.errors.name(),
@@ -480,6 +523,13 @@ fn write_outputs(
             .first()
             .map_or(0.0, |st| 0.5 * (st.windows[0].0 + st.windows[0].1));
         return write_trace(dir, &what, "the grid's innermost band", x_in, &o.trace);
+    }
+    if let Some(z) = &o.zone {
+        crate::cut::zoneplot::write(
+            dir,
+            z,
+            &format!("{what}: the hole zone (+ = excess stock)"),
+        )?;
     }
     crate::cut::errmap::write(
         dir,

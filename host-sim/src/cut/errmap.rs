@@ -17,7 +17,7 @@ use plotters::prelude::*;
 use std::path::Path;
 
 /// Colour bands either side of zero.
-const BANDS: usize = 6;
+pub const BANDS: usize = 6;
 
 /// The band edge: the largest |error| rounded up to 1, 2 or 5 × 10ⁿ µin.
 pub fn nice_limit(max_abs: f64) -> f64 {
@@ -33,7 +33,7 @@ pub fn nice_limit(max_abs: f64) -> f64 {
 }
 
 /// Diverging colour of band `k` of `2·BANDS` (0 = deepest blue).
-fn band_color(k: usize) -> RGBColor {
+pub fn band_color(k: usize) -> RGBColor {
     let n = BANDS as f64;
     let t = (k as f64 + 0.5) / n - 1.0; // −1 .. 1
     let a = t.abs().min(1.0);
@@ -45,7 +45,7 @@ fn band_color(k: usize) -> RGBColor {
     RGBColor((r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8)
 }
 
-fn band_of(v: f64, lim: f64) -> usize {
+pub fn band_of(v: f64, lim: f64) -> usize {
     let k = ((v / lim + 1.0) * BANDS as f64).floor();
     k.clamp(0.0, (2 * BANDS - 1) as f64) as usize
 }

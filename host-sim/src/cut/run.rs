@@ -34,6 +34,8 @@ pub struct StretchLog {
     pub force_sum: f64,
     /// The passes at a rectangular grid's angles (`cut --grid`).
     pub grid: Option<super::gridcut::AngleLog>,
+    /// The hole zone's envelope (`holezone`), on its stretches.
+    pub zone: Option<super::holezone::ZoneLog>,
 }
 
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
@@ -216,6 +218,23 @@ impl TickHook for Cutter {
             self.prev = Some((turns, x, z));
         } else {
             self.prev = None;
+        }
+        if let Some(zl) = self.log.zone.as_mut() {
+            if zl.recording(x) {
+                if let Some((turns0, x0, z0)) = zl.prev {
+                    let n = super::holezone::PHI_COUNT as f64;
+                    for (k, i) in super::holezone::ZoneLog::crossings(turns0, turns) {
+                        let w = (k as f64 / n - turns0) / (turns - turns0);
+                        let xc = x0 + (x - x0) * w;
+                        let zc = z0 + (z - z0) * w;
+                        let ec = zc - self.nominal_sign * self.nominal.exact(xc, i as f64 / n);
+                        zl.add(i, xc, ec);
+                    }
+                }
+                zl.prev = Some((turns, x, z));
+            } else {
+                zl.prev = None;
+            }
         }
     }
 }
