@@ -163,6 +163,10 @@ pub struct Summary {
     pub hole_zone_measured: bool,
     /// The edge constant k_e the cut used, lbf/in (`--ke-scale`).
     pub k_e_lbf_per_in: f64,
+    /// Largest |coil current| while recording (the CMM bands and the hole
+    /// zone), A, and the amplifier's limit.
+    pub current_peak_a: f64,
+    pub current_limit_a: f64,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
@@ -214,6 +218,8 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         hole_zone: o.zone.as_ref().map(|z| z.summary()),
         hole_zone_measured: spec.hole_zone,
         k_e_lbf_per_in: spec.scenario.cutting.k_e_lbf_per_in,
+        current_peak_a: o.current_peak_a,
+        current_limit_a: spec.scenario.file.amplifier.current_limit_a,
     }
 }
 
@@ -229,11 +235,6 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.preroll_revs >= 0.0 && args.preroll_revs <= 10_000.0,
         "--preroll-revs {}: must be in 0..10000",
         args.preroll_revs
-    );
-    anyhow::ensure!(
-        args.depth_in > 0.0 && args.depth_in <= 0.005,
-        "--depth-in {}: must be in (0, 0.005] in (a finishing pass)",
-        args.depth_in
     );
     spec.band_half_in = args.band_in;
     spec.preroll_revs = args.preroll_revs;
@@ -265,10 +266,42 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.ke_scale
     );
     spec.scenario.cutting.k_e_lbf_per_in *= args.ke_scale;
+    check_depth(&spec, args.depth_in)?;
     // The budget and the sweep compare the CMM grid run by run; the zone
     // is the single cut's.
     spec.hole_zone = args.hole_zone == HoleZoneArg::On && !args.budget && !args.force_sensitivity;
     Ok(spec)
+}
+
+/// Deepest cut `cut` takes, in: chapter 5's roughing passes (0.005 ..
+/// 0.010 in), and the capacitance gauge's ±0.010 in range, over which the
+/// slide can lift the tool clear of the stock.
+pub const MAX_DEPTH_IN: f64 = 0.010;
+
+/// Refuses a depth of cut the machine cannot take, with the reason: deeper
+/// than [`MAX_DEPTH_IN`], or a steady cutting force whose current (at the
+/// scenario's force constant) exceeds the amplifier's limit.
+fn check_depth(spec: &CutSpec, depth_in: f64) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        depth_in > 0.0 && depth_in <= MAX_DEPTH_IN,
+        "--depth-in {depth_in}: must be in (0, {MAX_DEPTH_IN}] in (chapter 5's roughing passes \
+         reach 0.010 in, the gauge's range; deeper, the slide cannot lift the tool clear of the stock)"
+    );
+    let f = &spec.scenario.file;
+    let force = spec
+        .scenario
+        .cutting
+        .thrust_lbf(depth_in, spec.feed_per_rev_in);
+    let amps = force / f.motor.kf_lbf_per_a;
+    anyhow::ensure!(
+        amps <= f.amplifier.current_limit_a,
+        "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
+         amplifier's {} A limit (scenario {}: motor.kf_lbf_per_a {}, amplifier.current_limit_a)",
+        f.amplifier.current_limit_a,
+        f.name,
+        f.motor.kf_lbf_per_a
+    );
+    Ok(())
 }
 
 fn progress_bar(spec: &CutSpec) -> anyhow::Result<ProgressBar> {
@@ -447,7 +480,10 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         "following error    {:.1} µin RMS, {:.1} µin peak (tool minus the exact command)",
         s.following_error_rms_uin, s.following_error_peak_uin
     );
-    println!("cutting force      {:.2} lbf mean", s.mean_force_lbf);
+    println!(
+        "cutting force      {:.2} lbf mean; coil current {:.2} A peak (amplifier limit {} A)",
+        s.mean_force_lbf, s.current_peak_a, s.current_limit_a
+    );
     match (&s.hole_zone, s.hole_zone_measured) {
         (Some(z), _) => println!(
             "hole zone          {}",

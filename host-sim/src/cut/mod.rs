@@ -28,6 +28,7 @@ pub mod frame;
 pub mod errmap;
 pub mod gridcut;
 pub mod holezone;
+pub mod interruptions;
 pub mod zoneplot;
 pub mod nominal;
 pub mod part;
@@ -146,6 +147,10 @@ impl CutSpec {
             Holes::Open
         });
         check_part_side(scenario.cutting.part_side)
+            .with_context(|| format!("scenario {}", f.name))?;
+        // The holes as the firmware's interruption block would carry them:
+        // a set it would refuse is refused before the pass.
+        interruptions::block_of(&scenario.cutting.bolt_holes)
             .with_context(|| format!("scenario {}", f.name))?;
         let error_levels = scenario.file.errors.clone();
         Ok(Self {
@@ -619,6 +624,8 @@ pub struct CutOutcome {
     pub following_error_peak_uin: f64,
     /// Mean cutting force while recording, lbf.
     pub mean_force_lbf: f64,
+    /// Largest |coil current| while recording, A.
+    pub current_peak_a: f64,
     /// Tick-by-tick (t s, following error µin, force lbf) of the trace
     /// stretch.
     pub trace: Vec<(f64, f64, f64)>,
@@ -663,6 +670,7 @@ pub fn run_pass(
     let mut grid_log = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
     let mut zone_log: Option<holezone::ZoneLog> = None;
     let (mut sum_sq, mut n, mut peak, mut force) = (0.0, 0u64, 0.0f64, 0.0);
+    let mut current_peak_a = 0.0f64;
     let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
     let mut faults = Vec::new();
     let mut trace = Vec::new();
@@ -683,6 +691,7 @@ pub fn run_pass(
         sum_sq += r.log.fe_sum_sq;
         n += r.log.fe_n;
         peak = peak.max(r.log.fe_peak);
+        current_peak_a = current_peak_a.max(r.log.current_peak_a);
         force += r.log.force_sum;
         simulated_s += r.simulated_s;
         cpu_s += r.wall_s;
@@ -743,6 +752,7 @@ pub fn run_pass(
         following_error_rms_uin: (sum_sq / nf).sqrt() * 1e6,
         following_error_peak_uin: peak * 1e6,
         mean_force_lbf: force / nf,
+        current_peak_a,
         trace,
         traces,
         simulated_s,
