@@ -363,7 +363,8 @@ mod tests {
             Err(InterruptError::DiameterOutOfRange { index: 5, .. })
         ));
         let mut h = eight();
-        h[1].diameter_uin = 2 * h[1].centre_radius_uin;
+        h[1].centre_radius_uin = 300_000;
+        h[1].diameter_uin = 600_000;
         let (z, m) = block(&h);
         assert_eq!(
             Interruptions::parse(&z[..m]),

@@ -584,7 +584,11 @@ fn write_outputs(
             continue;
         }
         let oo = spec_of(args, other)
-            .and_then(|sp| simulate(&sp, &Extras::default()))
+            .and_then(|mut sp| {
+                // Only its CMM column is drawn.
+                sp.hole_zone = false;
+                simulate(&sp, &Extras::default())
+            })
             .with_context(|| format!("error_x7: the {} run", other.name()))?;
         x7.push(Series {
             label: other.name().to_string(),

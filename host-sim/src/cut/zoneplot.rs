@@ -227,3 +227,33 @@ pub fn write(dir: &Path, z: &ZoneMeasured, title: &str) -> anyhow::Result<()> {
     f.flush()?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cut::holezone::ZoneLog;
+    use crate::plant::cutting::BoltHoles;
+
+    #[test]
+    fn the_zone_plot_and_its_csv_cover_every_grid_point() {
+        let g = ZoneGrid::new(&BoltHoles::default(), 1.0, 7.25).unwrap();
+        let mut log = ZoneLog::new(&g, 0.125, 100e-6, vec![]);
+        for i in 0..PHI_COUNT {
+            let mut x = g.radii[0] - 0.001;
+            while x < g.radii[g.radii.len() - 1] + 0.001 {
+                log.add(i, x, 1e-6 * (x - 3.5));
+                x += 100e-6;
+            }
+        }
+        let z = ZoneMeasured::measure(&g, &log);
+        let dir = std::env::temp_dir().join(format!("zslide-zoneplot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        write(&dir, &z, "test").unwrap();
+        let png = std::fs::read(dir.join("hole_zone.png")).unwrap();
+        assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000, "{}", png.len());
+        let csv = std::fs::read_to_string(dir.join("hole_zone.csv")).unwrap();
+        assert_eq!(csv.lines().count(), 1 + PHI_COUNT * g.radii.len());
+        assert!(csv.lines().any(|l| l.contains(",true,")), "hole points");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
