@@ -74,20 +74,37 @@ impl Default for Interruptions {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum InterruptError {
     /// Shorter than its header and CRC, or than the count it states.
-    Truncated { len: usize, need: usize },
+    Truncated {
+        len: usize,
+        need: usize,
+    },
     /// Longer than the count it states.
-    TrailingBytes { len: usize, expected: usize },
+    TrailingBytes {
+        len: usize,
+        expected: usize,
+    },
     BadMagic,
     UnsupportedVersion(u16),
     TooManyHoles(u16),
     ReservedNotZero,
-    BadCrc { stored: u32, computed: u32 },
+    BadCrc {
+        stored: u32,
+        computed: u32,
+    },
     /// Hole `index`'s centre radius is 0 or beyond the limit.
-    RadiusOutOfRange { index: usize, radius_uin: u32 },
+    RadiusOutOfRange {
+        index: usize,
+        radius_uin: u32,
+    },
     /// Hole `index`'s diameter is 0 or beyond the limit.
-    DiameterOutOfRange { index: usize, diameter_uin: u32 },
+    DiameterOutOfRange {
+        index: usize,
+        diameter_uin: u32,
+    },
     /// Hole `index` would cover the axis (diameter ≥ 2 × radius).
-    CoversTheAxis { index: usize },
+    CoversTheAxis {
+        index: usize,
+    },
 }
 
 impl core::fmt::Display for InterruptError {
@@ -312,7 +329,10 @@ mod tests {
         ));
         assert_eq!(
             Interruptions::parse(&good[..n - 1]),
-            Err(InterruptError::Truncated { len: n - 1, need: n })
+            Err(InterruptError::Truncated {
+                len: n - 1,
+                need: n
+            })
         );
         let mut long = std::vec::Vec::from(good);
         long.push(0);

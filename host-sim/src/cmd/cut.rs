@@ -561,11 +561,7 @@ fn write_outputs(
         return write_trace(dir, &what, "the grid's innermost band", x_in, &o.trace);
     }
     if let Some(z) = &o.zone {
-        crate::cut::zoneplot::write(
-            dir,
-            z,
-            &format!("{what}: the hole zone (+ = excess stock)"),
-        )?;
+        crate::cut::zoneplot::write(dir, z, &format!("{what}: the hole zone (+ = excess stock)"))?;
     }
     crate::cut::errmap::write(
         dir,

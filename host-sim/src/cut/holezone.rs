@@ -101,7 +101,10 @@ impl ZoneGrid {
     /// Where the point at surface radius `r`, part angle `phi_deg` lies.
     pub fn place(&self, r: f64, phi_deg: f64) -> Place {
         let rho = self.holes.diameter_in / 2.0;
-        let (x, y) = (r * phi_deg.to_radians().cos(), r * phi_deg.to_radians().sin());
+        let (x, y) = (
+            r * phi_deg.to_radians().cos(),
+            r * phi_deg.to_radians().sin(),
+        );
         let mut best = (f64::INFINITY, 0.0);
         for a in self.hole_deg() {
             let (hx, hy) = (
@@ -303,7 +306,11 @@ impl ZoneMeasured {
         let all = |_: &Place| true;
         let lead = |p: &Place| p.leading;
         let trail = |p: &Place| !p.leading;
-        let cells = self.place.iter().flatten().zip(self.err_uin.iter().flatten());
+        let cells = self
+            .place
+            .iter()
+            .flatten()
+            .zip(self.err_uin.iter().flatten());
         let hole_points = cells.clone().filter(|(p, _)| p.in_hole).count();
         let points = cells.clone().filter(|(_, e)| e.is_some()).count();
         let r = &self.grid.radii;
@@ -450,7 +457,10 @@ mod tests {
         let z = ZoneMeasured::measure(&g, &log).summary();
         assert_eq!(z.uncut_points, 0);
         assert!(z.hole_points > 0);
-        assert!((z.leading_worst_uin[3].unwrap() - 10.0).abs() < 0.02, "{z:?}");
+        assert!(
+            (z.leading_worst_uin[3].unwrap() - 10.0).abs() < 0.02,
+            "{z:?}"
+        );
         assert!(z.trailing_worst_uin[0].unwrap() < -99.0, "{z:?}");
         assert!(z.worst_uin[0].unwrap() < -99.0);
     }

@@ -192,7 +192,11 @@ impl CutSpec {
             filled: self.holes == Holes::Filled,
             ..self.scenario.cutting.bolt_holes.clone()
         };
-        Ok(holezone::ZoneGrid::new(&holes, gain, self.x_start_in * gain))
+        Ok(holezone::ZoneGrid::new(
+            &holes,
+            gain,
+            self.x_start_in * gain,
+        ))
     }
 
     /// The table image the firmware runs.
@@ -320,13 +324,16 @@ pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
             index: 0,
         }];
     }
-    let bands = windows.into_iter().enumerate().map(|(k, (lo, hi))| Stretch {
-        x_start_in: hi + spec.preroll_revs * f,
-        x_end_in: lo - 2.0 * f,
-        windows: vec![(lo, hi)],
-        zone: vec![],
-        index: k as u64 + 1,
-    });
+    let bands = windows
+        .into_iter()
+        .enumerate()
+        .map(|(k, (lo, hi))| Stretch {
+            x_start_in: hi + spec.preroll_revs * f,
+            x_end_in: lo - 2.0 * f,
+            windows: vec![(lo, hi)],
+            zone: vec![],
+            index: k as u64 + 1,
+        });
     let zone = zone.into_iter().enumerate().map(|(k, (lo, hi))| Stretch {
         x_start_in: hi + spec.preroll_revs * f,
         x_end_in: lo - 2.0 * f,

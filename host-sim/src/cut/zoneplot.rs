@@ -208,7 +208,10 @@ pub fn write(dir: &Path, z: &ZoneMeasured, title: &str) -> anyhow::Result<()> {
     let mut f = std::io::BufWriter::new(
         std::fs::File::create(&csv).with_context(|| format!("writing {}", csv.display()))?,
     );
-    writeln!(f, "radius_in,phi_deg,error_uin,in_hole,edge_distance_in,side")?;
+    writeln!(
+        f,
+        "radius_in,phi_deg,error_uin,in_hole,edge_distance_in,side"
+    )?;
     for (i, row) in z.err_uin.iter().enumerate() {
         for (j, e) in row.iter().enumerate() {
             let p = z.place[i][j];
@@ -250,7 +253,11 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         write(&dir, &z, "test").unwrap();
         let png = std::fs::read(dir.join("hole_zone.png")).unwrap();
-        assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000, "{}", png.len());
+        assert!(
+            png.starts_with(b"\x89PNG") && png.len() > 10_000,
+            "{}",
+            png.len()
+        );
         let csv = std::fs::read_to_string(dir.join("hole_zone.csv")).unwrap();
         assert_eq!(csv.lines().count(), 1 + PHI_COUNT * g.radii.len());
         assert!(csv.lines().any(|l| l.contains(",true,")), "hole points");
