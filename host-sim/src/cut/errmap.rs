@@ -17,7 +17,7 @@ use plotters::prelude::*;
 use std::path::Path;
 
 /// Colour bands either side of zero.
-pub const BANDS: usize = 6;
+const BANDS: usize = 6;
 
 /// The band edge: the largest |error| rounded up to 1, 2 or 5 × 10ⁿ µin.
 pub fn nice_limit(max_abs: f64) -> f64 {
@@ -94,6 +94,53 @@ fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("{e:?}")
 }
 
+/// The colour bar beside a map: the bands with their edges (±`lim`), the
+/// sense of the sign, and grey labelled `grey_label`.
+pub fn colour_bar<DB: DrawingBackend>(
+    bar: &DrawingArea<DB, Shift>,
+    lim: f64,
+    grey_label: &str,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let (_, h) = bar.dim_in_pixel();
+    let (top, bottom) = (50i32, h as i32 - 70);
+    let step = (bottom - top) / (2 * BANDS) as i32;
+    let font = ("sans-serif", 13).into_font().color(&BLACK);
+    bar.draw_text("error, µin", &font, (6, top - 30))
+        .map_err(err)?;
+    for k in 0..2 * BANDS {
+        let y1 = bottom - step * k as i32;
+        bar.draw(&Rectangle::new(
+            [(10, y1 - step), (40, y1)],
+            band_color(k).filled(),
+        ))
+        .map_err(err)?;
+        let edge = -lim + 2.0 * lim * k as f64 / (2 * BANDS) as f64;
+        bar.draw_text(&crate::plot::tick_label(edge, lim), &font, (46, y1 - 7))
+            .map_err(err)?;
+    }
+    bar.draw_text(
+        &crate::plot::tick_label(lim, lim),
+        &font,
+        (46, bottom - step * (2 * BANDS) as i32 - 7),
+    )
+    .map_err(err)?;
+    bar.draw(&Rectangle::new(
+        [(10, bottom + 16), (40, bottom + 32)],
+        RGBColor(170, 170, 170).filled(),
+    ))
+    .map_err(err)?;
+    bar.draw_text(grey_label, &font, (46, bottom + 18))
+        .map_err(err)?;
+    bar.draw_text("+ excess stock", &font, (6, top - 14))
+        .map_err(err)?;
+    bar.draw_text("− too deep", &font, (6, bottom + 40))
+        .map_err(err)?;
+    Ok(())
+}
+
 fn draw<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     grid: &CmmGrid,
@@ -154,41 +201,7 @@ where
         .collect();
     ch.draw_series(pts.into_iter().map(|p| Circle::new(p, 1, BLACK.filled())))
         .map_err(err)?;
-    // The colour bar with its band edges.
-    let (_, h) = bar.dim_in_pixel();
-    let (top, bottom) = (50i32, h as i32 - 70);
-    let step = (bottom - top) / (2 * BANDS) as i32;
-    let font = ("sans-serif", 13).into_font().color(&BLACK);
-    bar.draw_text("error, µin", &font, (6, top - 30))
-        .map_err(err)?;
-    for k in 0..2 * BANDS {
-        let y1 = bottom - step * k as i32;
-        bar.draw(&Rectangle::new(
-            [(10, y1 - step), (40, y1)],
-            band_color(k).filled(),
-        ))
-        .map_err(err)?;
-        let edge = -lim + 2.0 * lim * k as f64 / (2 * BANDS) as f64;
-        bar.draw_text(&crate::plot::tick_label(edge, lim), &font, (46, y1 - 7))
-            .map_err(err)?;
-    }
-    bar.draw_text(
-        &crate::plot::tick_label(lim, lim),
-        &font,
-        (46, bottom - step * (2 * BANDS) as i32 - 7),
-    )
-    .map_err(err)?;
-    bar.draw(&Rectangle::new(
-        [(10, bottom + 16), (40, bottom + 32)],
-        grey.filled(),
-    ))
-    .map_err(err)?;
-    bar.draw_text("in a hole", &font, (46, bottom + 18))
-        .map_err(err)?;
-    bar.draw_text("+ excess stock", &font, (6, top - 14))
-        .map_err(err)?;
-    bar.draw_text("− too deep", &font, (6, bottom + 40))
-        .map_err(err)?;
+    colour_bar(&bar, lim, "in a hole")?;
     root.present().map_err(err)?;
     Ok(())
 }

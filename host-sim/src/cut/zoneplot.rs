@@ -5,7 +5,7 @@
 //! ±15° around the hole with the largest error next to it, at the grid's
 //! own resolution. With `hole_zone.csv`: every grid point.
 
-use super::errmap::{band_color, band_of, nice_limit, BANDS};
+use super::errmap::{band_color, band_of, colour_bar, nice_limit};
 use super::holezone::{half_width_deg, ZoneGrid, ZoneMeasured, PHI_COUNT};
 use anyhow::Context;
 use plotters::coord::Shift;
@@ -154,40 +154,7 @@ where
         (c - 15.0, c + 15.0),
         &format!("around the hole at {c:.1}° (the largest error next to it)"),
     )?;
-    let (_, h) = bar.dim_in_pixel();
-    let (t, b) = (60i32, h as i32 - 90);
-    let step = (b - t) / (2 * BANDS) as i32;
-    let font = ("sans-serif", 13).into_font().color(&BLACK);
-    bar.draw_text("error, µin", &font, (6, t - 34))
-        .map_err(err)?;
-    bar.draw_text("+ excess stock", &font, (6, t - 18))
-        .map_err(err)?;
-    for k in 0..2 * BANDS {
-        let y1 = b - step * k as i32;
-        bar.draw(&Rectangle::new(
-            [(10, y1 - step), (40, y1)],
-            band_color(k).filled(),
-        ))
-        .map_err(err)?;
-        let edge = -lim + 2.0 * lim * k as f64 / (2 * BANDS) as f64;
-        bar.draw_text(&crate::plot::tick_label(edge, lim), &font, (46, y1 - 7))
-            .map_err(err)?;
-    }
-    bar.draw_text(
-        &crate::plot::tick_label(lim, lim),
-        &font,
-        (46, b - step * (2 * BANDS) as i32 - 7),
-    )
-    .map_err(err)?;
-    bar.draw_text("− too deep", &font, (6, b + 8))
-        .map_err(err)?;
-    bar.draw(&Rectangle::new(
-        [(10, b + 30), (40, b + 46)],
-        RGBColor(170, 170, 170).filled(),
-    ))
-    .map_err(err)?;
-    bar.draw_text("open hole", &font, (46, b + 32))
-        .map_err(err)?;
+    colour_bar(&bar, lim, "open hole")?;
     root.present().map_err(err)?;
     Ok(())
 }
