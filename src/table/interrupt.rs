@@ -282,6 +282,7 @@ impl Interruptions {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     extern crate std;
     use super::*;
