@@ -91,6 +91,23 @@ pub struct Args {
     /// with k_t and k_e each scaled × 0.1 .. × 2 (`cut::sensitivity`).
     #[arg(long, conflicts_with = "budget")]
     pub force_sensitivity: bool,
+    /// Measure the hole zone: the surface across the bolt circle's ring on
+    /// a dense grid, by distance from the hole edges (`cut::holezone`;
+    /// its own band runs, about five times the CMM bands' machine time).
+    #[arg(long, value_enum, default_value_t = HoleZoneArg::On)]
+    pub hole_zone: HoleZoneArg,
+    /// Scale the force model's edge constant k_e by this factor (the
+    /// process stiffness the loop does not know exactly; `--force-sensitivity`
+    /// sweeps it for the CMM band alone).
+    #[arg(long, default_value_t = 1.0)]
+    pub ke_scale: f64,
+}
+
+/// Whether `cut` measures the hole zone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum HoleZoneArg {
+    On,
+    Off,
 }
 
 /// The JSON summary (brief §5).
@@ -144,6 +161,16 @@ pub struct Summary {
     /// the polar fields above are then empty.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grid: Option<crate::cut::gridcut::RectMeasured>,
+    /// The hole zone (`cut::holezone`): null where the scenario has no
+    /// holes, or with `--hole-zone off` (`hole_zone_measured` false).
+    pub hole_zone: Option<crate::cut::holezone::HoleZone>,
+    pub hole_zone_measured: bool,
+    /// The edge constant k_e the cut used, lbf/in (`--ke-scale`).
+    pub k_e_lbf_per_in: f64,
+    /// Largest |coil current| while recording (the CMM bands and the hole
+    /// zone), A, and the amplifier's limit.
+    pub current_peak_a: f64,
+    pub current_limit_a: f64,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
@@ -193,6 +220,11 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         command_sign: spec.command_sign,
         measure: spec.measure,
         grid: o.rect.clone(),
+        hole_zone: o.zone.as_ref().map(|z| z.summary()),
+        hole_zone_measured: spec.hole_zone,
+        k_e_lbf_per_in: spec.scenario.cutting.k_e_lbf_per_in,
+        current_peak_a: o.current_peak_a,
+        current_limit_a: spec.scenario.file.amplifier.current_limit_a,
     }
 }
 
@@ -208,11 +240,6 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.preroll_revs >= 0.0 && args.preroll_revs <= 10_000.0,
         "--preroll-revs {}: must be in 0..10000",
         args.preroll_revs
-    );
-    anyhow::ensure!(
-        args.depth_in > 0.0 && args.depth_in <= 0.005,
-        "--depth-in {}: must be in (0, 0.005] in (a finishing pass)",
-        args.depth_in
     );
     spec.band_half_in = args.band_in;
     spec.preroll_revs = args.preroll_revs;
@@ -238,7 +265,48 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     }
     spec.command_sign = args.command_sign;
     spec.measure = args.measure;
+    anyhow::ensure!(
+        args.ke_scale.is_finite() && args.ke_scale > 0.0 && args.ke_scale <= 10.0,
+        "--ke-scale {}: must be in (0, 10]",
+        args.ke_scale
+    );
+    spec.scenario.cutting.k_e_lbf_per_in *= args.ke_scale;
+    check_depth(&spec, args.depth_in)?;
+    // The budget and the sweep compare the CMM grid run by run; the zone
+    // is the single cut's.
+    spec.hole_zone = args.hole_zone == HoleZoneArg::On && !args.budget && !args.force_sensitivity;
     Ok(spec)
+}
+
+/// Deepest cut `cut` takes, in: chapter 5's roughing passes (0.005 ..
+/// 0.010 in), and the capacitance gauge's ±0.010 in range, over which the
+/// slide can lift the tool clear of the stock.
+pub const MAX_DEPTH_IN: f64 = 0.010;
+
+/// Refuses a depth of cut the machine cannot take, with the reason: deeper
+/// than [`MAX_DEPTH_IN`], or a steady cutting force whose current (at the
+/// scenario's force constant) exceeds the amplifier's limit.
+fn check_depth(spec: &CutSpec, depth_in: f64) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        depth_in > 0.0 && depth_in <= MAX_DEPTH_IN,
+        "--depth-in {depth_in}: must be in (0, {MAX_DEPTH_IN}] in (chapter 5's roughing passes \
+         reach 0.010 in, the gauge's range; deeper, the slide cannot lift the tool clear of the stock)"
+    );
+    let f = &spec.scenario.file;
+    let force = spec
+        .scenario
+        .cutting
+        .thrust_lbf(depth_in, spec.feed_per_rev_in);
+    let amps = force / f.motor.kf_lbf_per_a;
+    anyhow::ensure!(
+        amps <= f.amplifier.current_limit_a,
+        "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
+         amplifier's {} A limit (scenario {}: motor.kf_lbf_per_a {}, amplifier.current_limit_a)",
+        f.amplifier.current_limit_a,
+        f.name,
+        f.motor.kf_lbf_per_a
+    );
+    Ok(())
 }
 
 fn progress_bar(spec: &CutSpec) -> anyhow::Result<ProgressBar> {
@@ -476,7 +544,18 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         "following error    {:.1} µin RMS, {:.1} µin peak (tool minus the exact command)",
         s.following_error_rms_uin, s.following_error_peak_uin
     );
-    println!("cutting force      {:.2} lbf mean", s.mean_force_lbf);
+    println!(
+        "cutting force      {:.2} lbf mean; coil current {:.2} A peak (amplifier limit {} A)",
+        s.mean_force_lbf, s.current_peak_a, s.current_limit_a
+    );
+    match (&s.hole_zone, s.hole_zone_measured) {
+        (Some(z), _) => println!(
+            "hole zone          {}",
+            crate::cut::holezone::summary_line(z)
+        ),
+        (None, true) => println!("hole zone          none (the part has no holes)"),
+        (None, false) => println!("hole zone          not measured (--hole-zone off)"),
+    }
     println!(
         "errors             {} (beyond the loop); command sign {}; measured {}",
         s.errors.name(),
@@ -556,6 +635,9 @@ fn write_outputs(
             .map_or(0.0, |st| 0.5 * (st.windows[0].0 + st.windows[0].1));
         return write_trace(dir, &what, "the grid's innermost band", x_in, &o.trace);
     }
+    if let Some(z) = &o.zone {
+        crate::cut::zoneplot::write(dir, z, &format!("{what}: the hole zone (+ = excess stock)"))?;
+    }
     crate::cut::errmap::write(
         dir,
         &o.grid,
@@ -573,7 +655,11 @@ fn write_outputs(
             continue;
         }
         let oo = spec_of(args, other)
-            .and_then(|sp| simulate(&sp, &Extras::default()))
+            .and_then(|mut sp| {
+                // Only its CMM column is drawn.
+                sp.hole_zone = false;
+                simulate(&sp, &Extras::default())
+            })
             .with_context(|| format!("error_x7: the {} run", other.name()))?;
         x7.push(Series {
             label: other.name().to_string(),

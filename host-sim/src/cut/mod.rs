@@ -27,6 +27,9 @@ pub mod errors;
 pub mod frame;
 pub mod errmap;
 pub mod gridcut;
+pub mod holezone;
+pub mod interruptions;
+pub mod zoneplot;
 pub mod nominal;
 pub mod part;
 pub mod partcut;
@@ -104,6 +107,9 @@ pub struct CutSpec {
     pub measure: cmm::Measure,
     /// A rectangular grid instead of the polar one (`cut --part --grid`).
     pub grid: Option<std::sync::Arc<rectgrid::RectGrid>>,
+    /// Also measure the hole zone (`holezone`: bands across the bolt
+    /// circle's ring, a dense grid around it).
+    pub hole_zone: bool,
 }
 
 impl CutSpec {
@@ -142,6 +148,10 @@ impl CutSpec {
         });
         check_part_side(scenario.cutting.part_side)
             .with_context(|| format!("scenario {}", f.name))?;
+        // The holes as the firmware's interruption block would carry them:
+        // a set it would refuse is refused before the pass.
+        interruptions::block_of(&scenario.cutting.bolt_holes)
+            .with_context(|| format!("scenario {}", f.name))?;
         let error_levels = scenario.file.errors.clone();
         Ok(Self {
             x_start_in: f.x.x0_in,
@@ -167,7 +177,26 @@ impl CutSpec {
             command_sign: sign::CommandSign::Normal,
             measure: cmm::Measure::Exact,
             grid: None,
+            hole_zone: false,
         })
+    }
+
+    /// The hole zone's grid when this cut measures it: the scenario's
+    /// bolt holes (filled as `holes` says) on the part the pass cuts.
+    pub fn zone_grid(&self) -> anyhow::Result<Option<holezone::ZoneGrid>> {
+        if !self.hole_zone || self.grid.is_some() {
+            return Ok(None);
+        }
+        let gain = self.contact_gain()?;
+        let holes = crate::plant::cutting::BoltHoles {
+            filled: self.holes == Holes::Filled,
+            ..self.scenario.cutting.bolt_holes.clone()
+        };
+        Ok(holezone::ZoneGrid::new(
+            &holes,
+            gain,
+            self.x_start_in * gain,
+        ))
     }
 
     /// The table image the firmware runs.
@@ -249,9 +278,15 @@ pub struct Stretch {
     pub x_end_in: f64,
     /// Recording windows (tool-centre X), in.
     pub windows: Vec<(f64, f64)>,
+    /// Recording windows of the hole zone (tool-centre X), in.
+    pub zone: Vec<(f64, f64)>,
     /// Stream index of its seeds.
     pub index: u64,
 }
+
+/// Seed streams of the hole zone's stretches start here (the CMM bands
+/// keep theirs, 1..).
+pub const ZONE_SEED_BASE: u64 = 1000;
 
 impl Stretch {
     pub fn seconds(&self, spec: &CutSpec) -> f64 {
@@ -262,6 +297,13 @@ impl Stretch {
 /// The stretches of the pass: one band per CMM radius, or the whole pass.
 pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
     let f = spec.feed_per_rev_in;
+    // The zone's grid needs the part's own gain; a plan asked with another
+    // (a test's) has none.
+    let zone = spec
+        .zone_grid()
+        .ok()
+        .flatten()
+        .map_or(Vec::new(), |g| g.windows(spec.band_half_in));
     let windows: Vec<(f64, f64)> = match &spec.grid {
         Some(g) => gridcut::windows(g, spec.band_half_in),
         None => spec
@@ -278,19 +320,28 @@ pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
             x_start_in: spec.x_start_in,
             x_end_in: 0.0,
             windows,
+            zone,
             index: 0,
         }];
     }
-    windows
+    let bands = windows
         .into_iter()
         .enumerate()
         .map(|(k, (lo, hi))| Stretch {
             x_start_in: hi + spec.preroll_revs * f,
             x_end_in: lo - 2.0 * f,
             windows: vec![(lo, hi)],
+            zone: vec![],
             index: k as u64 + 1,
-        })
-        .collect()
+        });
+    let zone = zone.into_iter().enumerate().map(|(k, (lo, hi))| Stretch {
+        x_start_in: hi + spec.preroll_revs * f,
+        x_end_in: lo - 2.0 * f,
+        windows: vec![],
+        zone: vec![(lo, hi)],
+        index: ZONE_SEED_BASE + k as u64,
+    });
+    bands.chain(zone).collect()
 }
 
 /// What a stretch returns.
@@ -397,6 +448,7 @@ pub fn build_stretch(
     let rec_start_s = st
         .windows
         .iter()
+        .chain(&st.zone)
         .map(|&(_, hi)| (hi - st.x_start_in) / v)
         .fold(f64::INFINITY, f64::min)
         .max(0.0);
@@ -414,6 +466,16 @@ pub fn build_stretch(
         let mut c = cutter.borrow_mut();
         c.nominal_sign = spec.command_sign.factor();
         c.log.grid = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
+        if !st.zone.is_empty() {
+            if let Some(g) = spec.zone_grid()? {
+                c.log.zone = Some(holezone::ZoneLog::new(
+                    &g,
+                    cutting.tool_radius_in,
+                    spec.feed_per_rev_in,
+                    st.zone.clone(),
+                ));
+            }
+        }
         c.errors = spec.applied_levels().map(|l| {
             errors::ErrorState::new(
                 l,
@@ -568,6 +630,8 @@ pub struct CutOutcome {
     pub following_error_peak_uin: f64,
     /// Mean cutting force while recording, lbf.
     pub mean_force_lbf: f64,
+    /// Largest |coil current| while recording, A.
+    pub current_peak_a: f64,
     /// Tick-by-tick (t s, following error µin, force lbf) of the trace
     /// stretch.
     pub trace: Vec<(f64, f64, f64)>,
@@ -583,6 +647,9 @@ pub struct CutOutcome {
     /// The rectangular grid's measurement (`--grid`; the polar `grid` is
     /// then unmeasured: no stretch is at its radii).
     pub rect: Option<gridcut::RectMeasured>,
+    /// The hole zone (`CutSpec::hole_zone`; `None` where the part has no
+    /// holes).
+    pub zone: Option<holezone::ZoneMeasured>,
 }
 
 /// Runs the plan (stretches in parallel), measures the part.
@@ -607,7 +674,9 @@ pub fn run_pass(
     let wall_s = wall0.elapsed().as_secs_f64();
     let mut passes = PassLog::new();
     let mut grid_log = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
+    let mut zone_log: Option<holezone::ZoneLog> = None;
     let (mut sum_sq, mut n, mut peak, mut force) = (0.0, 0u64, 0.0f64, 0.0);
+    let mut current_peak_a = 0.0f64;
     let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
     let mut faults = Vec::new();
     let mut trace = Vec::new();
@@ -619,9 +688,16 @@ pub fn run_pass(
         if let (Some(a), Some(b)) = (grid_log.as_mut(), r.log.grid.take()) {
             a.merge(b);
         }
+        if let Some(b) = r.log.zone.take() {
+            match zone_log.as_mut() {
+                Some(a) => a.merge(&b),
+                None => zone_log = Some(b),
+            }
+        }
         sum_sq += r.log.fe_sum_sq;
         n += r.log.fe_n;
         peak = peak.max(r.log.fe_peak);
+        current_peak_a = current_peak_a.max(r.log.current_peak_a);
         force += r.log.force_sum;
         simulated_s += r.simulated_s;
         cpu_s += r.wall_s;
@@ -682,6 +758,7 @@ pub fn run_pass(
         following_error_rms_uin: (sum_sq / nf).sqrt() * 1e6,
         following_error_peak_uin: peak * 1e6,
         mean_force_lbf: force / nf,
+        current_peak_a,
         trace,
         traces,
         simulated_s,
@@ -690,5 +767,9 @@ pub fn run_pass(
         faults,
         stretches: stretches.len(),
         rect,
+        zone: spec
+            .zone_grid()?
+            .zip(zone_log)
+            .map(|(g, log)| holezone::ZoneMeasured::measure(&g, &log)),
     })
 }

@@ -34,6 +34,11 @@ pub struct StretchLog {
     pub force_sum: f64,
     /// The passes at a rectangular grid's angles (`cut --grid`).
     pub grid: Option<super::gridcut::AngleLog>,
+    /// The hole zone's envelope (`holezone`), on its stretches.
+    pub zone: Option<super::holezone::ZoneLog>,
+    /// Largest |coil current| while recording (the grid's or the zone's
+    /// windows), A.
+    pub current_peak_a: f64,
 }
 
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
@@ -183,6 +188,7 @@ impl TickHook for Cutter {
             // The tool against the exact surface command at the true X and
             // φ (as `track`): what the part sees, whatever the controller.
             let fe = z_slide - nom;
+            self.log.current_peak_a = self.log.current_peak_a.max(rig.slide.current_a().abs());
             self.log.fe_sum_sq += fe * fe;
             self.log.fe_n += 1;
             self.log.fe_peak = self.log.fe_peak.max(fe.abs());
@@ -216,6 +222,24 @@ impl TickHook for Cutter {
             self.prev = Some((turns, x, z));
         } else {
             self.prev = None;
+        }
+        if let Some(zl) = self.log.zone.as_mut() {
+            if zl.recording(x) {
+                self.log.current_peak_a = self.log.current_peak_a.max(rig.slide.current_a().abs());
+                if let Some((turns0, x0, z0)) = zl.prev {
+                    let n = super::holezone::PHI_COUNT as f64;
+                    for (k, i) in super::holezone::ZoneLog::crossings(turns0, turns) {
+                        let w = (k as f64 / n - turns0) / (turns - turns0);
+                        let xc = x0 + (x - x0) * w;
+                        let zc = z0 + (z - z0) * w;
+                        let ec = zc - self.nominal_sign * self.nominal.exact(xc, i as f64 / n);
+                        zl.add(i, xc, ec);
+                    }
+                }
+                zl.prev = Some((turns, x, z));
+            } else {
+                zl.prev = None;
+            }
         }
     }
 }
