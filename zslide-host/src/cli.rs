@@ -89,6 +89,9 @@ pub enum TableCmd {
     /// Generate a table (`host-sim coeffs`'s generator): `--config
     /// PART.toml --out PART.zsct`.
     Build(host_sim::cmd::coeffs::Args),
+    /// A table compensating a measured part's error (`host-sim
+    /// compensate`'s code): `MEASURED --out F.zsct [--from T.zsct] [--gain G]`.
+    Compensate(host_sim::cmd::compensate::Args),
     /// Check a table file as the firmware checks it (parser, CRC, sign
     /// check, region size) and print its identity.
     Check { file: PathBuf },
@@ -284,6 +287,9 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
         Cmd::Table { cmd } => match cmd {
             TableCmd::Build(a) => {
                 host_sim::cmd::coeffs::run(a.clone()).map_err(|e| format!("{e:#}"))
+            }
+            TableCmd::Compensate(a) => {
+                host_sim::cmd::compensate::run(a.clone()).map_err(|e| format!("{e:#}"))
             }
             TableCmd::Check { file } => {
                 let id = regions::check_table_file(file, &NUCLEO)?;

@@ -55,8 +55,12 @@ pub struct Args {
     /// file, else made from it.
     #[arg(long)]
     pub part: Option<PathBuf>,
-    /// The part's table image (with `--part`).
-    #[arg(long, requires = "part")]
+    /// The table image the firmware runs: the part's (with `--part`), or
+    /// one for the default part (a compensated table, `compensate`). A
+    /// compensation record beside it (`NAME.compensation.json`) puts the
+    /// axial slide on the compensated program and makes the cut the next
+    /// pass on the same machine (the noise new, wear and drifts repeating).
+    #[arg(long)]
     pub table: Option<PathBuf>,
     /// Measure the part on a rectangular grid of NX × NY points over the
     /// square inscribed in the null circle instead of the polar CMM grid
@@ -140,6 +144,12 @@ pub struct Summary {
     /// the polar fields above are then empty.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grid: Option<crate::cut::gridcut::RectMeasured>,
+    /// With `--measure cmm`: the true contour band on the same grid, µin
+    /// (the part the CMM measured, as `--measure exact` reports it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exact_contour_error_min_uin: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exact_contour_error_max_uin: Option<f64>,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
@@ -188,6 +198,8 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         command_sign: spec.command_sign,
         measure: spec.measure,
         grid: o.rect.clone(),
+        exact_contour_error_min_uin: o.exact_band.map(|b| b.0),
+        exact_contour_error_max_uin: o.exact_band.map(|b| b.1),
     }
 }
 
@@ -218,6 +230,9 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.z_offset_uin
     );
     spec.z_offset_in = args.z_offset_uin * 1e-6;
+    if let Some(t) = &args.table {
+        compensated_pass(&mut spec, t, args.part.as_deref())?;
+    }
     if let Some(path) = &args.part {
         let part = crate::cmd::parttable::part_cut(path, args.table.as_ref())?;
         if let Some(g) = &args.grid {
@@ -234,6 +249,64 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     spec.command_sign = args.command_sign;
     spec.measure = args.measure;
     Ok(spec)
+}
+
+/// `--table T`: the default part's table image (without `--part`), and,
+/// when a compensation record is beside it, the axial program and the
+/// pass number.
+fn compensated_pass(
+    spec: &mut CutSpec,
+    table: &std::path::Path,
+    part: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
+    use crate::compensate::{compensated, default_part, AxialProgram, Record};
+    let image = crate::cmd::accuracy::load_table(Some(&table.to_path_buf()))?;
+    let record = Record::beside(table, &image)?;
+    let lp = match part {
+        Some(p) => crate::part::config::load_part(p)?,
+        None => {
+            let lp = default_part().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let g = zslide::table::CoeffTable::parse(&image)
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+                .header()
+                .geometry;
+            let r_t = spec.scenario.cutting.tool_radius_in;
+            anyhow::ensure!(
+                (g.tool_radius_nin as f64 * 1e-9 - r_t).abs() < 1e-9,
+                "table {}: made for a {} in nose, the scenario's tool is {r_t} in",
+                table.display(),
+                g.tool_radius_nin as f64 * 1e-9
+            );
+            spec.table_image = Some(Box::leak(image.into_boxed_slice()));
+            lp
+        }
+    };
+    let Some(r) = record else {
+        eprintln!(
+            "table {}: no compensation record beside it: the axial slide runs the nominal program",
+            table.display()
+        );
+        return Ok(());
+    };
+    anyhow::ensure!(
+        r.part == lp.name,
+        "table {}: its record compensates part {:?}, this cut is of {:?}",
+        table.display(),
+        r.part,
+        lp.name
+    );
+    let program = compensated(&lp, r.corrections().map_err(|e| anyhow::anyhow!("{e}"))?);
+    let axial = AxialProgram::new(&lp.part, &program.part, lp.table.x_min, lp.table.x_max)
+        .map_err(|e| anyhow::anyhow!("table {}: the axial program: {e}", table.display()))?;
+    spec.axial = Some(std::sync::Arc::new(axial));
+    spec.set_pass(r.steps.len() as u64);
+    eprintln!(
+        "table {}: compensation pass {} ({}), the axial slide on its program",
+        table.display(),
+        r.steps.len(),
+        r.table_crc
+    );
+    Ok(())
 }
 
 fn progress_bar(spec: &CutSpec) -> anyhow::Result<ProgressBar> {
@@ -403,6 +476,9 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         .zip(&s.x_in)
         .map(|(f, x)| format!("{x}: {}", opt(*f)))
         .collect();
+    if let (Some(lo), Some(hi)) = (s.exact_contour_error_min_uin, s.exact_contour_error_max_uin) {
+        println!("true contour error {lo:.1} .. {hi:.1} µin (the surface the CMM read)");
+    }
     println!(
         "finish             {} µin RMS (by X in: {}) (1983: 7 centre .. 60 edge)",
         opt(s.finish_rms_uin),
