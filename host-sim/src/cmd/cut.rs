@@ -259,7 +259,8 @@ fn compensated_pass(
     table: &std::path::Path,
     part: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
-    use crate::compensate::{compensated, default_part, AxialProgram, Record};
+    use crate::compensate::{compensated, default_part, Record};
+    use crate::part::axial::AxialProgram;
     let image = crate::cmd::accuracy::load_table(Some(&table.to_path_buf()))?;
     let record = Record::beside(table, &image)?;
     let lp = match part {

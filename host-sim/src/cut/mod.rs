@@ -108,8 +108,8 @@ pub struct CutSpec {
     /// (`cut --table` without `--part`).
     pub table_image: Option<&'static [u8]>,
     /// A compensated table's axial slide program against the nominal's
-    /// (`crate::compensate::AxialProgram`): added to the tool's height.
-    pub axial: Option<std::sync::Arc<crate::compensate::AxialProgram>>,
+    /// (`crate::part::axial::AxialProgram`): added to the tool's height.
+    pub axial: Option<std::sync::Arc<crate::part::axial::AxialProgram>>,
 }
 
 impl CutSpec {

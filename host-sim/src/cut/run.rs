@@ -72,7 +72,7 @@ pub struct Cutter {
     /// The 1983 command generator, when it makes the 1983 loop's command.
     pub command1983: Option<super::command1983::AnalogCommand>,
     /// A compensated table's axial slide program against the nominal's.
-    pub axial: Option<std::sync::Arc<crate::compensate::AxialProgram>>,
+    pub axial: Option<std::sync::Arc<crate::part::axial::AxialProgram>>,
 }
 
 impl Cutter {
