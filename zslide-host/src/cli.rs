@@ -92,6 +92,9 @@ pub enum TableCmd {
     /// or of a table configuration of `host-sim coeffs` (tables/default.toml):
     /// `--config PART.toml --out PART.zsct`.
     Build(BuildArgs),
+    /// A table compensating a measured part's error (`host-sim
+    /// compensate`'s code): `MEASURED --out F.zsct [--from T.zsct] [--gain G]`.
+    Compensate(host_sim::cmd::compensate::Args),
     /// Check a table file as the firmware checks it (parser, CRC, sign
     /// check, region size) and print its identity.
     Check { file: PathBuf },
@@ -232,6 +235,9 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
     match cmd {
         Cmd::Table { cmd } => match cmd {
             TableCmd::Build(a) => table_build(a, out),
+            TableCmd::Compensate(a) => {
+                host_sim::cmd::compensate::run(a.clone()).map_err(|e| format!("{e:#}"))
+            }
             TableCmd::Check { file } => {
                 let id = regions::check_table_file(file, &NUCLEO)?;
                 say(format!("{}: {id}", file.display()))?;

@@ -55,8 +55,12 @@ pub struct Args {
     /// file, else made from it.
     #[arg(long)]
     pub part: Option<PathBuf>,
-    /// The part's table image (with `--part`).
-    #[arg(long, requires = "part")]
+    /// The table image the firmware runs: the part's (with `--part`), or
+    /// one for the default part (a compensated table, `compensate`). A
+    /// compensation record beside it (`NAME.compensation.json`) puts the
+    /// axial slide on the compensated program and makes the cut the next
+    /// pass on the same machine (the noise new, wear and drifts repeating).
+    #[arg(long)]
     pub table: Option<PathBuf>,
     /// Measure the part on a rectangular grid of NX × NY points over the
     /// square inscribed in the null circle instead of the polar CMM grid
@@ -171,6 +175,12 @@ pub struct Summary {
     /// zone), A, and the amplifier's limit.
     pub current_peak_a: f64,
     pub current_limit_a: f64,
+    /// With `--measure cmm`: the true contour band on the same grid, µin
+    /// (the part the CMM measured, as `--measure exact` reports it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exact_contour_error_min_uin: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exact_contour_error_max_uin: Option<f64>,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
@@ -225,6 +235,8 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         k_e_lbf_per_in: spec.scenario.cutting.k_e_lbf_per_in,
         current_peak_a: o.current_peak_a,
         current_limit_a: spec.scenario.file.amplifier.current_limit_a,
+        exact_contour_error_min_uin: o.exact_band.map(|b| b.0),
+        exact_contour_error_max_uin: o.exact_band.map(|b| b.1),
     }
 }
 
@@ -250,6 +262,9 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.z_offset_uin
     );
     spec.z_offset_in = args.z_offset_uin * 1e-6;
+    if let Some(t) = &args.table {
+        compensated_pass(&mut spec, t, args.part.as_deref())?;
+    }
     if let Some(path) = &args.part {
         let part = crate::cmd::parttable::part_cut(path, args.table.as_ref())?;
         if let Some(g) = &args.grid {
@@ -305,6 +320,65 @@ fn check_depth(spec: &CutSpec, depth_in: f64) -> anyhow::Result<()> {
         f.amplifier.current_limit_a,
         f.name,
         f.motor.kf_lbf_per_a
+    );
+    Ok(())
+}
+
+/// `--table T`: the default part's table image (without `--part`), and,
+/// when a compensation record is beside it, the axial program and the
+/// pass number.
+fn compensated_pass(
+    spec: &mut CutSpec,
+    table: &std::path::Path,
+    part: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
+    use crate::compensate::{compensated, default_part, Record};
+    use crate::part::axial::AxialProgram;
+    let image = crate::cmd::accuracy::load_table(Some(&table.to_path_buf()))?;
+    let record = Record::beside(table, &image)?;
+    let lp = match part {
+        Some(p) => crate::part::config::load_part(p)?,
+        None => {
+            let lp = default_part().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let g = zslide::table::CoeffTable::parse(&image)
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+                .header()
+                .geometry;
+            let r_t = spec.scenario.cutting.tool_radius_in;
+            anyhow::ensure!(
+                (g.tool_radius_nin as f64 * 1e-9 - r_t).abs() < 1e-9,
+                "table {}: made for a {} in nose, the scenario's tool is {r_t} in",
+                table.display(),
+                g.tool_radius_nin as f64 * 1e-9
+            );
+            spec.table_image = Some(Box::leak(image.into_boxed_slice()));
+            lp
+        }
+    };
+    let Some(r) = record else {
+        eprintln!(
+            "table {}: no compensation record beside it: the axial slide runs the nominal program",
+            table.display()
+        );
+        return Ok(());
+    };
+    anyhow::ensure!(
+        r.part == lp.name,
+        "table {}: its record compensates part {:?}, this cut is of {:?}",
+        table.display(),
+        r.part,
+        lp.name
+    );
+    let program = compensated(&lp, r.corrections().map_err(|e| anyhow::anyhow!("{e}"))?);
+    let axial = AxialProgram::new(&lp.part, &program.part, lp.table.x_min, lp.table.x_max)
+        .map_err(|e| anyhow::anyhow!("table {}: the axial program: {e}", table.display()))?;
+    spec.axial = Some(std::sync::Arc::new(axial));
+    spec.set_pass(r.steps.len() as u64);
+    eprintln!(
+        "table {}: compensation pass {} ({}), the axial slide on its program",
+        table.display(),
+        r.steps.len(),
+        r.table_crc
     );
     Ok(())
 }
@@ -535,6 +609,9 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         .zip(&s.x_in)
         .map(|(f, x)| format!("{x}: {}", opt(*f)))
         .collect();
+    if let (Some(lo), Some(hi)) = (s.exact_contour_error_min_uin, s.exact_contour_error_max_uin) {
+        println!("true contour error {lo:.1} .. {hi:.1} µin (the surface the CMM read)");
+    }
     println!(
         "finish             {} µin RMS (by X in: {}){finish_1983}",
         opt(s.finish_rms_uin),

@@ -110,6 +110,12 @@ pub struct CutSpec {
     /// Also measure the hole zone (`holezone`: bands across the bolt
     /// circle's ring, a dense grid around it).
     pub hole_zone: bool,
+    /// The default part cut with this table instead of the default one
+    /// (`cut --table` without `--part`).
+    pub table_image: Option<&'static [u8]>,
+    /// A compensated table's axial slide program against the nominal's
+    /// (`crate::part::axial::AxialProgram`): added to the tool's height.
+    pub axial: Option<std::sync::Arc<crate::part::axial::AxialProgram>>,
 }
 
 impl CutSpec {
@@ -178,6 +184,8 @@ impl CutSpec {
             measure: cmm::Measure::Exact,
             grid: None,
             hole_zone: false,
+            table_image: None,
+            axial: None,
         })
     }
 
@@ -199,11 +207,25 @@ impl CutSpec {
         ))
     }
 
+    /// Makes this cut pass `pass` of the same part on the same machine
+    /// (a compensation cut: `pass` = the table's compensation steps): every
+    /// noise stream (plant, X, spindle, the spindle's asynchronous error
+    /// motion, the CMM) drawn afresh, while the deterministic sources (tool
+    /// wear along the pass, the drifts' schedule, gauge scale and
+    /// nonlinearity, X zero) repeat. Pass 0 is the scenario's own seeds.
+    pub fn set_pass(&mut self, pass: u64) {
+        if pass > 0 {
+            self.scenario = seeded(&self.scenario, PASS_STREAMS + pass);
+        }
+    }
+
     /// The table image the firmware runs.
     pub fn table(&self) -> &'static [u8] {
-        self.part
-            .as_ref()
-            .map_or(zslide::DEFAULT_TABLE, |p| p.table)
+        match (&self.part, self.table_image) {
+            (Some(p), _) => p.table,
+            (None, Some(t)) => t,
+            (None, None) => zslide::DEFAULT_TABLE,
+        }
     }
 
     /// Radii the CMM measures (tool centre for a part, surface else), in.
@@ -362,6 +384,9 @@ pub struct Extras {
     pub trace_s: f64,
 }
 
+/// Seed streams of later passes start here (stretches use 1..=8).
+const PASS_STREAMS: u64 = 1 << 32;
+
 /// Seeds of stretch `index` (0 = the scenario's own).
 fn seeded(sc: &Scenario, index: u64) -> Scenario {
     let mut sc = sc.clone();
@@ -465,6 +490,7 @@ pub fn build_stretch(
     {
         let mut c = cutter.borrow_mut();
         c.nominal_sign = spec.command_sign.factor();
+        c.axial = spec.axial.clone();
         c.log.grid = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
         if !st.zone.is_empty() {
             if let Some(g) = spec.zone_grid()? {
@@ -650,6 +676,9 @@ pub struct CutOutcome {
     /// The hole zone (`CutSpec::hole_zone`; `None` where the part has no
     /// holes).
     pub zone: Option<holezone::ZoneMeasured>,
+    /// With `--measure cmm`: the true surface's band on the same grid (what
+    /// the CMM read is of), µin.
+    pub exact_band: Option<(f64, f64)>,
 }
 
 /// Runs the plan (stretches in parallel), measures the part.
@@ -731,6 +760,9 @@ pub fn run_pass(
             |x, phi_deg| holes.over_hole(x, phi_deg / 360.0),
         )
     });
+    let exact_band = (spec.measure == cmm::Measure::Cmm)
+        .then(|| grid.band())
+        .flatten();
     let grid = match spec.measure {
         cmm::Measure::Exact => grid,
         cmm::Measure::Cmm => {
@@ -771,5 +803,6 @@ pub fn run_pass(
             .zone_grid()?
             .zip(zone_log)
             .map(|(g, log)| holezone::ZoneMeasured::measure(&g, &log)),
+        exact_band,
     })
 }

@@ -76,6 +76,8 @@ pub struct Cutter {
     pub drive: (f64, f64, f64, f64),
     /// The 1983 command generator, when it makes the 1983 loop's command.
     pub command1983: Option<super::command1983::AnalogCommand>,
+    /// A compensated table's axial slide program against the nominal's.
+    pub axial: Option<std::sync::Arc<crate::part::axial::AxialProgram>>,
 }
 
 impl Cutter {
@@ -109,6 +111,7 @@ impl Cutter {
             nominal_sign: 1.0,
             drive: (0.0, 0.0, 1.0, 0.0),
             command1983: None,
+            axial: None,
         }
     }
 
@@ -157,6 +160,9 @@ impl TickHook for Cutter {
                 (x, z_slide + er.tool_offset_in(t_s, x, phi_p, d_turns), hum)
             }
         };
+        // The axial slide on a compensated program carries the tool by
+        // its ΔY(X) against the nominal's.
+        let z = z + self.axial.as_ref().map_or(0.0, |a| a.at(x));
         let nom = self.nominal_sign * self.nominal.fast(x, phi);
         let e = z - nom;
         if t_s >= self.settle_s {
