@@ -185,6 +185,109 @@ impl Fault {
     }
 }
 
+/// When a latched fault may be cleared (`Request::ClearFault`, always
+/// with the loop disarmed; a clear never re-arms).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Clearing {
+    /// Disarmed: the cause is an event, not a state that lasts.
+    Disarmed,
+    /// Disarmed and the last gauge sample good.
+    GaugeGood,
+    /// Disarmed and the amplifier's fault line low.
+    AmplifierLineLow,
+    /// Never: a refused table or parameter block stays refused until a good
+    /// one is read at the next boot.
+    NextBoot,
+}
+
+impl Fault {
+    /// One fault of each kind, in declaration order (the refused table
+    /// twice: `Missing` has words of its own): the fault table of
+    /// docs/SAFETY.md is generated from it (`cargo xtask figures`).
+    pub const EACH: [Fault; 30] = [
+        Fault::Table(TableError::Missing),
+        Fault::Table(TableError::Truncated { needed: 64, got: 3 }),
+        Fault::Parameters(ParamError::BlockMagic),
+        Fault::XOutsideTable,
+        Fault::XGlitchStorm,
+        Fault::XBadBcd,
+        Fault::IndexMissing,
+        Fault::IndexExtra,
+        Fault::SpindleSpeed,
+        Fault::GaugeRange,
+        Fault::GaugeSaturated,
+        Fault::Bus(Device::AmplifierDac),
+        Fault::Bus(Device::GaugeAdc),
+        Fault::Bus(Device::CoefficientDac),
+        Fault::FollowingError,
+        Fault::CurrentLimit,
+        Fault::AmplifierTrip,
+        Fault::SignCheck,
+        Fault::Watchdog,
+        Fault::Panic,
+        Fault::CentringTableStopped,
+        Fault::CentringOutOfRange,
+        Fault::CentringWorse,
+        Fault::CentringNoConvergence,
+        Fault::CentringSlideTimeout,
+        Fault::Parameters(ParamError::BlockCrc {
+            stored: 1,
+            computed: 2,
+        }),
+        Fault::DepthGuard,
+        Fault::Oscillation,
+        Fault::GaugeFrozen,
+        Fault::XStalled,
+    ];
+
+    /// When the fault may be cleared (`LoopState::clear_fault` applies it).
+    pub const fn clearing(self) -> Clearing {
+        match self {
+            Fault::GaugeRange | Fault::GaugeSaturated | Fault::Bus(Device::GaugeAdc) => {
+                Clearing::GaugeGood
+            }
+            Fault::AmplifierTrip => Clearing::AmplifierLineLow,
+            Fault::Table(_) | Fault::Parameters(_) => Clearing::NextBoot,
+            _ => Clearing::Disarmed,
+        }
+    }
+
+    /// What detects the fault, in words (the fault table's column).
+    pub const fn detection(self) -> &'static str {
+        match self {
+            Fault::Table(TableError::Missing) => "the table region is erased (`CoeffTable::parse_region`)",
+            Fault::Table(_) => "the table parser (`CoeffTable::parse_region`: format, CRC, geometry, grid) and the load-time sign check (Z ≤ 0 at every node, 16 angles) in `Firmware::with_table_region`",
+            Fault::Parameters(_) => "`params::load_region` on the block the boot reads (`store::boot`), or a store that cannot be read",
+            Fault::XOutsideTable => "the X handler: X below the table's first node",
+            Fault::XGlitchStorm => "`xpos`: too many X events that change nothing or jump beyond `max_jump`",
+            Fault::XBadBcd => "`xpos::decode`: a latched BCD nibble above 9",
+            Fault::IndexMissing => "`spindle`: no index within a revolution's counts and the tolerance",
+            Fault::IndexExtra => "`spindle`: an index well before the expected count, or two within one loop period",
+            Fault::SpindleSpeed => "`spindle`: a revolution's period, or an encoder count's, outside `min_rpm..max_rpm`",
+            Fault::GaugeRange => "the AD4020 frame's overrange bit",
+            Fault::GaugeSaturated => "a gauge code on either rail without the overrange bit",
+            Fault::Bus(Device::AmplifierDac) => "an AD5791 write error; its read-back at boot",
+            Fault::Bus(Device::GaugeAdc) => "an AD4020 frame failing its 0b010 pattern, or an SPI error",
+            Fault::Bus(Device::CoefficientDac) => "an AD5686 or LDAC error in the X handler (coefficient output)",
+            Fault::FollowingError => "`servo::limits`: |reference − gauge| above `following_error_in` for longer than `following_error_ms`",
+            Fault::CurrentLimit => "`servo::limits`: the estimated coil current, (G·V − Kb·v)/R, held at `current_limit_a` longer than `current_limit_ms`",
+            Fault::AmplifierTrip => "the amplifier's fault line (NUCLEO PG9)",
+            Fault::SignCheck => "`servo::engage`: at every arm, an open-loop DAC doublet (`sign_check_v`, `sign_check_ms`) must move the gauge the model's way within ×3",
+            Fault::Watchdog => "IWDG1 (5 ms), fed by the background only when the loop tick ran since the last feed (`watchdog::FeedGate`)",
+            Fault::Panic => "the panic handler (and HardFault)",
+            Fault::CentringTableStopped => "`centring::cycle`: no table encoder edge or index when one was due, or an empty angle bin",
+            Fault::CentringOutOfRange => "`centring::estimate`: a transducer reading within 0.5 mil of its ±0.5 in stop",
+            Fault::CentringWorse => "`centring::cycle`: the off-centre larger than the previous cycle's",
+            Fault::CentringNoConvergence => "`centring::cycle`: more than `max_cycles` corrections",
+            Fault::CentringSlideTimeout => "`centring::cycle`: a correction not settled within `max_correction_ticks`",
+            Fault::DepthGuard => "`servo::monitor` (learning handler, on the tick's samples): command − gauge toward the stock (opposite `retract_z_in`) beyond `depth_guard_uin` on 3 consecutive ticks",
+            Fault::Oscillation => "`servo::monitor`: the error's mean square about its 50 Hz mean (exponential windows of 2⁸ and 2⁶ ticks) above `oscillation_uin`² for a whole window (12.8 ms)",
+            Fault::GaugeFrozen => "`servo::monitor`: the gauge's 20-bit code identical for `gauge_frozen_ms` while the loop is closed, watched also while another fault's reaction runs",
+            Fault::XStalled => "`servo::monitor`: `x_stall_revs` revolutions (0 = off) with the table command live and no new coefficient set",
+        }
+    }
+}
+
 /// The cause in words with its detail (a refused table or parameter block
 /// says what is wrong with it): what the host link and the logs print.
 impl core::fmt::Display for Fault {
@@ -308,43 +411,7 @@ mod tests {
     use std::format;
     use std::string::ToString;
 
-    /// One of each fault (the refused table twice: `Missing` has words
-    /// of its own).
-    const ALL: [Fault; 30] = [
-        Fault::Table(TableError::Missing),
-        Fault::Table(TableError::Truncated { needed: 64, got: 3 }),
-        Fault::Parameters(ParamError::BlockMagic),
-        Fault::XOutsideTable,
-        Fault::XGlitchStorm,
-        Fault::XBadBcd,
-        Fault::IndexMissing,
-        Fault::IndexExtra,
-        Fault::SpindleSpeed,
-        Fault::GaugeRange,
-        Fault::GaugeSaturated,
-        Fault::Bus(Device::AmplifierDac),
-        Fault::Bus(Device::GaugeAdc),
-        Fault::Bus(Device::CoefficientDac),
-        Fault::FollowingError,
-        Fault::CurrentLimit,
-        Fault::AmplifierTrip,
-        Fault::SignCheck,
-        Fault::Watchdog,
-        Fault::Panic,
-        Fault::CentringTableStopped,
-        Fault::CentringOutOfRange,
-        Fault::CentringWorse,
-        Fault::CentringNoConvergence,
-        Fault::CentringSlideTimeout,
-        Fault::Parameters(ParamError::BlockCrc {
-            stored: 1,
-            computed: 2,
-        }),
-        Fault::DepthGuard,
-        Fault::Oscillation,
-        Fault::GaugeFrozen,
-        Fault::XStalled,
-    ];
+    const ALL: [Fault; 30] = Fault::EACH;
 
     /// Each cause has words of its own (the host prints them, and a
     /// machinist acts on them): none empty, no two faults alike (the two

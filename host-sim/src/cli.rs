@@ -23,6 +23,8 @@ pub enum Command {
     Accuracy(cmd::accuracy::Args),
     /// The smallest harmonic table meeting a part file's bound, and its error split.
     PartTable(cmd::parttable::Args),
+    /// A table compensating a measured part's error (nominal − gain × fitted error).
+    Compensate(cmd::compensate::Args),
     /// Feasibility of a part on the machine before cutting (exit 1 with the reasons if not).
     Plan(cmd::plan::Args),
     /// Z command from the firmware's fixed-point path for `x_in,phi_deg` lines on stdin.
@@ -77,6 +79,7 @@ fn with_negative_numbers(cmd: clap::Command) -> clap::Command {
 pub fn run(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Coeffs(a) => cmd::coeffs::run(a),
+        Command::Compensate(a) => cmd::compensate::run(a),
         Command::Accuracy(a) => cmd::accuracy::run(a),
         Command::Zcmd(a) => cmd::zcmd::run(a),
         Command::PartTable(a) => cmd::parttable::run(a),

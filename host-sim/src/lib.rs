@@ -6,6 +6,7 @@ pub mod chips;
 pub mod cli;
 pub mod cmd;
 pub mod coeffgen;
+pub mod compensate;
 pub mod csmp;
 pub mod cut;
 pub mod faults;

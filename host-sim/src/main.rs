@@ -12,6 +12,10 @@ fn main() {
     // pipe; the default action ends the process quietly, as `cat` does.
     #[cfg(unix)]
     restore_sigpipe();
+    #[cfg(unix)]
+    if let Err(e) = host_sim::outpath::remove_partials_on_signal() {
+        eprintln!("warning: Ctrl-C cannot be caught ({e}); it may leave a hidden .partial file");
+    }
     let matches = cli::command().get_matches();
     let parsed = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     if let Err(e) = cli::run(parsed.command) {

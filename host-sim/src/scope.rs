@@ -6,7 +6,6 @@
 //! `cut --out`; `crate::plot` draws the single-axis plots.
 
 use crate::plot::tick_label;
-use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -321,7 +320,7 @@ where
         };
         for run in points.split(|p| !p.1.is_finite()).filter(|r| !r.is_empty()) {
             chart
-                .draw_series(LineSeries::new(run.to_vec(), color.stroke_width(width)))
+                .draw_series(crate::plot::segments(run, color.stroke_width(width)))
                 .map_err(err)?;
         }
     }
@@ -370,17 +369,7 @@ where
 /// Writes `<dir>/<name>.svg`, `.png` and the CSV behind them (every
 /// panel's series, labelled with their units).
 pub fn write(dir: &Path, name: &str, fig: &Figure) -> anyhow::Result<()> {
-    crate::plot::register_font();
-    let h = height(fig);
-    let svg = dir.join(format!("{name}.svg"));
-    draw(SVGBackend::new(&svg, (WIDTH, h)).into_drawing_area(), fig)
-        .with_context(|| format!("writing {}", svg.display()))?;
-    let png = dir.join(format!("{name}.png"));
-    draw(
-        BitMapBackend::new(&png, (WIDTH, h)).into_drawing_area(),
-        fig,
-    )
-    .with_context(|| format!("writing {}", png.display()))?;
+    write_images(dir, name, fig)?;
     let all: Vec<Series> = fig
         .panels
         .iter()
@@ -397,6 +386,18 @@ pub fn write(dir: &Path, name: &str, fig: &Figure) -> anyhow::Result<()> {
         })
         .collect();
     crate::plot::write_csv(dir, name, fig.x_label, &all)
+}
+
+/// Writes `<dir>/<name>.svg` and `.png` only (the caller writes its own
+/// data file: `zslide scope`'s snapshot).
+pub fn write_images(dir: &Path, name: &str, fig: &Figure) -> anyhow::Result<()> {
+    crate::plot::write_svg_png(
+        dir,
+        name,
+        (WIDTH, height(fig)),
+        |a| draw(a, fig),
+        |a| draw(a, fig),
+    )
 }
 
 #[cfg(test)]

@@ -192,11 +192,18 @@ impl Setup {
         Ok(self)
     }
 
-    /// The world, disarmed as a board boots, with its link attached.
-    pub fn build(&self) -> anyhow::Result<(FirmwareWorld, Scheduler<FirmwareWorld>, SharedLink)> {
+    /// Refuses settings no machine can be built with (before anything
+    /// is announced or bound).
+    pub fn check(&self) -> anyhow::Result<()> {
         if !(self.speed > 0.0 && self.speed <= 100.0) {
             bail!("--speed {}: must be in (0, 100]", self.speed);
         }
+        Ok(())
+    }
+
+    /// The world, disarmed as a board boots, with its link attached.
+    pub fn build(&self) -> anyhow::Result<(FirmwareWorld, Scheduler<FirmwareWorld>, SharedLink)> {
+        self.check()?;
         let sc = &self.scenario;
         let mut machine = sc.machine.clone();
         match &mut machine.x {
@@ -286,7 +293,7 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
             let mut l = link.borrow_mut();
             if let Some(f) = l.store_flash().filter(|f| Some(f.ops) != flash_ops) {
                 flash_ops = Some(f.ops);
-                write_image(path, &f.bytes)?;
+                crate::outpath::replace(path, f.bytes)?;
             }
         }
         let out = link.borrow_mut().take_received();
@@ -301,14 +308,6 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
         *f = st.into_flash();
     }
     Ok(())
-}
-
-/// `bytes` into `path` whole or not at all (a kill of the simulator
-/// mid-write leaves the last image).
-fn write_image(path: &std::path::Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("renaming onto {}", path.display()))
 }
 
 fn write_all_nonblocking(c: &mut dyn Conn, mut out: &[u8]) -> std::io::Result<()> {

@@ -33,6 +33,23 @@ fn negative_values_reach_the_range_check_instead_of_clap() {
 }
 
 #[test]
+fn a_cut_deeper_than_the_gauge_or_the_amplifier_allows_is_refused_with_the_reason() {
+    let o = host_sim(&["cut", "--depth-in", "0.011"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("--depth-in 0.011") && e.contains("gauge"), "{e}");
+    // k_e × 10 at 0.010 in: 2e5·0.01·1e-4 + 1500·(√(2·0.125·0.01) + 50e-6)
+    // = 75.3 lbf, 26.0 A at 2.9 lbf/A, beyond legacy-hw's 8 A.
+    let o = host_sim(&["cut", "--depth-in", "0.01", "--ke-scale", "10"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("75.3 lbf") && e.contains("26.0 A") && e.contains("8 A limit"),
+        "{e}"
+    );
+}
+
+#[test]
 fn a_refused_centring_exits_non_zero_and_says_why() {
     let o = host_sim(&["center", "--offset-x", "0.6"]);
     let e = stderr(&o);

@@ -113,6 +113,12 @@ fn the_index_is_captured_with_the_encoder_count_at_its_edge() {
     let rev_ns = 60.0e9 / RPM;
     let mut n = 0;
     while n < 5 {
+        // Five index pulses are due within five revolutions: a model that
+        // stopped raising them fails here instead of scanning forever.
+        assert!(
+            (link.scanned_to() as f64) < 6.0 * rev_ns,
+            "{n} index pulses in six revolutions"
+        );
         link.scan();
         while let Some(p) = link.pop_pulse() {
             n += 1;

@@ -90,6 +90,7 @@ fn open_bolt_holes_interrupt_the_force_at_the_bolt_circle_only() {
         x_start_in: r_b + s.band_half_in + s.preroll_revs * s.feed_per_rev_in,
         x_end_in: r_b - s.band_half_in - 2.0 * s.feed_per_rev_in,
         windows: vec![(r_b - s.band_half_in, r_b + s.band_half_in)],
+        zone: vec![],
         index: 3,
     };
     let at3 = run(&s, &on_circle);

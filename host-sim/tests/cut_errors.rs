@@ -152,8 +152,10 @@ fn a_constant_x_zero_error_gives_the_slope_times_the_offset() {
 }
 
 /// The digital firmware with the 1983 command generator's mistake (a
-/// table whose command has the wrong sign) refuses the table: the slide
-/// stays at null and the fault is reported.
+/// table whose command has the wrong sign) refuses the table by its
+/// load-time sign check (`Table(SignCheck)`, not the arm's `SignCheck`,
+/// which checks the gauge against the DAC), and that fault alone: the
+/// slide is held at null, above the part, and never cuts.
 #[test]
 fn the_digital_firmware_refuses_the_reversed_command_by_its_table_sign_check() {
     let mut s = spec(None);
@@ -161,9 +163,63 @@ fn the_digital_firmware_refuses_the_reversed_command_by_its_table_sign_check() {
     let (surf, _) = s.surface().unwrap();
     let st = plan(&s, surf.contact_gain()).swap_remove(6);
     let r = run_stretch(&s, &st, &Extras::default(), &|_| {}).unwrap();
+    assert_eq!(r.faults, ["Table(SignCheck)"]);
+    // The same stretch again, the slide's true position read every loop
+    // period. SAFETY.md: the table refused, the machine still arms (its
+    // sign-check doublet drives the slide open loop for 2 × sign_check_ms)
+    // and the loop then holds null. Held at null: within the campaign's
+    // NULL_HOLD_IN (the RampToNull safe state) before the arm, and from
+    // the doublet's end plus the slew profile's return from where the
+    // doublet left it, 2·√(D/a) (D < v²/a), to the end.
+    let d = s.scenario.servo_design;
+    let period = 1_000_000_000 / u64::from(d.rate_hz);
+    let host_sim::cut::StretchRig {
+        mut w,
+        s: mut sched,
+        total_s,
+        ..
+    } = host_sim::cut::build_stretch(&s, &st, 0.0, s.table()).unwrap();
+    let hold = host_sim::faults::NULL_HOLD_IN;
+    let mut t = 0u64;
+    let mut armed_at: Option<u64> = None;
+    let mut held_from: Option<u64> = None;
+    let (mut before, mut after, mut doublet) = (0.0f64, 0.0f64, 0.0f64);
+    while t < (total_s * 1e9) as u64 {
+        t += period;
+        sched.run_until(&mut w, t);
+        let z = w.rig.slide.position_in().abs();
+        if armed_at.is_none() && w.fw.amplifier_enable() {
+            armed_at = Some(t);
+        }
+        match (armed_at, held_from) {
+            (None, _) => before = before.max(z),
+            (Some(t_arm), None) => {
+                doublet = doublet.max(z);
+                if t >= t_arm + (2.0 * d.sign_check_ms * 1e6) as u64 {
+                    let back_s =
+                        2.0 * (z / d.slew_accel_in_per_s2).sqrt() + 2.0 / f64::from(d.rate_hz);
+                    held_from = Some(t + (back_s * 1e9) as u64);
+                }
+            }
+            (Some(_), Some(from)) if t >= from => after = after.max(z),
+            _ => {}
+        }
+    }
+    assert_eq!(
+        w.fw.fault().map(|f| format!("{f:?}")).as_deref(),
+        Some("Table(SignCheck)")
+    );
+    assert!(w.fw.amplifier_enable(), "armed, holding null");
+    eprintln!(
+        "before the arm {:.1} µin, the doublet {:.1}, from {:.1} ms on {:.1} µin of null (hold {:.0})",
+        before * 1e6,
+        doublet * 1e6,
+        held_from.unwrap() as f64 * 1e-6,
+        after * 1e6,
+        hold * 1e6
+    );
     assert!(
-        r.faults.iter().any(|f| f.contains("SignCheck")),
-        "{:?}",
-        r.faults
+        before <= hold && after <= hold,
+        "the slide left null: before the arm {before} in, after the doublet {after} in"
     );
 }

@@ -105,9 +105,9 @@ pub fn ack_loop_tick() {
 /// part's 2/rev surface (docs/SAFETY.md, "Fault campaign": worst of a
 /// sweep over the stall instant 272 µin at 10 ms, 155 µin at 5 ms, for a
 /// 300 µin depth of cut). Not shorter than the background's longest pass
-/// allows with margin: a parameter design (72 392 instructions) inside a
-/// station poll (≤ 11 374), under 1 ms with the handlers' load
-/// (docs/BOARD.md, `cargo xtask isr-cost`).
+/// allows with margin: a parameter design inside a station poll, under
+/// 1 ms with the handlers' load (docs/BOARD.md's `servo_design` and
+/// `station_poll` rows, `cargo xtask isr-cost`).
 pub fn start_watchdog(iwdg: &IWDG, dbgmcu: &DBGMCU) {
     // SAFETY: DBGMCU_APB4FZ1 bit 18 (DBG_IWDG1) only affects debug halts.
     // IWDG key sequence of RM0433 §45.3: start, unlock, prescaler /4

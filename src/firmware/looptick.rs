@@ -11,7 +11,7 @@ use crate::command::{Coefficients, CommandGen};
 use crate::handoff::ahead::{Ahead, MAX_AGE};
 use crate::handoff::{Request, Shared, MONITOR_FAULTS, X_FAULTS};
 use crate::hw::{AmplifierDac, EncoderSample, GaugeAdc};
-use crate::safety::{Device, Fault, Reaction};
+use crate::safety::{Clearing, Device, Fault, Reaction};
 use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput, ServoOutput};
 use crate::spindle::{EncoderAngle, TachAngle};
 use crate::units::{SpindleAngle, XInches};
@@ -614,14 +614,11 @@ impl LoopState {
             return;
         };
         let present = self.servo.phase() != Phase::Disarmed
-            || match f {
-                Fault::GaugeRange | Fault::GaugeSaturated | Fault::Bus(Device::GaugeAdc) => {
-                    self.gauge_bad
-                }
-                Fault::AmplifierTrip => amplifier_fault,
-                // A refused table stays refused: only a new table clears it.
-                Fault::Table(_) | Fault::Parameters(_) => true,
-                _ => false,
+            || match f.clearing() {
+                Clearing::GaugeGood => self.gauge_bad,
+                Clearing::AmplifierLineLow => amplifier_fault,
+                Clearing::NextBoot => true,
+                Clearing::Disarmed => false,
             };
         if present {
             self.clear_refused = Some(f);

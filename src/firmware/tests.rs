@@ -922,7 +922,15 @@ fn hand_off_never_tears_under_concurrency() {
         let (mut g, mut d) = (Gauge::at(0), Dac::default());
         let mut checked = 0u32;
         let mut seen = 0u32;
+        // The writer publishes a new generation every few microseconds; a
+        // writer that stopped (or a generation that never moves) fails at
+        // the deadline instead of looping forever.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
         while checked < 20_000 {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "only {checked} of 20 000 new generations checked in 120 s"
+            );
             lp.loop_tick(&shared, &TickInput::NONE, &mut g, &mut d);
             // The values as the tick's fallback copies them.
             let _ = shared

@@ -267,8 +267,13 @@ pub struct Sample {
     pub error: i32,
     pub output: i32,
     pub phi: u32,
+    /// X (I8F24 inches), or [`X_UNKNOWN`] on a tick before the first X
+    /// reading.
     pub x_bits: i32,
 }
+
+/// A sample's `x_bits` when X was not known (−128 in: no slide's X).
+pub const X_UNKNOWN: i32 = i32::MIN;
 
 /// Why a request was not carried out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

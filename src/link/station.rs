@@ -508,7 +508,10 @@ impl<const N: usize> Station<N> {
         };
         let block = block.get(..len).unwrap_or(&[]);
         match (store.save(block, d), params::load_region(block, d)) {
-            (Ok(()), Ok((_, _, ParamSource::Block { entries, crc }))) => {
+            (Ok(()), Ok((_, _, saved @ ParamSource::Block { entries, crc }))) => {
+                // The flash holds this block now: the status says so, as
+                // it would after the next boot.
+                self.cfg.params = saved;
                 Reply::Saved { entries, crc }
             }
             (Err(e), _) => Reply::Refused(Refusal::Store(e)),

@@ -19,7 +19,7 @@
 //! division, no panic path, which `cargo xtask no-panic` checks). They live
 //! in [`TapShared`] with the capture ring, so a board needs one `static`.
 
-use super::proto::{CaptureState, LoopPhase, LoopSnapshot as Snapshot, Sample, Trigger};
+use super::proto::{CaptureState, LoopPhase, LoopSnapshot as Snapshot, Sample, Trigger, X_UNKNOWN};
 use crate::firmware::looptick::LoopState;
 use crate::safety::Fault;
 use crate::servo::{Phase, ServoConfig};
@@ -395,7 +395,10 @@ impl TickTap {
             o.store(lp.output_code(), Ordering::Relaxed);
             let phi = lp.setpoint_state().angle().map_or(0, |v| v.0);
             a.store(phi as i32, Ordering::Relaxed);
-            x.store(lp.last_x().map_or(0, |v| v.to_bits()), Ordering::Relaxed);
+            x.store(
+                lp.last_x().map_or(X_UNKNOWN, |v| v.to_bits()),
+                Ordering::Relaxed,
+            );
         }
         self.written = self.written.wrapping_add(1);
         let gen = st & !PH_MASK;

@@ -1,8 +1,9 @@
 //! The store against the power-cut flash model: a cut at every flash
 //! operation of a long run of saves (pages filled, moved on, erased and
 //! reused several times) leaves, at the next boot, the block saved before
-//! or the one being saved, whole, and never a mix or nothing; and the
-//! next save works.
+//! or the one being saved, whole, and never a mix or nothing; the next
+//! (recovery) save, cut at each of its own operations, leaves what the
+//! first cut left or its own block; and uncut it works and boots.
 
 extern crate std;
 use std::vec::Vec;
@@ -81,12 +82,36 @@ fn a_power_cut_at_every_flash_operation_leaves_the_old_block_or_the_new() {
             if k > 1 {
                 assert!(got.is_some(), "save {k} cut at {}: nothing", n + 1);
             }
-            // The next save after the cut works, and is what boots.
+            // The next save after the cut works, and is what boots: a
+            // block neither the cut save's nor the one before it, so a
+            // save that wrote nothing cannot pass for one that did.
+            let next = block(k + 7);
+            assert!(next != new && Some(&next) != old.as_ref());
             let mut again = after;
             again.budget = None;
+            again.ops = 0;
+            // The recovery save cut too, at each of its operations: the
+            // boot finds what the first cut left, or the recovery's block.
+            let mut whole = Store::new(again.clone(), 0..REGION).unwrap();
+            whole.save(&next, &base()).unwrap();
+            let recovery_ops = whole.into_flash().ops;
+            for m in 0..recovery_ops {
+                let mut cut2 = again.clone();
+                cut2.budget = Some(m + 1);
+                let mut s = Store::new(cut2, 0..REGION).unwrap();
+                assert!(s.save(&next, &base()).is_err());
+                let twice = boot(s.into_flash());
+                assert!(
+                    twice == got || twice.as_ref() == Some(&next),
+                    "save {k} cut at {}, its recovery cut at {} of {recovery_ops}: boot found {:?}",
+                    n + 1,
+                    m + 1,
+                    twice.as_ref().map(|b| b.len())
+                );
+            }
             let mut s = Store::new(again, 0..REGION).unwrap();
-            s.save(&new, &base()).unwrap();
-            assert_eq!(boot(s.into_flash()), Some(new.clone()));
+            s.save(&next, &base()).unwrap();
+            assert_eq!(boot(s.into_flash()), Some(next));
             cuts += 1;
         }
         let mut s = Store::new(flash, 0..REGION).unwrap();

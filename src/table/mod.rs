@@ -50,6 +50,7 @@
 //!   `Z = C_0 + Σ_k C_k cos kφ + S_k sin kφ` (eq 2-17); the column count is odd.
 
 pub mod interp;
+pub mod interrupt;
 
 use crate::units::XInches;
 use crc::{Crc, CRC_32_ISO_HDLC};

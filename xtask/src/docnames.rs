@@ -13,25 +13,21 @@
 //! * `CamelCase` words (two humps or more) must be words of the code.
 //! * Files: a path under one of the repository's top-level directories must
 //!   exist; a bare `name.rs` or `NAME.md` must exist somewhere in the tree.
-//! * Commands (`host-sim SUB ...`, `cargo sim -- ...`, `cargo xtask SUB ...`,
-//!   in backticks or on a fenced code line): the subcommand must exist and
-//!   each `--option` must be one of its options; a value given to an option
-//!   with a fixed set of values must be one of them.
+//! * Commands are `doccmds.rs`'s: parsed by the programs' own parsers.
 //!
 //! [`ALLOW`] lists the few names cited on purpose that the tree does not
 //! hold.
 
 use crate::{root, Result};
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::fs;
 use std::path::{Path, PathBuf};
 
 /// Cited on purpose, not in the tree: names of the 1983 programs, of other
 /// projects' items, of files a command writes.
 const ALLOW: &[&str] = &[
-    // The iterator adaptor a panic path once went through (SAFETY.md's
-    // history of what `no-panic` found): core's, named as it was.
-    "Zip::new",
+    // core's iterator whose zip SAFETY.md says the handlers avoid (its
+    // size is a division: a panic path).
     "ChunksExact",
 ];
 
@@ -50,9 +46,6 @@ pub struct Tree {
     pub names: HashSet<String>,
     /// Top-level directories.
     pub top: HashSet<String>,
-    /// Subcommands of each tool (`host-sim`, `xtask`): option → its fixed
-    /// values (empty: any value).
-    pub commands: HashMap<(&'static str, String), HashMap<String, Vec<String>>>,
 }
 
 fn idents(line: &str, out: &mut HashSet<String>) {
@@ -63,7 +56,7 @@ fn idents(line: &str, out: &mut HashSet<String>) {
     }
 }
 
-fn walk(dir: &Path, base: &Path, files: &mut Vec<PathBuf>) {
+fn walk(dir: &Path, files: &mut Vec<PathBuf>) {
     let Ok(rd) = fs::read_dir(dir) else { return };
     for e in rd.flatten() {
         let p = e.path();
@@ -72,7 +65,7 @@ fn walk(dir: &Path, base: &Path, files: &mut Vec<PathBuf>) {
             continue;
         }
         if p.is_dir() {
-            walk(&p, base, files);
+            walk(&p, files);
         }
         files.push(p);
     }
@@ -83,7 +76,7 @@ impl Tree {
     pub fn read(base: &Path) -> Result<Tree> {
         let mut t = Tree::default();
         let mut files = Vec::new();
-        walk(base, base, &mut files);
+        walk(base, &mut files);
         for p in &files {
             let rel = p
                 .strip_prefix(base)
@@ -204,9 +197,6 @@ pub fn check_span(t: &Tree, span: &str) -> Option<String> {
     if ALLOW.contains(&s) {
         return None;
     }
-    if let Some(e) = check_command(t, s) {
-        return Some(e);
-    }
     // A Rust path, maybe called or a macro.
     let p = s.trim_end_matches("()").trim_end_matches('!');
     if p.contains("::") && p.split("::").all(is_ident) {
@@ -264,110 +254,11 @@ fn check_file(t: &Tree, s: &str) -> Option<String> {
     None
 }
 
-/// `(tool, subcommand, arguments)` of a command line, if it is one.
-fn command_of(s: &str) -> Option<(&'static str, String, Vec<String>)> {
-    let words: Vec<&str> = s
-        .split_whitespace()
-        .take_while(|w| !matches!(*w, "#" | "|" | ">" | "&&" | ";" | "2>&1" | "2>"))
-        .collect();
-    let owned = |v: &[&str]| v.iter().map(|w| w.to_string()).collect::<Vec<_>>();
-    match words.as_slice() {
-        ["host-sim", sub, rest @ ..] => Some(("host-sim", sub.to_string(), owned(rest))),
-        ["cargo", "xtask", sub, rest @ ..] => Some(("xtask", sub.to_string(), owned(rest))),
-        ["cargo", "sim", rest @ ..] => {
-            let rest: Vec<&str> = rest.iter().copied().filter(|w| *w != "--").collect();
-            Some(("host-sim", "cut".into(), owned(&rest)))
-        }
-        ["cargo", "run", rest @ ..] => {
-            let k = rest.iter().position(|w| *w == "--")?;
-            if !rest[..k].windows(2).any(|w| w == ["-p", "host-sim"]) {
-                return None;
-            }
-            let (sub, args) = rest[k + 1..].split_first()?;
-            Some(("host-sim", sub.to_string(), owned(args)))
-        }
-        _ => None,
-    }
-}
-
-fn check_command(t: &Tree, s: &str) -> Option<String> {
-    let (tool, sub, args) = command_of(s)?;
-    if sub.starts_with('-') || sub.contains(['<', '[', '.']) || t.commands.is_empty() {
-        return None;
-    }
-    let Some(opts) = t.commands.get(&(tool, sub.clone())) else {
-        if t.commands.keys().any(|(k, _)| *k == tool) {
-            return Some(format!("`{s}`: {tool} has no command `{sub}`"));
-        }
-        return None;
-    };
-    for (i, a) in args.iter().enumerate() {
-        let Some(name) = a.strip_prefix("--") else {
-            continue;
-        };
-        let name = name.split('=').next().unwrap_or(name);
-        if name.is_empty() || name.contains(['<', '[', '.']) {
-            continue;
-        }
-        match opts.get(name) {
-            None => return Some(format!("`{s}`: `{tool} {sub}` has no option --{name}")),
-            Some(values) if !values.is_empty() => {
-                let v = a
-                    .split_once('=')
-                    .map(|(_, v)| v.to_string())
-                    .or_else(|| args.get(i + 1).cloned());
-                if let Some(v) = v {
-                    if !v.starts_with('-') && !v.contains(['<', '[', '.']) && !values.contains(&v) {
-                        return Some(format!(
-                            "`{s}`: --{name} {v} is not one of {}",
-                            values.join(", ")
-                        ));
-                    }
-                }
-            }
-            Some(_) => {}
-        }
-    }
-    None
-}
-
-/// Options (and fixed values) of each subcommand from a clap command.
-pub fn add_clap(t: &mut Tree, tool: &'static str, cmd: &clap::Command) {
-    for sub in cmd.get_subcommands() {
-        let mut opts = HashMap::new();
-        for a in sub.get_arguments() {
-            if let Some(l) = a.get_long() {
-                let values: Vec<String> = a
-                    .get_possible_values()
-                    .iter()
-                    .map(|v| v.get_name().to_string())
-                    .collect();
-                opts.insert(l.to_string(), values);
-            }
-        }
-        opts.insert("help".into(), Vec::new());
-        t.commands.insert((tool, sub.get_name().to_string()), opts);
-    }
-}
-
 /// The problems of every document, `doc:line: ...`.
 pub fn check() -> Result<Vec<String>> {
-    let base = root();
-    let mut t = Tree::read(&base)?;
-    add_clap(&mut t, "host-sim", &host_sim::cli::command());
-    add_clap(
-        &mut t,
-        "xtask",
-        &<crate::Cli as clap::CommandFactory>::command(),
-    );
+    let t = Tree::read(&root())?;
     let mut out = Vec::new();
-    for doc in docs()? {
-        let text = fs::read_to_string(&doc).map_err(|e| format!("{}: {e}", doc.display()))?;
-        let rel = doc
-            .strip_prefix(&base)
-            .unwrap_or(&doc)
-            .display()
-            .to_string();
+    for (_, rel, text) in read_docs()? {
         for (span, line) in spans(&text) {
             if let Some(e) = check_span(&t, &span) {
                 out.push(format!("{rel}:{line}: {e}"));
@@ -375,6 +266,23 @@ pub fn check() -> Result<Vec<String>> {
         }
     }
     Ok(out)
+}
+
+/// Every document: its path, its path from the root, its text.
+pub fn read_docs() -> Result<Vec<(PathBuf, String, String)>> {
+    let base = root();
+    docs()?
+        .into_iter()
+        .map(|doc| {
+            let text = fs::read_to_string(&doc).map_err(|e| format!("{}: {e}", doc.display()))?;
+            let rel = doc
+                .strip_prefix(&base)
+                .unwrap_or(&doc)
+                .display()
+                .to_string();
+            Ok((doc, rel, text))
+        })
+        .collect()
 }
 
 /// The documents that may hold figures.
@@ -404,10 +312,6 @@ mod tests {
         t.paths.insert("docs/BOARD.md".into());
         t.names.insert("BOARD.md".into());
         t.names.insert("ahead.rs".into());
-        let mut cut = HashMap::new();
-        cut.insert("rpm".to_string(), vec![]);
-        cut.insert("holes".to_string(), vec!["open".into(), "filled".into()]);
-        t.commands.insert(("host-sim", "cut".into()), cut);
         t
     }
 
@@ -448,29 +352,6 @@ mod tests {
         assert!(check_span(&t, "looptick2.rs").is_some());
         // Output files a command writes are not the tree's.
         assert_eq!(check_span(&t, "loop.svg"), None);
-    }
-
-    #[test]
-    fn commands_options_and_values_are_checked() {
-        let t = tree();
-        assert_eq!(
-            check_span(&t, "host-sim cut --rpm 360 --holes filled"),
-            None
-        );
-        assert_eq!(check_span(&t, "cargo sim -- --holes open"), None);
-        assert!(check_span(&t, "host-sim cut --holes plugged")
-            .unwrap()
-            .contains("plugged"));
-        assert!(check_span(&t, "host-sim cut --speed 3")
-            .unwrap()
-            .contains("--speed"));
-        assert!(check_span(&t, "host-sim drill --rpm 3")
-            .unwrap()
-            .contains("drill"));
-        assert_eq!(
-            check_span(&t, "cargo run --release -p host-sim -- cut --rpm 5"),
-            None
-        );
     }
 
     #[test]

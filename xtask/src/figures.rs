@@ -21,6 +21,10 @@
 //! A negative value is written with the document's minus: `−` (U+2212) if
 //! the old value uses it, else `-`.
 //!
+//! The generated reference sections (`generated.rs`) are rewritten with
+//! them, the names the docs cite checked (`docnames.rs`) and the commands
+//! they show parsed (`doccmds.rs`).
+//!
 //! Without `--check` the marked values are rewritten in place; with it,
 //! each figure that drifted is listed with doc:line, the old and the new
 //! value, and the exit status is 1. A complete run that leaves every
@@ -278,7 +282,9 @@ pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
     ));
     let mut runs: HashMap<String, serde_json::Value> = HashMap::new();
     let mut drift = Vec::new();
-    let mut edits: HashMap<PathBuf, Vec<((usize, usize), String)>> = HashMap::new();
+    // Per doc: (byte range of a value, its new text).
+    type Edits = Vec<((usize, usize), String)>;
+    let mut edits: HashMap<PathBuf, Edits> = HashMap::new();
     for f in &chosen {
         let cmd = f.attr("cmd").unwrap_or_default().to_string();
         if !runs.contains_key(&cmd) {
@@ -304,7 +310,7 @@ pub fn figures(check: bool, quick: bool) -> Result<(usize, Vec<String>)> {
     if !check {
         for (doc, mut e) in edits {
             let mut text = texts[&doc].clone();
-            e.sort_by(|a, b| b.0 .0.cmp(&a.0 .0));
+            e.sort_by_key(|edit| std::cmp::Reverse(edit.0 .0));
             for ((a, b), new) in e {
                 text.replace_range(a..b, &new);
             }
@@ -339,9 +345,37 @@ fn rel(p: &Path) -> String {
     p.strip_prefix(root()).unwrap_or(p).display().to_string()
 }
 
+/// The docs' checks besides the figures: the generated sections
+/// (rewritten, or with `check` compared), the names they cite
+/// (`docnames`), the commands they show (`doccmds`, the quick blocks run).
+/// Returns a summary line and the problems, `doc:line: ...` each.
+pub fn doc_checks(check: bool) -> Result<(String, Vec<String>)> {
+    let (sections, stale) = crate::generated::run(check)?;
+    let names = crate::docnames::check()?;
+    let (shown, commands, quick) = crate::doccmds::check()?;
+    let failed_blocks = crate::doccmds::run_quick(&quick)?;
+    let summary = format!(
+        "generated sections: {sections}, {} {}; names cited: {} not found; \
+         commands shown: {shown}, {} refused; quick blocks: {}, {} failed",
+        stale.len(),
+        if check { "out of date" } else { "rewritten" },
+        names.len(),
+        commands.len(),
+        quick.len(),
+        failed_blocks.len()
+    );
+    let mut problems = names;
+    problems.extend(commands);
+    problems.extend(failed_blocks);
+    if check {
+        problems.extend(stale);
+    }
+    Ok((summary, problems))
+}
+
 pub fn run(args: &Args) -> Result<u8> {
     let (n, drift) = figures(args.check, args.quick)?;
-    let problems = crate::docnames::check()?;
+    let (summary, problems) = doc_checks(args.check)?;
     for p in &problems {
         eprintln!("{p}");
     }
@@ -349,18 +383,10 @@ pub fn run(args: &Args) -> Result<u8> {
         for d in &drift {
             eprintln!("{d}");
         }
-        eprintln!(
-            "figures: {n} checked, {} drifted; names cited in the docs: {} not found",
-            drift.len(),
-            problems.len()
-        );
+        eprintln!("figures: {n} checked, {} drifted; {summary}", drift.len());
         Ok(u8::from(!drift.is_empty() || !problems.is_empty()))
     } else {
-        eprintln!(
-            "figures: {n} checked, {} rewritten; names cited in the docs: {} not found",
-            drift.len(),
-            problems.len()
-        );
+        eprintln!("figures: {n} checked, {} rewritten; {summary}", drift.len());
         Ok(u8::from(!problems.is_empty()))
     }
 }

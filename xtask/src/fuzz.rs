@@ -20,7 +20,7 @@ use crate::{cargo, root, step, Result};
 
 /// The targets, in the order they run: the `[[bin]]` names of
 /// `fuzz/Cargo.toml` (a test checks the two lists agree).
-pub const TARGETS: [&str; 9] = [
+pub const TARGETS: [&str; 10] = [
     "table_parse",
     "xpos",
     "spindle",
@@ -28,6 +28,7 @@ pub const TARGETS: [&str; 9] = [
     "geometry",
     "link_frame",
     "param_block",
+    "interrupt_block",
     "replay_recording",
     "trace_log",
 ];

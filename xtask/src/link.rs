@@ -17,8 +17,8 @@ use zslide::link::proto::{
 };
 use zslide::params;
 use zslide_host::capture;
-use zslide_host::cli::{run_line, Link};
-use zslide_host::client::{unexpected, Client};
+use zslide_host::cli::run_line;
+use zslide_host::client::{unexpected, Client, Link};
 use zslide_host::words::status_text;
 
 use crate::Result;
@@ -483,6 +483,24 @@ impl Checks {
             Err(format!("link end to end: {what}"))
         }
     }
+}
+
+// ------------------------------------------------------- cargo xtask link-test
+
+/// `cargo xtask link-test`: the QEMU table-region runs, the parameter
+/// fault path and the host-link end-to-end test of `cargo xtask test`, alone.
+pub fn run_test() -> Result<u8> {
+    crate::tools::require_for_qemu_log()?;
+    crate::images::build_qemu()?;
+    let (code, lines) = crate::qemu::run_qemu()?;
+    if code != 0 {
+        return Err(format!("the QEMU image exited with status {code}"));
+    }
+    let n = crate::table_checks::qemu_table_checks(&lines)?
+        + crate::faultpath::params_check()?
+        + end_to_end()?;
+    eprintln!("{n} passed, 0 failed");
+    Ok(0)
 }
 
 #[cfg(test)]

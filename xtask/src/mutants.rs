@@ -30,7 +30,7 @@ pub struct Module {
 }
 
 /// Most important first: `--module` picks among them; none runs them all.
-pub const MODULES: [Module; 5] = [
+pub const MODULES: [Module; 12] = [
     Module {
         name: "safety",
         files: &["**/safety.rs"],
@@ -72,11 +72,62 @@ pub const MODULES: [Module; 5] = [
         tests: &["--lib"],
         what: "the servo parameter block: parse, limits, design",
     },
+    Module {
+        name: "design",
+        files: &["**/servo/design.rs"],
+        re: None,
+        // `tests/servo_gains.rs` holds the gains to the brief's design.
+        tests: &["--lib", "--tests"],
+        what: "the servo design: gains, observer poles, limits in codes",
+    },
+    Module {
+        name: "observer",
+        files: &["**/servo/observer.rs"],
+        re: None,
+        tests: &["--lib"],
+        what: "the force/velocity observer",
+    },
+    Module {
+        name: "repetitive",
+        files: &["**/servo/repetitive.rs", "**/firmware/learning.rs"],
+        re: None,
+        tests: &["--lib"],
+        what: "the learned correction and its clip",
+    },
+    Module {
+        name: "xpos",
+        files: &["**/xpos/mod.rs", "**/xpos/*.rs"],
+        re: None,
+        tests: &["--lib"],
+        what: "the X position: BCD decode, debounce, glitch storm",
+    },
+    Module {
+        name: "spindle",
+        files: &["**/spindle/encoder.rs", "**/spindle/tach.rs", "**/spindle/mod.rs"],
+        re: None,
+        tests: &["--lib"],
+        what: "the spindle angle, index and speed checks",
+    },
+    Module {
+        name: "store",
+        files: &["**/store/mod.rs", "**/store/boot.rs", "**/store/ram.rs"],
+        re: None,
+        tests: &["--lib"],
+        what: "the parameter store, its boot order and the power-cut flash model",
+    },
+    Module {
+        name: "handoff",
+        files: &["**/handoff/*.rs"],
+        re: None,
+        tests: &["--lib"],
+        what: "the lock-free hand-off between the handlers",
+    },
 ];
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Only these modules (repeatable): safety, looptick, limits, table, params.
+    /// Only these modules (repeatable): safety, looptick, limits, table,
+    /// params, design, observer, repetitive, xpos, spindle, store, handoff.
     #[arg(long = "module", value_name = "M")]
     pub modules: Vec<String>,
     /// Seconds a mutant's test run may take before it counts as a timeout.

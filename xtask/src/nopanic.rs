@@ -407,6 +407,41 @@ pub fn check(path: &Path, link: bool) -> Result<String, String> {
     }
 }
 
+// ---------------------------------------------------------------- command
+
+use crate::images::{build_board, build_qemu};
+use crate::tools::{require, Tool};
+use crate::{board_elf, centre_elf, qemu_elf, step};
+
+pub fn run() -> crate::Result<u8> {
+    require(&[Tool::Target, Tool::FlipLink])?;
+    build_board()?;
+    build_qemu()?;
+    check_images()?;
+    Ok(0)
+}
+
+/// Every image: no panic path from any interrupt handler (`nopanic.rs`).
+pub fn check_images() -> crate::Result<()> {
+    step("no panic path from interrupt handlers (every image)");
+    let mut errors = Vec::new();
+    for (elf, link) in [
+        (board_elf(), true),
+        (centre_elf(), false),
+        (qemu_elf(), true),
+    ] {
+        match check(&elf, link) {
+            Ok(summary) => eprintln!("{summary}"),
+            Err(e) => errors.push(e),
+        }
+    }
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(errors.join("\n"))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -338,3 +338,11 @@ pub fn check() -> Result<String> {
         lines.join("; ")
     ))
 }
+
+/// `cargo xtask flash-cut`: [`check`] with the image built first.
+pub fn run() -> Result<u8> {
+    crate::tools::require_for_qemu_log()?;
+    crate::images::build_qemu()?;
+    eprintln!("QEMU power cuts: {}", check()?);
+    Ok(0)
+}

@@ -1,20 +1,63 @@
 //! `zslide capture`: consecutive loop ticks around a trigger, as CSV in
 //! the user's units, and a plot.
 
-use std::fs;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use zslide::link::proto::{CaptureInfo, CaptureState, Reply, Request, Sample, Trigger};
+use zslide::link::proto::{CaptureInfo, CaptureState, Reply, Request, Sample, Trigger, X_UNKNOWN};
 
-use crate::cli::{CaptureArgs, Link};
-use crate::client::unexpected;
-use crate::words::{deg, inch, uin, V_PER_CODE};
+use crate::client::{unexpected, Link};
+use crate::report::say_to;
+use crate::words::{deg, inch, uin, CODES_PER_UIN, V_PER_CODE};
 use crate::Result;
 
+#[derive(clap::Args, Debug, Clone)]
+pub struct CaptureArgs {
+    /// Loop ticks to record.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=zslide::link::CAPTURE as i64))]
+    pub samples: u16,
+    /// Of them, before the trigger (not with `--trigger immediate`).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub pre: u16,
+    /// `immediate`, `fault`, or `ferr:UIN` (|command − position| ≥ UIN µin).
+    #[arg(long, value_name = "T", value_parser = parse_trigger)]
+    pub trigger: Trigger,
+    /// The CSV file to write.
+    #[arg(long, value_name = "FILE")]
+    pub csv: PathBuf,
+    /// Also plot it: FILE.svg and FILE.png.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    /// Seconds to wait for the trigger.
+    #[arg(long, value_name = "S", default_value_t = 30)]
+    pub wait_s: u64,
+}
+
+pub fn parse_trigger(s: &str) -> std::result::Result<Trigger, String> {
+    match s {
+        "immediate" => Ok(Trigger::Immediate),
+        "fault" => Ok(Trigger::Fault),
+        _ => {
+            let uin = s
+                .strip_prefix("ferr:")
+                .ok_or_else(|| format!("{s:?}: expected immediate, fault or ferr:UIN"))?;
+            let v: f64 = uin
+                .parse()
+                .map_err(|_| format!("{uin:?} is not a number of µin"))?;
+            if !(v > 0.0 && v <= 10_000.0) {
+                return Err(format!("ferr:{v}: the level must be in (0, 10000] µin"));
+            }
+            Ok(Trigger::FollowingError {
+                level: (v * CODES_PER_UIN).round().max(1.0) as u32,
+            })
+        }
+    }
+}
+
 /// The capture as CSV: time from the trigger, loop tick, command,
-/// position, error (µin), output (V), φ (deg), X (in).
+/// position, error (µin), output (V), φ (deg), X (in; empty on a tick
+/// where the firmware did not know X).
 pub fn csv(info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> String {
     let mut t = String::from("t_s,tick,command_uin,position_uin,error_uin,output_v,phi_deg,x_in\n");
     let first = info
@@ -23,7 +66,7 @@ pub fn csv(info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> String {
     for (i, s) in samples.iter().enumerate() {
         let k = i as i64 - i64::from(info.before_trigger);
         t += &format!(
-            "{:.6},{},{:.4},{:.4},{:.4},{:.6},{:.4},{:.7}\n",
+            "{:.6},{},{:.4},{:.4},{:.4},{:.6},{:.4},{}\n",
             k as f64 / f64::from(loop_hz.max(1)),
             first.wrapping_add(i as u32),
             uin(s.command),
@@ -31,7 +74,11 @@ pub fn csv(info: &CaptureInfo, samples: &[Sample], loop_hz: u32) -> String {
             uin(s.error),
             f64::from(s.output) * V_PER_CODE,
             deg(s.phi),
-            inch(s.x_bits)
+            if s.x_bits == X_UNKNOWN {
+                String::new()
+            } else {
+                format!("{:.7}", inch(s.x_bits))
+            }
         );
     }
     t
@@ -98,12 +145,12 @@ pub fn check(a: &CaptureArgs) -> Result<()> {
 }
 
 pub fn run(link: &mut Link, a: &CaptureArgs, out: &mut dyn Write) -> Result<()> {
-    let mut say = |s: String| crate::cli::say_to(out, &s);
+    let mut say = |s: String| say_to(out, &s);
     check(a)?;
-    // The output is opened before the capture is armed: a bad path is
-    // refused before the machine is asked for anything.
-    let mut file =
-        fs::File::create(&a.csv).map_err(|e| format!("{}: cannot write: {e}", a.csv.display()))?;
+    // The output is checked before the capture is armed: a bad path is
+    // refused before the machine is asked for anything. The file itself
+    // is replaced only when the capture is read whole.
+    host_sim::outpath::check_file("--csv", &a.csv).map_err(|e| format!("{e:#}"))?;
     let c = link.client()?;
     let hz = c.status()?.loop_hz;
     match c.call(&Request::CaptureStart {
@@ -136,8 +183,7 @@ pub fn run(link: &mut Link, a: &CaptureArgs, out: &mut dyn Write) -> Result<()> 
         std::thread::sleep(Duration::from_millis(20));
     };
     let samples = c.capture_read(info.recorded)?;
-    file.write_all(csv(&info, &samples, hz).as_bytes())
-        .map_err(|e| format!("{}: {e}", a.csv.display()))?;
+    crate::write_file(&a.csv, csv(&info, &samples, hz))?;
     say(format!(
         "captured {} samples ({} before the trigger at tick {}) -> {}",
         samples.len(),

@@ -4,14 +4,15 @@
 
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::Duration;
 
-use zslide::link::proto::{Reply, Request, Trigger};
+use zslide::link::proto::{Reply, Request};
 use zslide::params;
 
-use crate::client::{unexpected, Client, DEFAULT_ADDR};
+use crate::capture::CaptureArgs;
+use crate::client::{get, set, unexpected, Link, DEFAULT_ADDR};
 use crate::regions::{self, NUCLEO, QEMU};
-use crate::{capture, words, Result};
+use crate::report::say_to;
+use crate::{capture, flash, words, Result};
 
 #[derive(clap::Parser, Debug)]
 #[command(
@@ -86,14 +87,70 @@ pub enum Cmd {
 
 #[derive(clap::Subcommand, Debug)]
 pub enum TableCmd {
-    /// Generate a table (`host-sim coeffs`'s generator): `--config
-    /// PART.toml --out PART.zsct`.
-    Build(host_sim::cmd::coeffs::Args),
+    /// Make the table of a part file (docs/PARTS.md, every surface kind;
+    /// the smallest table that meets its bound, as `host-sim part-table`),
+    /// or of a table configuration of `host-sim coeffs` (tables/default.toml):
+    /// `--config PART.toml --out PART.zsct`.
+    Build(BuildArgs),
+    /// A table compensating a measured part's error (`host-sim
+    /// compensate`'s code): `MEASURED --out F.zsct [--from T.zsct] [--gain G]`.
+    Compensate(host_sim::cmd::compensate::Args),
     /// Check a table file as the firmware checks it (parser, CRC, sign
     /// check, region size) and print its identity.
     Check { file: PathBuf },
     /// Check a table file, then write it to the NUCLEO's table region.
     Flash(FlashArgs),
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct BuildArgs {
+    /// The part file, or a `host-sim coeffs` table configuration.
+    #[arg(long, value_name = "FILE")]
+    pub config: PathBuf,
+    /// The table image to write.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+/// `table build`: the table image written whole, its report on `out`.
+fn table_build(a: &BuildArgs, out: &mut dyn Write) -> Result<()> {
+    let shown = a.config.display();
+    let text =
+        std::fs::read_to_string(&a.config).map_err(|e| format!("{shown}: cannot read: {e}"))?;
+    host_sim::outpath::check_file("--out", &a.out).map_err(|e| format!("{e:#}"))?;
+    // A table configuration has a [grid]; a part file has none.
+    let is_config = text
+        .parse::<toml::Table>()
+        .is_ok_and(|t| t.contains_key("grid"));
+    if is_config {
+        // `host-sim coeffs --config FILE --out FILE --report`, its own
+        // defaults for the rest.
+        #[derive(clap::Parser)]
+        struct Coeffs {
+            #[command(flatten)]
+            a: host_sim::cmd::coeffs::Args,
+        }
+        let c = <Coeffs as clap::Parser>::try_parse_from([
+            "coeffs".as_ref(),
+            "--config".as_ref(),
+            a.config.as_os_str(),
+            "--out".as_ref(),
+            a.out.as_os_str(),
+            "--report".as_ref(),
+        ] as [&std::ffi::OsStr; 6])
+        .map_err(|e| e.to_string())?;
+        return host_sim::cmd::coeffs::run(c.a).map_err(|e| format!("{e:#}"));
+    }
+    let lp = host_sim::part::config::load_part(&a.config).map_err(|e| format!("{e:#}"))?;
+    let (_, image, r) = host_sim::cmd::parttable::make(&lp).map_err(|e| format!("{e:#}"))?;
+    crate::write_file(&a.out, &image)?;
+    for line in host_sim::cmd::parttable::report_text(&r).lines() {
+        say_to(out, line)?;
+    }
+    say_to(
+        out,
+        &format!("wrote {} ({} bytes)", a.out.display(), image.len()),
+    )
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -162,82 +219,6 @@ pub struct FlashArgs {
     pub probe: Option<String>,
 }
 
-#[derive(clap::Args, Debug, Clone)]
-pub struct CaptureArgs {
-    /// Loop ticks to record.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
-    pub samples: u16,
-    /// Of them, before the trigger (not with `--trigger immediate`).
-    #[arg(long, value_name = "N", default_value_t = 0)]
-    pub pre: u16,
-    /// `immediate`, `fault`, or `ferr:UIN` (|command − position| ≥ UIN µin).
-    #[arg(long, value_name = "T", value_parser = parse_trigger)]
-    pub trigger: Trigger,
-    /// The CSV file to write.
-    #[arg(long, value_name = "FILE")]
-    pub csv: PathBuf,
-    /// Also plot it: FILE.svg and FILE.png.
-    #[arg(long, value_name = "FILE")]
-    pub plot: Option<PathBuf>,
-    /// Seconds to wait for the trigger.
-    #[arg(long, value_name = "S", default_value_t = 30)]
-    pub wait_s: u64,
-}
-
-pub fn parse_trigger(s: &str) -> std::result::Result<Trigger, String> {
-    match s {
-        "immediate" => Ok(Trigger::Immediate),
-        "fault" => Ok(Trigger::Fault),
-        _ => {
-            let uin = s
-                .strip_prefix("ferr:")
-                .ok_or_else(|| format!("{s:?}: expected immediate, fault or ferr:UIN"))?;
-            let v: f64 = uin
-                .parse()
-                .map_err(|_| format!("{uin:?} is not a number of µin"))?;
-            if !(v > 0.0 && v <= 10_000.0) {
-                return Err(format!("ferr:{v}: the level must be in (0, 10000] µin"));
-            }
-            Ok(Trigger::FollowingError {
-                level: (v * words::CODES_PER_UIN).round().max(1.0) as u32,
-            })
-        }
-    }
-}
-
-/// The link, opened on first use.
-pub struct Link {
-    addr: String,
-    timeout: Duration,
-    client: Option<Client>,
-}
-
-impl Link {
-    pub fn new(addr: &str, timeout: Duration) -> Self {
-        Self {
-            addr: addr.into(),
-            timeout,
-            client: None,
-        }
-    }
-
-    /// An open connection (tests drive a session they opened).
-    pub fn from_client(c: Client) -> Self {
-        Self {
-            addr: String::new(),
-            timeout: Duration::ZERO,
-            client: Some(c),
-        }
-    }
-
-    pub fn client(&mut self) -> Result<&mut Client> {
-        match &mut self.client {
-            Some(c) => Ok(c),
-            slot => Ok(slot.insert(Client::connect(&self.addr, self.timeout)?)),
-        }
-    }
-}
-
 fn param(name: &str) -> Result<&'static params::Param> {
     params::by_name(name).ok_or_else(|| {
         let names: Vec<&str> = params::PARAMS.iter().map(|p| p.name).collect();
@@ -248,42 +229,14 @@ fn param(name: &str) -> Result<&'static params::Param> {
     })
 }
 
-pub(crate) fn set(c: &mut Client, id: u16, value: f64) -> Result<f64> {
-    match c.call(&Request::Set { id, value })? {
-        Reply::Param { value, .. } => Ok(value),
-        r => Err(unexpected(&r)),
-    }
-}
-
-pub(crate) fn get(c: &mut Client, id: u16) -> Result<f64> {
-    match c.call(&Request::Get { id })? {
-        Reply::Param { value, .. } => Ok(value),
-        r => Err(unexpected(&r)),
-    }
-}
-
-/// What `say` returns when the reader of the output went away (`zslide
-/// params show | head -3`): not an error of the command.
-pub const CLOSED_OUTPUT: &str = "the output was closed";
-
-/// Writes one line of a command's report.
-pub fn say_to(out: &mut dyn Write, s: &str) -> Result<()> {
-    writeln!(out, "{}", s.trim_end()).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::BrokenPipe {
-            CLOSED_OUTPUT.to_string()
-        } else {
-            format!("writing the report: {e}")
-        }
-    })
-}
-
 /// Runs one command; its report goes to `out`.
 pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
     let mut say = |s: String| say_to(out, &s);
     match cmd {
         Cmd::Table { cmd } => match cmd {
-            TableCmd::Build(a) => {
-                host_sim::cmd::coeffs::run(a.clone()).map_err(|e| format!("{e:#}"))
+            TableCmd::Build(a) => table_build(a, out),
+            TableCmd::Compensate(a) => {
+                host_sim::cmd::compensate::run(a.clone()).map_err(|e| format!("{e:#}"))
             }
             TableCmd::Check { file } => {
                 let id = regions::check_table_file(file, &NUCLEO)?;
@@ -306,7 +259,7 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
                     NUCLEO.table_addr,
                     NUCLEO.table_len / 1024
                 ))?;
-                regions::download(&a.file, NUCLEO.table_addr, a.probe.as_deref(), a.dry_run)
+                flash::download(&a.file, NUCLEO.table_addr, a.probe.as_deref(), a.dry_run)
             }
         },
         Cmd::Params { cmd } => match cmd {
@@ -392,8 +345,7 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
                     .map(|s| regions::parse_setting(s))
                     .collect::<Result<Vec<_>>>()?;
                 let bytes = regions::param_block(&entries)?;
-                std::fs::write(file, &bytes)
-                    .map_err(|e| format!("{}: cannot write: {e}", file.display()))?;
+                crate::write_file(file, &bytes)?;
                 say(format!(
                     "{}: {} bytes, {} parameters",
                     file.display(),
@@ -420,7 +372,7 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
                     NUCLEO.params_len / 1024,
                     store.display()
                 ))?;
-                let r = regions::download(&store, NUCLEO.params_addr, a.probe.as_deref(), a.dry_run);
+                let r = flash::download(&store, NUCLEO.params_addr, a.probe.as_deref(), a.dry_run);
                 if !a.dry_run {
                     let _ = std::fs::remove_file(&store);
                 }

@@ -12,7 +12,8 @@ use std::os::unix::net::UnixStream;
 use std::time::{Duration, Instant};
 
 use zslide::link::proto::{
-    self, CaptureInfo, FaultRecord, Reply, Request, Sample, Status, MAX_FRAME,
+    self, CaptureInfo, CaptureState, FaultRecord, Reply, Request, Sample, Status, Trigger,
+    MAX_FRAME,
 };
 
 use crate::Result;
@@ -139,30 +140,90 @@ impl Client {
                         return Err("the firmware sent an over-long frame".into());
                     }
                 }
+                // A signal arriving mid-read (Ctrl-C) is noted by its
+                // handler; the reply is still read.
                 Err(e)
                     if matches!(
                         e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
                     ) => {}
                 Err(e) => return Err(format!("link: {e}")),
             }
         }
     }
 
-    /// One request, its reply.
+    /// One request, its reply; none once a signal asked the command to
+    /// stop (`crate::interrupt`): then only [`Client::make_safe`] talks.
     pub fn call(&mut self, req: &Request) -> Result<Reply> {
+        if let Some(sig) = crate::interrupt::received() {
+            return Err(crate::interrupt::refusal(sig));
+        }
+        self.exchange(req)
+    }
+
+    /// Leaves the machine as the loop alone drives it: a running
+    /// excitation stopped (`Excite` with 0 ticks) and a capture still
+    /// waiting for its trigger released (re-armed as one immediate
+    /// sample, which completes on the next tick; a finished capture's
+    /// samples stay). What a command that stops part-way, by an error or
+    /// a signal, sends before it exits. Returns what it stopped.
+    pub fn make_safe(&mut self) -> Result<Vec<&'static str>> {
+        let mut did = Vec::new();
+        let st = match self.exchange(&Request::Status)? {
+            Reply::Status(s) => s,
+            r => return Err(unexpected(&r)),
+        };
+        // A stop (0 ticks) is accepted in every phase, and sent even when
+        // the status says none runs: one may start between the two.
+        match self.exchange(&Request::Excite {
+            step: 0,
+            amplitude: 0,
+            ticks: 0,
+        })? {
+            Reply::Exciting { .. } if st.state.exciting => did.push("excitation stopped"),
+            Reply::Exciting { .. } => {}
+            r => return Err(format!("stopping the excitation: {}", unexpected(&r))),
+        }
+        if matches!(
+            st.capture.state,
+            CaptureState::Armed | CaptureState::Triggered
+        ) {
+            match self.exchange(&Request::CaptureStart {
+                samples: 1,
+                pre: 0,
+                trigger: Trigger::Immediate,
+            })? {
+                Reply::Capture(_) => did.push("armed capture released"),
+                r => return Err(format!("releasing the capture: {}", unexpected(&r))),
+            }
+        }
+        Ok(did)
+    }
+
+    fn exchange(&mut self, req: &Request) -> Result<Reply> {
+        let before = self.seq;
         self.seq = self.seq.wrapping_add(1).max(1);
         let mut out = [0u8; MAX_FRAME];
         let frame = proto::encode(self.seq, req, &mut out).ok_or("request does not encode")?;
         self.send_raw(frame)?;
-        let (seq, reply) = self.receive()?;
-        if seq != self.seq {
-            return Err(format!(
-                "reply number {seq} to request number {}: out of step",
-                self.seq
-            ));
+        loop {
+            let (seq, reply) = self.receive()?;
+            // The late reply to the request before, which a command
+            // stopped part-way (an error, a signal) did not wait for: a
+            // request's own reply is read only once.
+            if seq == before && before != 0 {
+                continue;
+            }
+            if seq != self.seq {
+                return Err(format!(
+                    "reply number {seq} to request number {}: out of step",
+                    self.seq
+                ));
+            }
+            return Ok(reply);
         }
-        Ok(reply)
     }
 
     pub fn status(&mut self) -> Result<Status> {
@@ -222,5 +283,58 @@ pub fn unexpected(r: &Reply) -> String {
     match r {
         Reply::Refused(why) => why.to_string(),
         r => format!("unexpected reply {r:?}"),
+    }
+}
+
+/// The link, opened on first use.
+pub struct Link {
+    addr: String,
+    timeout: Duration,
+    client: Option<Client>,
+}
+
+impl Link {
+    pub fn new(addr: &str, timeout: Duration) -> Self {
+        Self {
+            addr: addr.into(),
+            timeout,
+            client: None,
+        }
+    }
+
+    /// An open connection (tests drive a session they opened).
+    pub fn from_client(c: Client) -> Self {
+        Self {
+            addr: String::new(),
+            timeout: Duration::ZERO,
+            client: Some(c),
+        }
+    }
+
+    /// [`Client::make_safe`] on the connection the command opened (none:
+    /// the command never reached the machine, nothing to stop).
+    pub fn make_safe(&mut self) -> Option<Result<Vec<&'static str>>> {
+        self.client.as_mut().map(Client::make_safe)
+    }
+
+    pub fn client(&mut self) -> Result<&mut Client> {
+        match &mut self.client {
+            Some(c) => Ok(c),
+            slot => Ok(slot.insert(Client::connect(&self.addr, self.timeout)?)),
+        }
+    }
+}
+
+pub(crate) fn set(c: &mut Client, id: u16, value: f64) -> Result<f64> {
+    match c.call(&Request::Set { id, value })? {
+        Reply::Param { value, .. } => Ok(value),
+        r => Err(unexpected(&r)),
+    }
+}
+
+pub(crate) fn get(c: &mut Client, id: u16) -> Result<f64> {
+    match c.call(&Request::Get { id })? {
+        Reply::Param { value, .. } => Ok(value),
+        r => Err(unexpected(&r)),
     }
 }

@@ -28,9 +28,9 @@ use zslide::params;
 use zslide::servo::design::DAC_CODES_PER_V;
 use zslide::servo::ServoDesign;
 
-use crate::cli::{get, say_to, set, Link};
-use crate::client::{unexpected, Client};
+use crate::client::{get, set, unexpected, Client, Link};
 use crate::fit::{self, Known, Plant, Point};
+use crate::report::say_to;
 use crate::Result;
 
 #[derive(clap::Args, Debug, Clone)]
@@ -330,29 +330,88 @@ pub fn read_plant(path: &Path) -> Result<Plant> {
     Ok(p)
 }
 
+/// Phases in degrees made continuous: each differs from the one before
+/// by less than 180° (the model's curve, dense enough for that to hold).
+pub fn unwrap_deg(wrapped: impl IntoIterator<Item = f64>) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::new();
+    for p in wrapped {
+        let v = match out.last() {
+            Some(&prev) => p + 360.0 * ((prev - p) / 360.0).round(),
+            None => p,
+        };
+        out.push(v);
+    }
+    out
+}
+
+/// `phase` (deg) moved by whole turns to lie within 180° of `near`.
+fn turn_to(phase: f64, near: f64) -> f64 {
+    phase + 360.0 * ((near - phase) / 360.0).round()
+}
+
+/// The measured phases, and the model's at the same frequencies, on the
+/// branch of the model's unwrapped curve (continuous, where the measured
+/// points are too sparse across the mode to unwrap among themselves).
+fn measured_phases(ms: &[Measured], known: &Known, p: &Plant) -> (Vec<f64>, Vec<f64>) {
+    let dense = model_curve(known, p, ms.first().map_or(15.0, |m| m.f_hz));
+    ms.iter()
+        .map(|m| {
+            let near = dense
+                .iter()
+                .min_by(|a, b| (a.0 - m.f_hz).abs().total_cmp(&(b.0 - m.f_hz).abs()))
+                .map_or(0.0, |&(_, (_, ph))| ph);
+            let model = turn_to(known.response(p, m.f_hz).arg().to_degrees(), near);
+            (turn_to(m.h.arg().to_degrees(), model), model)
+        })
+        .unzip()
+}
+
+/// The model's response from `f_lo` to the excitation's top (5 kHz),
+/// 400 log-spaced points: (f, (dB, unwrapped deg)).
+fn model_curve(known: &Known, p: &Plant, f_lo: f64) -> Vec<(f64, (f64, f64))> {
+    let f_lo = f_lo.min(4000.0);
+    let fs: Vec<f64> = (0..400)
+        .map(|i| f_lo * (5000.0 / f_lo).powf(f64::from(i) / 399.0))
+        .collect();
+    let hs: Vec<Complex<f64>> = fs.iter().map(|&f| known.response(p, f)).collect();
+    let ph = unwrap_deg(hs.iter().map(|h| h.arg().to_degrees()));
+    fs.into_iter()
+        .zip(hs)
+        .zip(ph)
+        .map(|((f, h), ph)| (f, (20.0 * h.norm().log10(), ph)))
+        .collect()
+}
+
+/// Below it a measured point is drawn as suspect (hollow, red): half its
+/// power or more is noise.
+pub const COHERENCE_MIN: f64 = 0.5;
+
 fn write_csv(path: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Result<()> {
+    let (phase, model_phase) = measured_phases(ms, known, p);
     let mut s = String::from(
         "f_hz,mag_db,phase_deg,coherence,rel_sigma,excitation_v,model_mag_db,model_phase_deg\n",
     );
-    for m in ms {
+    for (k, m) in ms.iter().enumerate() {
         let h = known.response(p, m.f_hz);
         s += &format!(
             "{:.3},{:.4},{:.3},{:.5},{:.5},{:.4},{:.4},{:.3}\n",
             m.f_hz,
             20.0 * m.h.norm().log10(),
-            m.h.arg().to_degrees(),
+            phase[k],
             m.coherence,
             m.rel_sigma,
             m.amplitude_v,
             20.0 * h.norm().log10(),
-            h.arg().to_degrees()
+            model_phase[k]
         );
     }
-    std::fs::write(path, s).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    crate::write_file(path, s)
 }
 
-fn write_plots(stem: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Result<()> {
-    use host_sim::plot::{write_images, Series};
+/// STEM-mag and STEM-phase (.svg, .png): each over the coherence, on a
+/// logarithmic axis in Hz, phases unwrapped.
+pub fn write_plots(stem: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Result<()> {
+    use host_sim::plot::{write_bode, BodePoint};
     let dir = stem
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
@@ -360,39 +419,43 @@ fn write_plots(stem: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Result
     let name = stem
         .file_name()
         .map_or("identify".into(), |n| n.to_string_lossy().into_owned());
-    let lf = |f: f64| f.log10();
-    let model: Vec<(f64, Complex<f64>)> = (0..400)
-        .map(|i| {
-            let f = 15.0 * (5000.0f64 / 15.0).powf(f64::from(i) / 399.0);
-            (f, known.response(p, f))
-        })
-        .collect();
-    for (suffix, label, get) in [
+    let model = model_curve(known, p, ms.first().map_or(15.0, |m| m.f_hz * 0.9));
+    let (phase, _) = measured_phases(ms, known, p);
+    let mag: Vec<f64> = ms.iter().map(|m| 20.0 * m.h.norm().log10()).collect();
+    for (suffix, label, ys, line) in [
         (
             "mag",
-            "gauge/DAC, dB",
-            (|h: Complex<f64>| 20.0 * h.norm().log10()) as fn(_) -> f64,
+            "gauge/DAC (dB)",
+            &mag,
+            model
+                .iter()
+                .map(|&(f, (db, _))| (f, db))
+                .collect::<Vec<_>>(),
         ),
-        ("phase", "phase, deg", |h: Complex<f64>| {
-            h.arg().to_degrees()
-        }),
+        (
+            "phase",
+            "phase (deg, unwrapped)",
+            &phase,
+            model.iter().map(|&(f, (_, ph))| (f, ph)).collect(),
+        ),
     ] {
-        write_images(
+        let pts: Vec<BodePoint> = ms
+            .iter()
+            .zip(ys)
+            .map(|(m, &value)| BodePoint {
+                f_hz: m.f_hz,
+                value,
+                coherence: m.coherence,
+            })
+            .collect();
+        write_bode(
             dir,
             &format!("{name}-{suffix}"),
             "zslide identify: measured (points) and fitted (line)",
-            "log10 frequency / Hz",
             label,
-            &[
-                Series {
-                    label: "measured".into(),
-                    points: ms.iter().map(|m| (lf(m.f_hz), get(m.h))).collect(),
-                },
-                Series {
-                    label: "fit".into(),
-                    points: model.iter().map(|(f, h)| (lf(*f), get(*h))).collect(),
-                },
-            ],
+            &pts,
+            &line,
+            COHERENCE_MIN,
         )
         .map_err(|e| format!("{e:#}"))?;
     }
@@ -404,9 +467,10 @@ pub fn identify(link: &mut Link, a: &IdentifyArgs, out: &mut dyn Write) -> Resul
     let (known, start) = known_from_scenario(&a.scenario)?;
     let stem = a.out.clone();
     let csv = stem.with_extension("csv");
-    // Every output path is opened before the machine is touched.
+    // Every output path is checked before the machine is touched; each
+    // file is replaced only when its new contents are whole.
     for p in [&csv, &stem.with_extension("plant")] {
-        std::fs::write(p, "").map_err(|e| format!("{}: cannot write: {e}", p.display()))?;
+        host_sim::outpath::check_file("--out", p).map_err(|e| format!("{e:#}"))?;
     }
     let c = link.client()?;
     let ms = measure(c, a, &known, &start, out)?;
@@ -421,8 +485,7 @@ pub fn identify(link: &mut Link, a: &IdentifyArgs, out: &mut dyn Write) -> Resul
     let f = fit::fit(&known, &pts, &start)?;
     let p = &f.plant;
     write_csv(&csv, &ms, &known, p)?;
-    std::fs::write(stem.with_extension("plant"), plant_text(p, &a.scenario))
-        .map_err(|e| format!("{}: {e}", stem.with_extension("plant").display()))?;
+    crate::write_file(&stem.with_extension("plant"), plant_text(p, &a.scenario))?;
     if !a.no_plot {
         write_plots(&stem, &ms, &known, p)?;
     }

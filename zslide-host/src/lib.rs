@@ -9,12 +9,21 @@ pub mod client;
 #[cfg(feature = "defmt-log")]
 pub mod defmt_log;
 pub mod fit;
+pub mod flash;
 pub mod identify;
+pub mod interrupt;
 pub mod predict;
 #[cfg(feature = "probe")]
 pub mod probe;
 pub mod regions;
+pub mod report;
 pub mod scope;
 pub mod words;
 
 pub type Result<T> = std::result::Result<T, String>;
+
+/// Writes `bytes` as the whole of `path`, or leaves `path` as it was
+/// (`host_sim::outpath`, the one way both tools write their files).
+pub fn write_file(path: &std::path::Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+    host_sim::outpath::replace(path, bytes).map_err(|e| format!("{e:#}"))
+}

@@ -22,8 +22,8 @@ use ratatui::widgets::{Axis, Block, Chart, Dataset, GraphType, Paragraph};
 
 use zslide::link::proto::{CaptureInfo, CaptureState, Reply, Request, Sample, Trigger};
 
-use crate::cli::Link;
 use crate::client::unexpected;
+use crate::client::Link;
 use crate::words::{deg, uin, V_PER_CODE};
 use crate::Result;
 
@@ -37,13 +37,18 @@ pub enum Signal {
 }
 
 impl Signal {
-    fn label(self) -> &'static str {
+    fn label(self) -> String {
+        let (name, unit) = self.name_unit();
+        format!("{name} ({unit})")
+    }
+    /// The signal's name and unit apart (the snapshot's panels).
+    fn name_unit(self) -> (&'static str, &'static str) {
         match self {
-            Signal::Command => "command (µin)",
-            Signal::Position => "position (µin)",
-            Signal::Error => "following error (µin)",
-            Signal::Dac => "DAC (V)",
-            Signal::Phi => "φ (deg)",
+            Signal::Command => ("command", "µin"),
+            Signal::Position => ("position", "µin"),
+            Signal::Error => ("following error", "µin"),
+            Signal::Dac => ("DAC", "V"),
+            Signal::Phi => ("φ", "deg"),
         }
     }
     fn value(self, s: &Sample) -> f64 {
@@ -63,10 +68,10 @@ pub struct ScopeArgs {
     #[arg(long, value_delimiter = ',', default_values = ["command", "position", "error", "dac"])]
     pub signals: Vec<Signal>,
     /// Time base: loop ticks per trace (20 000 a second); `+`/`-` change it.
-    #[arg(long, value_name = "N", default_value_t = 400, value_parser = clap::value_parser!(u16).range(2..=1024))]
+    #[arg(long, value_name = "N", default_value_t = 400, value_parser = clap::value_parser!(u16).range(2..=zslide::link::CAPTURE as i64))]
     pub samples: u16,
     /// `immediate` (free-running), `fault`, or `ferr:UIN`.
-    #[arg(long, value_name = "T", default_value = "immediate", value_parser = crate::cli::parse_trigger)]
+    #[arg(long, value_name = "T", default_value = "immediate", value_parser = crate::capture::parse_trigger)]
     pub trigger: Trigger,
     /// Of the ticks, before the trigger (not with `immediate`).
     #[arg(long, value_name = "N", default_value_t = 0)]
@@ -166,16 +171,17 @@ fn scope_loop(
                         return Ok(format!("{frames} frames, {snapshots} snapshots"))
                     }
                     KeyCode::Char(' ') => held = !held,
-                    KeyCode::Char('+') => samples = (samples.saturating_mul(2)).min(1024),
+                    KeyCode::Char('+') => {
+                        samples = (samples.saturating_mul(2)).min(zslide::link::CAPTURE as u16)
+                    }
                     KeyCode::Char('-') => samples = (samples / 2).max(2),
                     KeyCode::Char('s') => {
                         if let Some((info, s)) = &shown {
                             snapshots += 1;
                             let stem = a.snapshot_dir.join(format!("scope-{snapshots}"));
                             let csv = stem.with_extension("csv");
-                            std::fs::write(&csv, crate::capture::csv(info, s, hz))
-                                .map_err(|e| format!("{}: {e}", csv.display()))?;
-                            crate::capture::plot(&stem, info, s, hz)?;
+                            crate::write_file(&csv, crate::capture::csv(info, s, hz))?;
+                            snapshot_plot(&stem, &a.signals, info, s, hz)?;
                             note = format!(
                                 "snapshot {} -> {}, {}.png, {}.svg",
                                 snapshots,
@@ -193,6 +199,62 @@ fn scope_loop(
             return Ok(format!("{frames} frames, {snapshots} snapshots"));
         }
     }
+}
+
+/// The frame as the screen shows it, one panel per signal on the
+/// trigger's time axis: `<stem>.svg` and `.png`.
+pub fn snapshot_plot(
+    stem: &std::path::Path,
+    signals: &[Signal],
+    info: &CaptureInfo,
+    samples: &[Sample],
+    hz: u32,
+) -> Result<()> {
+    use host_sim::scope::{Figure, Panel, Series};
+    let ms = |i: usize| (i as f64 - f64::from(info.before_trigger)) * 1e3 / f64::from(hz.max(1));
+    let panels: Vec<Panel> = signals
+        .iter()
+        .map(|sig| {
+            let (name, unit) = sig.name_unit();
+            Panel::analog(
+                name,
+                unit,
+                vec![Series {
+                    label: name.into(),
+                    points: samples
+                        .iter()
+                        .enumerate()
+                        .map(|(i, s)| (ms(i), sig.value(s)))
+                        .collect(),
+                }],
+            )
+        })
+        .collect();
+    let title = format!(
+        "zslide scope: {} ticks, trigger {} at t = 0",
+        samples.len(),
+        crate::words::trigger(info.trigger)
+    );
+    let dir = stem
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    let name = stem
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or("snapshot: no file name")?;
+    host_sim::scope::write_images(
+        dir,
+        name,
+        &Figure {
+            title: &title,
+            subtitle: "",
+            x_label: "time from the trigger (ms)",
+            panels: &panels,
+            markers: &[],
+        },
+    )
+    .map_err(|e| format!("{}: snapshot: {e:#}", stem.display()))
 }
 
 fn draw(

@@ -30,7 +30,8 @@ use host_sim::perturb::Perturbation;
 use host_sim::serve::Setup;
 use host_sim::track::{run as track, TrackSpec};
 use zslide::link::proto::LoopPhase;
-use zslide_host::cli::{run_line, Link};
+use zslide_host::cli::run_line;
+use zslide_host::client::Link;
 use zslide_host::identify::{design_on, read_plant};
 
 mod machine;

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use zslide::params::ParamSource;
 use zslide::table::CoeffTable;
+use zslide_host::flash::{probe_rs_download, show};
 use zslide_host::regions::*;
 
 fn root() -> PathBuf {

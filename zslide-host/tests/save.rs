@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 
 use host_sim::serve::Setup;
 use zslide::link::proto::LoopPhase;
-use zslide_host::cli::{run_line, Link};
+use zslide_host::cli::run_line;
+use zslide_host::client::Link;
 
 mod machine;
 use machine::Machine;
@@ -41,6 +42,22 @@ fn a_saved_parameter_survives_a_restart_and_a_save_while_armed_is_refused() {
             )),
             "{saved}"
         );
+        // The status names the block just saved, not the boot's source;
+        // after a second save, the second block's CRC.
+        let crc = |said: &str| said.split("block CRC ").nth(1).unwrap()[..10].to_string();
+        let status = run_line(&mut link, "link status").unwrap();
+        assert!(status.contains(&format!("CRC {}", crc(&saved))), "{status}");
+        assert!(!status.contains("built-in"), "{status}");
+        run_line(&mut link, "params set following_error_ms 3.5").unwrap();
+        let second = run_line(&mut link, "params save").unwrap();
+        assert_ne!(crc(&second), crc(&saved));
+        let status = run_line(&mut link, "link status").unwrap();
+        assert!(
+            status.contains(&format!("CRC {}", crc(&second))),
+            "{status}"
+        );
+        run_line(&mut link, "params set following_error_ms 3").unwrap();
+        run_line(&mut link, "params save").unwrap();
 
         // Armed: refused by name; the store keeps the block saved above.
         run_line(&mut link, "params set following_error_ms 4").unwrap();

@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 
 use host_sim::serve::Setup;
 use zslide::link::proto::LoopPhase;
-use zslide_host::cli::{run_line, Link};
+use zslide_host::cli::run_line;
+use zslide_host::client::Link;
 use zslide_host::words::CODES_PER_UIN;
 
 mod machine;
@@ -27,6 +28,20 @@ fn wait_phase(link: &mut Link, want: LoopPhase) -> zslide::link::proto::Status {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+/// A capture CSV row as numbers; x_in (empty while the firmware has no X
+/// reading yet) as NaN.
+fn row(line: &str) -> Vec<f64> {
+    line.split(',')
+        .map(|v| {
+            if v.is_empty() {
+                f64::NAN
+            } else {
+                v.parse().unwrap()
+            }
+        })
+        .collect()
 }
 
 #[test]
@@ -78,11 +93,7 @@ fn status_arm_and_capture_on_the_simulated_machine() {
         "{said}"
     );
     let text = std::fs::read_to_string(&csv).unwrap();
-    let rows: Vec<Vec<f64>> = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let rows: Vec<Vec<f64>> = text.lines().skip(1).map(row).collect();
     assert_eq!(rows.len(), 200);
     // Consecutive ticks, 50 µs apart; error = command − position.
     for w in rows.windows(2) {
@@ -111,7 +122,7 @@ fn status_arm_and_capture_on_the_simulated_machine() {
         .unwrap()
         .lines()
         .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .map(row)
         .collect();
     let at = rows2.iter().position(|r| r[0] == 0.0).unwrap();
     assert!(rows2[at][4].abs() >= level - 0.02, "{:?}", rows2[at]);

@@ -1,7 +1,7 @@
 //! What the emulated board adds for the host link and the flash regions:
 //! the table and parameter regions of `memory.x`, the CMSDK UART0 that
 //! carries the link's frames (QEMU's first `-serial`), and the choice of
-//! run: the checked 4000-tick run (default) or a link session that runs
+//! run: the checked run (`scenario::TICKS` ticks, default) or a link session that runs
 //! until QEMU is stopped (semihosting command line `link`, as
 //! `cargo xtask test` starts it for the end-to-end link test).
 //!

@@ -312,13 +312,12 @@ pub fn write_vcd(
         w.fw.set_target_code(1 << 16)
     });
     s.add(o);
-    let file = std::io::BufWriter::new(
-        std::fs::File::create(path)
-            .map_err(|e| anyhow::anyhow!("--vcd {}: cannot be written: {e}", path.display()))?,
-    );
-    let tr = crate::vcd::machine::attach(&mut s, file, 0, u64::MAX)?;
+    let (partial, file) =
+        crate::outpath::Partial::create(path).map_err(|e| anyhow::anyhow!("--vcd {e:#}"))?;
+    let tr = crate::vcd::machine::attach(&mut s, std::io::BufWriter::new(file), 0, u64::MAX)?;
     s.run_until(&mut w, 250_000_000);
     crate::vcd::machine::detach(&mut s, tr)?;
+    partial.commit()?;
     Ok(w.stats().cloned().unwrap_or_default())
 }
 

@@ -198,7 +198,7 @@ fn write_plots(dir: &Path, o: &Outcome, level_in: f64) -> anyhow::Result<()> {
             c.cycle, c.residual_before_in, c.residual_in, c.measured_at_s, c.corrected_at_s
         )?;
     }
-    std::fs::write(dir.join("center_residual.csv"), csv)?;
+    crate::outpath::replace(&dir.join("center_residual.csv"), csv)?;
     let mut csv = String::from("t_s,slide_x_in,slide_y_in,motor_x_rad_s,motor_y_rad_s\n");
     for p in &o.trace {
         writeln!(
@@ -207,7 +207,7 @@ fn write_plots(dir: &Path, o: &Outcome, level_in: f64) -> anyhow::Result<()> {
             p.t_s, p.slide_x_in, p.slide_y_in, p.motor_x_rad_s, p.motor_y_rad_s
         )?;
     }
-    std::fs::write(dir.join("center_slides.csv"), csv)?;
+    crate::outpath::replace(&dir.join("center_slides.csv"), csv)?;
     let residual: Vec<(f64, f64)> = std::iter::once((
         0.0,
         o.cycles
@@ -220,23 +220,20 @@ fn write_plots(dir: &Path, o: &Outcome, level_in: f64) -> anyhow::Result<()> {
     .map(|(n, r)| (n, (r * 1e6).max(1e-3)))
     .collect();
     let level_uin = level_in * 1e6;
-    {
-        use plotters::prelude::*;
-        crate::plot::register_font();
-        let path = dir.join("center_residual.svg");
-        let root = SVGBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_residual(&root, &residual, level_uin)?;
-        let path = dir.join("center_slides.svg");
-        let root = SVGBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_slides(&root, o)?;
-        let path = dir.join("center_residual.png");
-        let root = BitMapBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_residual(&root, &residual, level_uin)?;
-        let path = dir.join("center_slides.png");
-        let root = BitMapBackend::new(&path, (800, 500)).into_drawing_area();
-        plot_slides(&root, o)?;
-    }
-    Ok(())
+    crate::plot::write_svg_png(
+        dir,
+        "center_residual",
+        (800, 500),
+        |a| plot_residual(&a, &residual, level_uin),
+        |a| plot_residual(&a, &residual, level_uin),
+    )?;
+    crate::plot::write_svg_png(
+        dir,
+        "center_slides",
+        (800, 500),
+        |a| plot_slides(&a, o),
+        |a| plot_slides(&a, o),
+    )
 }
 
 /// A log-axis tick: three significant digits, no exponent ("0.5", "12",

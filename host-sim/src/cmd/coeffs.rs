@@ -80,6 +80,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => {
             let text =
                 std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            // A part file (docs/PARTS.md) has its own path to a table.
+            if text
+                .parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key("tool") && t.contains_key("table"))
+            {
+                anyhow::bail!(
+                    "{0} is a part file (docs/PARTS.md), not a table configuration: its table is \
+                     `host-sim part-table {0} --out TABLE.zsct` (or `zslide table build --config \
+                     {0} --out TABLE.zsct`)",
+                    p.display()
+                );
+            }
             Config::from_toml(&text)
                 .and_then(|c| Ok(c.to_spec()?))
                 .with_context(|| format!("table configuration {}", p.display()))?
@@ -178,7 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let img = g
             .image()
             .map_err(|e| anyhow::anyhow!("table image: {e:?}"))?;
-        std::fs::write(path, &img).with_context(|| format!("writing {}", path.display()))?;
+        crate::outpath::replace(path, &img)?;
         eprintln!("wrote {} ({} bytes)", path.display(), img.len());
     }
 

@@ -55,8 +55,12 @@ pub struct Args {
     /// file, else made from it.
     #[arg(long)]
     pub part: Option<PathBuf>,
-    /// The part's table image (with `--part`).
-    #[arg(long, requires = "part")]
+    /// The table image the firmware runs: the part's (with `--part`), or
+    /// one for the default part (a compensated table, `compensate`). A
+    /// compensation record beside it (`NAME.compensation.json`) puts the
+    /// axial slide on the compensated program and makes the cut the next
+    /// pass on the same machine (the noise new, wear and drifts repeating).
+    #[arg(long)]
     pub table: Option<PathBuf>,
     /// Measure the part on a rectangular grid of NX × NY points over the
     /// square inscribed in the null circle instead of the polar CMM grid
@@ -91,6 +95,23 @@ pub struct Args {
     /// with k_t and k_e each scaled × 0.1 .. × 2 (`cut::sensitivity`).
     #[arg(long, conflicts_with = "budget")]
     pub force_sensitivity: bool,
+    /// Measure the hole zone: the surface across the bolt circle's ring on
+    /// a dense grid, by distance from the hole edges (`cut::holezone`;
+    /// its own band runs, about five times the CMM bands' machine time).
+    #[arg(long, value_enum, default_value_t = HoleZoneArg::On)]
+    pub hole_zone: HoleZoneArg,
+    /// Scale the force model's edge constant k_e by this factor (the
+    /// process stiffness the loop does not know exactly; `--force-sensitivity`
+    /// sweeps it for the CMM band alone).
+    #[arg(long, default_value_t = 1.0)]
+    pub ke_scale: f64,
+}
+
+/// Whether `cut` measures the hole zone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum HoleZoneArg {
+    On,
+    Off,
 }
 
 /// The JSON summary (brief §5).
@@ -111,7 +132,11 @@ pub struct Summary {
     /// Finish by CMM radius, µin RMS.
     pub finish_rms_by_x_uin: Vec<Option<f64>>,
     pub simulated_s: f64,
+    /// The simulation's wall time.
     pub wall_s: f64,
+    /// The whole command's wall time to the summary: the simulation and
+    /// what came before it (a part's table made, the scenario loaded).
+    pub command_wall_s: f64,
     /// `simulated_s / wall_s`.
     pub real_time_factor: f64,
     /// Σ of the stretches' wall times: `simulated_s / cpu_s` is the
@@ -140,6 +165,22 @@ pub struct Summary {
     /// the polar fields above are then empty.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grid: Option<crate::cut::gridcut::RectMeasured>,
+    /// The hole zone (`cut::holezone`): null where the scenario has no
+    /// holes, or with `--hole-zone off` (`hole_zone_measured` false).
+    pub hole_zone: Option<crate::cut::holezone::HoleZone>,
+    pub hole_zone_measured: bool,
+    /// The edge constant k_e the cut used, lbf/in (`--ke-scale`).
+    pub k_e_lbf_per_in: f64,
+    /// Largest |coil current| while recording (the CMM bands and the hole
+    /// zone), A, and the amplifier's limit.
+    pub current_peak_a: f64,
+    pub current_limit_a: f64,
+    /// With `--measure cmm`: the true contour band on the same grid, µin
+    /// (the part the CMM measured, as `--measure exact` reports it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exact_contour_error_min_uin: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exact_contour_error_max_uin: Option<f64>,
 }
 
 fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
@@ -167,6 +208,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         },
         simulated_s: o.simulated_s,
         wall_s: o.wall_s,
+        command_wall_s: o.wall_s,
         real_time_factor: o.simulated_s / o.wall_s,
         cpu_s: o.cpu_s,
         faults: o.faults.clone(),
@@ -188,6 +230,13 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         command_sign: spec.command_sign,
         measure: spec.measure,
         grid: o.rect.clone(),
+        hole_zone: o.zone.as_ref().map(|z| z.summary()),
+        hole_zone_measured: spec.hole_zone,
+        k_e_lbf_per_in: spec.scenario.cutting.k_e_lbf_per_in,
+        current_peak_a: o.current_peak_a,
+        current_limit_a: spec.scenario.file.amplifier.current_limit_a,
+        exact_contour_error_min_uin: o.exact_band.map(|b| b.0),
+        exact_contour_error_max_uin: o.exact_band.map(|b| b.1),
     }
 }
 
@@ -204,11 +253,6 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         "--preroll-revs {}: must be in 0..10000",
         args.preroll_revs
     );
-    anyhow::ensure!(
-        args.depth_in > 0.0 && args.depth_in <= 0.005,
-        "--depth-in {}: must be in (0, 0.005] in (a finishing pass)",
-        args.depth_in
-    );
     spec.band_half_in = args.band_in;
     spec.preroll_revs = args.preroll_revs;
     spec.depth_in = args.depth_in;
@@ -218,6 +262,9 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.z_offset_uin
     );
     spec.z_offset_in = args.z_offset_uin * 1e-6;
+    if let Some(t) = &args.table {
+        compensated_pass(&mut spec, t, args.part.as_deref())?;
+    }
     if let Some(path) = &args.part {
         let part = crate::cmd::parttable::part_cut(path, args.table.as_ref())?;
         if let Some(g) = &args.grid {
@@ -233,7 +280,107 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     }
     spec.command_sign = args.command_sign;
     spec.measure = args.measure;
+    anyhow::ensure!(
+        args.ke_scale.is_finite() && args.ke_scale > 0.0 && args.ke_scale <= 10.0,
+        "--ke-scale {}: must be in (0, 10]",
+        args.ke_scale
+    );
+    spec.scenario.cutting.k_e_lbf_per_in *= args.ke_scale;
+    check_depth(&spec, args.depth_in)?;
+    // The budget and the sweep compare the CMM grid run by run; the zone
+    // is the single cut's.
+    spec.hole_zone = args.hole_zone == HoleZoneArg::On && !args.budget && !args.force_sensitivity;
     Ok(spec)
+}
+
+/// Deepest cut `cut` takes, in: chapter 5's roughing passes (0.005 ..
+/// 0.010 in), and the capacitance gauge's ±0.010 in range, over which the
+/// slide can lift the tool clear of the stock.
+pub const MAX_DEPTH_IN: f64 = 0.010;
+
+/// Refuses a depth of cut the machine cannot take, with the reason: deeper
+/// than [`MAX_DEPTH_IN`], or a steady cutting force whose current (at the
+/// scenario's force constant) exceeds the amplifier's limit.
+fn check_depth(spec: &CutSpec, depth_in: f64) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        depth_in > 0.0 && depth_in <= MAX_DEPTH_IN,
+        "--depth-in {depth_in}: must be in (0, {MAX_DEPTH_IN}] in (chapter 5's roughing passes \
+         reach 0.010 in, the gauge's range; deeper, the slide cannot lift the tool clear of the stock)"
+    );
+    let f = &spec.scenario.file;
+    let force = spec
+        .scenario
+        .cutting
+        .thrust_lbf(depth_in, spec.feed_per_rev_in);
+    let amps = force / f.motor.kf_lbf_per_a;
+    anyhow::ensure!(
+        amps <= f.amplifier.current_limit_a,
+        "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
+         amplifier's {} A limit (scenario {}: motor.kf_lbf_per_a {}, amplifier.current_limit_a)",
+        f.amplifier.current_limit_a,
+        f.name,
+        f.motor.kf_lbf_per_a
+    );
+    Ok(())
+}
+
+/// `--table T`: the default part's table image (without `--part`), and,
+/// when a compensation record is beside it, the axial program and the
+/// pass number.
+fn compensated_pass(
+    spec: &mut CutSpec,
+    table: &std::path::Path,
+    part: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
+    use crate::compensate::{compensated, default_part, Record};
+    use crate::part::axial::AxialProgram;
+    let image = crate::cmd::accuracy::load_table(Some(&table.to_path_buf()))?;
+    let record = Record::beside(table, &image)?;
+    let lp = match part {
+        Some(p) => crate::part::config::load_part(p)?,
+        None => {
+            let lp = default_part().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let g = zslide::table::CoeffTable::parse(&image)
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+                .header()
+                .geometry;
+            let r_t = spec.scenario.cutting.tool_radius_in;
+            anyhow::ensure!(
+                (g.tool_radius_nin as f64 * 1e-9 - r_t).abs() < 1e-9,
+                "table {}: made for a {} in nose, the scenario's tool is {r_t} in",
+                table.display(),
+                g.tool_radius_nin as f64 * 1e-9
+            );
+            spec.table_image = Some(Box::leak(image.into_boxed_slice()));
+            lp
+        }
+    };
+    let Some(r) = record else {
+        eprintln!(
+            "table {}: no compensation record beside it: the axial slide runs the nominal program",
+            table.display()
+        );
+        return Ok(());
+    };
+    anyhow::ensure!(
+        r.part == lp.name,
+        "table {}: its record compensates part {:?}, this cut is of {:?}",
+        table.display(),
+        r.part,
+        lp.name
+    );
+    let program = compensated(&lp, r.corrections().map_err(|e| anyhow::anyhow!("{e}"))?);
+    let axial = AxialProgram::new(&lp.part, &program.part, lp.table.x_min, lp.table.x_max)
+        .map_err(|e| anyhow::anyhow!("table {}: the axial program: {e}", table.display()))?;
+    spec.axial = Some(std::sync::Arc::new(axial));
+    spec.set_pass(r.steps.len() as u64);
+    eprintln!(
+        "table {}: compensation pass {} ({}), the axial slide on its program",
+        table.display(),
+        r.steps.len(),
+        r.table_crc
+    );
+    Ok(())
 }
 
 fn progress_bar(spec: &CutSpec) -> anyhow::Result<ProgressBar> {
@@ -287,6 +434,7 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let wall0 = std::time::Instant::now();
     let spec = spec_of(&args, args.controller)?;
     if args.budget {
         let b = crate::cut::budget::run(&spec, &|s| eprintln!("budget: {s}"))?;
@@ -313,10 +461,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         extras.trace_s = 0.5;
     }
     let o = simulate(&spec, &extras)?;
-    let s = summarise(&spec, &o);
+    let mut s = summarise(&spec, &o);
     if let Some(dir) = &args.out {
         write_outputs(dir, &args, &spec, &o)?;
     }
+    s.command_wall_s = wall0.elapsed().as_secs_f64();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
     } else {
@@ -330,24 +479,71 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn print_table(s: &Summary) {
-    println!(
-        "CMM contour error, µin (positive = excess stock; φ rows, X columns; 'hole' = inside an open bolt hole)"
+    print!(
+        "{}",
+        cmm_table(&s.x_in, &s.phi_deg, &s.cmm_grid_uin, s.part.is_none())
     );
-    print!("{:>6}", "φ\\X");
-    for x in &s.x_in {
-        print!("{:>8}", format!("{x} in"));
-    }
-    println!();
-    for (phi, row) in s.phi_deg.iter().zip(&s.cmm_grid_uin) {
-        print!("{:>6}", format!("{phi}°"));
-        for v in row {
-            match v {
-                Some(e) => print!("{e:>8.0}"),
-                None => print!("{:>8}", "hole"),
-            }
+}
+
+/// The CMM grid as text: a column per radius wide enough for its heading
+/// and its values, with the decimals the values' size needs (a part
+/// within a µin reads in tenths and hundredths, the 1983 part's hundreds
+/// in whole µin).
+pub fn cmm_table(x_in: &[f64], phi_deg: &[f64], grid: &[Vec<Option<f64>>], holes: bool) -> String {
+    use std::fmt::Write as _;
+    let max_abs = grid
+        .iter()
+        .flatten()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let digits = if max_abs >= 100.0 {
+        0
+    } else if max_abs >= 10.0 {
+        1
+    } else {
+        2
+    };
+    let heads: Vec<String> = x_in.iter().map(|x| format!("{x} in")).collect();
+    let w = heads
+        .iter()
+        .map(|h| h.chars().count())
+        .chain(std::iter::once(format!("{:.digits$}", -max_abs).len()))
+        .max()
+        .unwrap_or(4)
+        + 2;
+    let mut t = format!(
+        "CMM contour error, µin (positive = excess stock; φ rows, X columns{})\n",
+        if holes {
+            "; 'hole' = inside an open bolt hole"
+        } else {
+            ""
         }
-        println!();
+    );
+    let _ = write!(t, "{:>6}", "φ\\X");
+    for h in &heads {
+        let _ = write!(t, "{h:>w$}");
     }
+    t.push('\n');
+    for (phi, row) in phi_deg.iter().zip(grid) {
+        let _ = write!(t, "{:>6}", format!("{phi}°"));
+        for v in row {
+            let _ = match v {
+                Some(e) => {
+                    let v = format!("{e:.digits$}");
+                    // No "-0.00": a value that rounds to zero has no sign.
+                    let v = if v.trim_start_matches(['-', '0', '.']).is_empty() {
+                        v.trim_start_matches('-').to_string()
+                    } else {
+                        v
+                    };
+                    write!(t, "{v:>w$}")
+                }
+                None => write!(t, "{:>w$}", "hole"),
+            };
+        }
+        t.push('\n');
+    }
+    t
 }
 
 /// The brief's contour goal (§6), µin either side: the same for both parts.
@@ -375,19 +571,30 @@ fn opt(v: Option<f64>) -> String {
 fn print_summary(s: &Summary, o: &CutOutcome) {
     println!();
     println!(
-        "{} / {} / {} rpm / holes {} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
+        "{} / {} / {} rpm / {} / {} ({} stretch{}), depth {} in, feed {:.1} µin/rev",
         s.scenario,
         s.controller.name(),
         s.rpm,
-        s.holes.name(),
+        match &s.part {
+            Some(p) => format!("part {p}"),
+            None => format!("holes {}", s.holes.name()),
+        },
         if s.full { "full pass" } else { "bands" },
         o.stretches,
         if o.stretches == 1 { "" } else { "es" },
         s.depth_in,
         s.feed_per_rev_in * 1e6
     );
+    // The 1983 figures are of the 1983 part: a part of one's own has none.
+    let (part_1983, finish_1983) = match s.part {
+        Some(_) => (String::new(), ""),
+        None => (
+            format!(" ({})", part_1983(s.holes)),
+            " (1983: 7 centre .. 60 edge)",
+        ),
+    };
     println!(
-        "contour error      {} .. {} µin{} ({})",
+        "contour error      {} .. {} µin{}{part_1983}",
         opt(s.contour_error_min_uin),
         opt(s.contour_error_max_uin),
         match (s.contour_goal_uin, s.contour_goal_met) {
@@ -395,7 +602,6 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
             (Some(g), Some(false)) => format!(": goal ±{g} µin MISSED"),
             _ => String::new(),
         },
-        part_1983(s.holes)
     );
     let by_x: Vec<String> = s
         .finish_rms_by_x_uin
@@ -403,8 +609,11 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         .zip(&s.x_in)
         .map(|(f, x)| format!("{x}: {}", opt(*f)))
         .collect();
+    if let (Some(lo), Some(hi)) = (s.exact_contour_error_min_uin, s.exact_contour_error_max_uin) {
+        println!("true contour error {lo:.1} .. {hi:.1} µin (the surface the CMM read)");
+    }
     println!(
-        "finish             {} µin RMS (by X in: {}) (1983: 7 centre .. 60 edge)",
+        "finish             {} µin RMS (by X in: {}){finish_1983}",
         opt(s.finish_rms_uin),
         by_x.join(", ")
     );
@@ -412,7 +621,18 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         "following error    {:.1} µin RMS, {:.1} µin peak (tool minus the exact command)",
         s.following_error_rms_uin, s.following_error_peak_uin
     );
-    println!("cutting force      {:.2} lbf mean", s.mean_force_lbf);
+    println!(
+        "cutting force      {:.2} lbf mean; coil current {:.2} A peak (amplifier limit {} A)",
+        s.mean_force_lbf, s.current_peak_a, s.current_limit_a
+    );
+    match (&s.hole_zone, s.hole_zone_measured) {
+        (Some(z), _) => println!(
+            "hole zone          {}",
+            crate::cut::holezone::summary_line(z)
+        ),
+        (None, true) => println!("hole zone          none (the part has no holes)"),
+        (None, false) => println!("hole zone          not measured (--hole-zone off)"),
+    }
     println!(
         "errors             {} (beyond the loop); command sign {}; measured {}",
         s.errors.name(),
@@ -428,11 +648,18 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         }
     );
     println!(
-        "simulated          {:.1} s in {:.1} s wall: {:.0}x real time ({:.0}x per core)",
+        "simulated          {:.1} s in {:.1} s wall: {:.0}x real time ({:.0}x per core); \
+         {:.1} s wall for the whole command{}",
         s.simulated_s,
         s.wall_s,
         s.real_time_factor,
-        s.simulated_s / s.cpu_s
+        s.simulated_s / s.cpu_s,
+        s.command_wall_s,
+        if s.part.is_some() {
+            " (with the part's table and the plots)"
+        } else {
+            ""
+        }
     );
 }
 
@@ -465,12 +692,16 @@ fn write_outputs(
     spec: &CutSpec,
     o: &CutOutcome,
 ) -> anyhow::Result<()> {
+    // A part of one's own has no bolt holes: its name says what was cut.
+    let setting = match &spec.part {
+        Some(p) => format!("part {}", p.name),
+        None => holes_words(spec.holes).to_string(),
+    };
     let what = format!(
-        "{}, {}, {} rpm, {}",
+        "{}, {}, {} rpm, {setting}",
         spec.scenario.file.name,
         spec.controller.name(),
         spec.rpm,
-        holes_words(spec.holes)
     );
     if let Some(r) = &o.rect {
         // A rectangular grid: its points as CSV, and the trace of the
@@ -480,6 +711,9 @@ fn write_outputs(
             .first()
             .map_or(0.0, |st| 0.5 * (st.windows[0].0 + st.windows[0].1));
         return write_trace(dir, &what, "the grid's innermost band", x_in, &o.trace);
+    }
+    if let Some(z) = &o.zone {
+        crate::cut::zoneplot::write(dir, z, &format!("{what}: the hole zone (+ = excess stock)"))?;
     }
     crate::cut::errmap::write(
         dir,
@@ -498,7 +732,11 @@ fn write_outputs(
             continue;
         }
         let oo = spec_of(args, other)
-            .and_then(|sp| simulate(&sp, &Extras::default()))
+            .and_then(|mut sp| {
+                // Only its CMM column is drawn.
+                sp.hole_zone = false;
+                simulate(&sp, &Extras::default())
+            })
             .with_context(|| format!("error_x7: the {} run", other.name()))?;
         x7.push(Series {
             label: other.name().to_string(),
@@ -512,7 +750,7 @@ fn write_outputs(
             "{}, {} rpm, {}: contour error at X = {} in",
             spec.scenario.file.name,
             spec.rpm,
-            holes_words(spec.holes),
+            setting,
             spec.cmm_x()[j7]
         ),
         "φ, deg",
@@ -578,4 +816,35 @@ fn write_trace(
             markers: &[],
         },
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cmm_table;
+
+    #[test]
+    fn a_sub_microinch_grid_reads_in_hundredths_under_separated_headings() {
+        let t = cmm_table(
+            &[0.1875, 0.375],
+            &[0.0, 10.0],
+            &[vec![Some(-0.7), Some(-0.1)], vec![Some(-0.004), None]],
+            false,
+        );
+        let lines: Vec<&str> = t.lines().collect();
+        assert!(!lines[0].contains("hole"), "{t}");
+        let head: Vec<&str> = lines[1].split_whitespace().collect();
+        assert_eq!(head, ["φ\\X", "0.1875", "in", "0.375", "in"], "{t}");
+        assert_eq!(
+            lines[2].split_whitespace().collect::<Vec<_>>(),
+            ["0°", "-0.70", "-0.10"]
+        );
+        assert_eq!(
+            lines[3].split_whitespace().collect::<Vec<_>>(),
+            ["10°", "0.00", "hole"]
+        );
+        // The 1983 part's hundreds of µin stay whole.
+        let t = cmm_table(&[1.0], &[0.0], &[vec![Some(-523.4)]], true);
+        assert!(t.lines().nth(2).unwrap().ends_with(" -523"), "{t}");
+        assert!(t.lines().next().unwrap().contains("'hole'"), "{t}");
+    }
 }

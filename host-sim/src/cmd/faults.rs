@@ -370,9 +370,12 @@ fn short(s: &str, n: usize) -> String {
 }
 
 fn write_csv(path: &Path, out: &[Outcome]) -> anyhow::Result<()> {
-    let mut f = std::io::BufWriter::new(
-        std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?,
-    );
+    crate::outpath::replace_with(path, |tmp| write_csv_to(tmp, out))
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn write_csv_to(path: &Path, out: &[Outcome]) -> anyhow::Result<()> {
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(
         f,
         "fault,detected,latched,reaction,max_excursion_uin,excursion_before_uin,excursion_undisturbed_uin,safe_state,time_to_safe_ms,reason"
@@ -395,6 +398,7 @@ fn write_csv(path: &Path, out: &[Outcome]) -> anyhow::Result<()> {
             r.reason.replace('"', "'")
         )?;
     }
+    f.flush()?;
     Ok(())
 }
 

@@ -3,6 +3,7 @@ pub mod accuracy;
 pub mod bench;
 pub mod center;
 pub mod coeffs;
+pub mod compensate;
 pub mod csmp;
 pub mod cut;
 pub mod faults;

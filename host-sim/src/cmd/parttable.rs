@@ -40,6 +40,36 @@ pub struct Report {
     pub crc: String,
 }
 
+/// The report as text: the part, the table picked, its error split.
+pub fn report_text(r: &Report) -> String {
+    let e = &r.errors;
+    format!(
+        "part {}: {}\n\
+         table: harmonic, {} harmonics ({} columns), step {} in, {} nodes, X {}..{} in, {} bytes, CRC {}\n\
+         error (µin, X {}..{} in, 1440 φ): truncation {:.4}, interpolation {:.4}, quantisation {:.4}, \
+         total {:.4} (bound {} less {} for the firmware); Z peak-to-peak {:.6} in\n",
+        r.part,
+        r.surface,
+        r.harmonics,
+        r.columns,
+        r.step_in,
+        r.nodes,
+        r.x_min_in,
+        r.x_null_in,
+        r.bytes,
+        r.crc,
+        r.x_min_in,
+        r.x_null_in,
+        e.truncation_uin,
+        e.interpolation_uin,
+        e.quantization_uin,
+        e.total_uin,
+        r.bound_uin,
+        r.firmware_allowance_uin,
+        e.z_peak_to_peak_in
+    )
+}
+
 /// The table the part file asks for: picked, generated, measured.
 pub fn make(lp: &LoadedPart) -> anyhow::Result<(PartTable, Vec<u8>, Report)> {
     let (spec, picked) = lp
@@ -59,6 +89,29 @@ pub fn make(lp: &LoadedPart) -> anyhow::Result<(PartTable, Vec<u8>, Report)> {
         },
     )
     .map_err(|e| anyhow!("part {}: {e}", lp.name))?;
+    // The picker's sampling is coarser (it measures every candidate): a
+    // table it took can miss the bound between its samples. Only the
+    // dense measurement decides.
+    let budget = lp.bound_uin - lp.allowance_uin;
+    if errors.total_uin.is_nan() || errors.total_uin > budget {
+        return Err(anyhow!(
+            "part {}: table refused: the table picked ({} harmonics, step {} in) measures {:.4} µin \
+             total on the dense check (8 points per interval, 1440 φ; truncation {:.4}, \
+             interpolation {:.4}, quantisation {:.4}), above the {budget} µin budget (bound {} µin \
+             less the firmware's {} µin); the picker's coarser sampling measured {:.4} µin. Raise \
+             bound_uin, or narrow the table's X range",
+            lp.name,
+            spec.harmonics,
+            spec.step,
+            errors.total_uin,
+            errors.truncation_uin,
+            errors.interpolation_uin,
+            errors.quantization_uin,
+            lp.bound_uin,
+            lp.allowance_uin,
+            picked.errors.total_uin,
+        ));
+    }
     let id = zslide::table::CoeffTable::parse(&image)
         .map_err(|e| anyhow!("{e}"))?
         .identity();
@@ -82,32 +135,17 @@ pub fn make(lp: &LoadedPart) -> anyhow::Result<(PartTable, Vec<u8>, Report)> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let lp = load_part(&args.part)?;
+    if let Some(out) = &args.out {
+        crate::outpath::check_file("--out", out)?;
+    }
     let (_, image, r) = make(&lp)?;
     if let Some(out) = &args.out {
-        std::fs::write(out, &image).with_context(|| format!("writing {}", out.display()))?;
+        crate::outpath::replace(out, &image)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
-        println!("part {}: {}", r.part, r.surface);
-        println!(
-            "table: harmonic, {} harmonics ({} columns), step {} in, {} nodes, X {}..{} in, {} bytes, CRC {}",
-            r.harmonics, r.columns, r.step_in, r.nodes, r.x_min_in, r.x_null_in, r.bytes, r.crc
-        );
-        let e = &r.errors;
-        println!(
-            "error (µin, X {}..{} in, 1440 φ): truncation {:.4}, interpolation {:.4}, quantisation {:.4}, total {:.4} \
-             (bound {} less {} for the firmware); Z peak-to-peak {:.6} in",
-            r.x_min_in,
-            r.x_null_in,
-            e.truncation_uin,
-            e.interpolation_uin,
-            e.quantization_uin,
-            e.total_uin,
-            r.bound_uin,
-            r.firmware_allowance_uin,
-            e.z_peak_to_peak_in
-        );
+        print!("{}", report_text(&r));
     }
     if let Some(c) = &args.check {
         let committed = std::fs::read(c).with_context(|| format!("reading {}", c.display()))?;

@@ -54,8 +54,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let sens = measure_sensitivity(&sc);
     let p = plan(&lp, &s, &Machine::of(&sc), rpm, &|f| sens.at(f));
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        crate::outpath::check_dir("--out", dir)?;
         write_map(dir, &p)?;
     }
     if args.json {
@@ -140,8 +139,8 @@ fn write_map(dir: &std::path::Path, p: &Plan) -> anyhow::Result<()> {
             "{} on {} at {} rpm: predicted following error (µin)",
             p.part, p.machine.scenario, p.rpm
         ),
-        "phi_deg",
-        "error_uin",
+        "φ, deg",
+        "predicted following error, µin",
         &series,
     )
 }

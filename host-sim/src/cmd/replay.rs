@@ -5,7 +5,6 @@
 
 use crate::replay::{record_cases, Case, CASES};
 use crate::sched::Nanos;
-use anyhow::Context;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -71,7 +70,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => c,
     });
     let (container, runs) = record_cases(&cases)?;
-    std::fs::write(&a.out, &container).with_context(|| format!("{}", a.out.display()))?;
+    crate::outpath::replace(&a.out, &container)?;
     let mut altered = None;
     if let Some(path) = &a.altered_out {
         let first: &'static [u8] = Box::leak(runs[0].bytes.clone().into_boxed_slice());
@@ -79,8 +78,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             zslide_replay::record::alter(first, a.alter_nth).map_err(anyhow::Error::msg)?;
         let mut all: Vec<Vec<u8>> = runs.iter().map(|r| r.bytes.clone()).collect();
         all[0] = changed;
-        std::fs::write(path, zslide_replay::container::build(&all))
-            .with_context(|| format!("{}", path.display()))?;
+        crate::outpath::replace(path, zslide_replay::container::build(&all))?;
         altered = Some(Altered {
             file: path.clone(),
             run: runs[0].name,

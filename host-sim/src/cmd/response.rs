@@ -7,10 +7,9 @@ use crate::analog1983::{self, PositionLoop1983, VelocityLoop1983};
 use crate::analyser::{log_freqs, BodePoint, SweptSine};
 use crate::plant::linear::LinearSystem;
 use crate::plant::ZSlideParams;
-use anyhow::Context;
 use nalgebra::Complex;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// A published reference transfer function: `(Ko, ω) → H(jω)`.
 pub type RefTf = fn(f64, f64) -> Complex<f64>;
@@ -230,16 +229,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ));
     }
     if let Some(path) = &args.csv {
-        std::fs::write(path, &csv).with_context(|| format!("writing {}", path.display()))?;
+        crate::outpath::replace(path, &csv)?;
     }
     if let Some(path) = &args.svg {
-        plot_bode(
-            path,
-            &pts,
-            reference.map(|r| (name, r)),
-            args.ko,
-            &format!("{:?}", args.which),
-        )?;
+        crate::outpath::replace_with(path, |tmp| {
+            plot_bode(
+                tmp,
+                &pts,
+                reference.map(|r| (name, r)),
+                args.ko,
+                &format!("{:?}", args.which),
+            )
+        })?;
     }
     let peak_v = pts
         .iter()
@@ -259,7 +260,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn plot_bode(
-    path: &PathBuf,
+    path: &Path,
     pts: &[BodePoint],
     reference: Option<(&str, RefTf)>,
     ko: f64,
@@ -623,10 +624,10 @@ fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
         ));
     }
     if let Some(path) = &args.csv {
-        std::fs::write(path, &csv).with_context(|| format!("writing {}", path.display()))?;
+        crate::outpath::replace(path, &csv)?;
     }
     if let Some(path) = &args.svg {
-        plot_sensitivities(path, &pts, &sc.file.name)?;
+        crate::outpath::replace_with(path, |tmp| plot_sensitivities(tmp, &pts, &sc.file.name))?;
     }
     if args.json {
         println!(
@@ -660,7 +661,7 @@ pub fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or("none in the sweep".into(), |x| format!("{x:.digits$}"))
 }
 
-fn plot_sensitivities(path: &PathBuf, pts: &[LoopPoint], scenario: &str) -> anyhow::Result<()> {
+fn plot_sensitivities(path: &Path, pts: &[LoopPoint], scenario: &str) -> anyhow::Result<()> {
     use plotters::prelude::*;
     crate::plot::register_font();
     let root = SVGBackend::new(path, (900, 450)).into_drawing_area();

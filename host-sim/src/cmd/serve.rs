@@ -83,6 +83,7 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
         s.rpm = r;
     }
     s.speed = a.speed;
+    s.check()?;
     Ok(s)
 }
 

@@ -18,9 +18,8 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let out = BufWriter::new(
-        File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?,
-    );
+    let (partial, file) = crate::outpath::Partial::create(&a.out)?;
+    let out = BufWriter::new(file);
     let summary = if a.log.as_os_str() == "-" {
         crate::vcd::target::convert(std::io::stdin().lock(), out)
     } else {
@@ -28,6 +27,7 @@ pub fn run(a: Args) -> Result<()> {
         crate::vcd::target::convert(BufReader::new(f), out)
     }
     .with_context(|| format!("trace {}", a.log.display()))?;
+    partial.commit()?;
     let names = ["loop tick", "X event", "index"];
     eprintln!(
         "{}: {} events over {:.6} s (clock {} Hz)",

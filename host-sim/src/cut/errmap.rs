@@ -11,7 +11,6 @@
 
 use super::part::{cmm_phi_deg, CmmGrid};
 use crate::plot::Series;
-use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -33,7 +32,7 @@ pub fn nice_limit(max_abs: f64) -> f64 {
 }
 
 /// Diverging colour of band `k` of `2·BANDS` (0 = deepest blue).
-fn band_color(k: usize) -> RGBColor {
+pub fn band_color(k: usize) -> RGBColor {
     let n = BANDS as f64;
     let t = (k as f64 + 0.5) / n - 1.0; // −1 .. 1
     let a = t.abs().min(1.0);
@@ -45,7 +44,7 @@ fn band_color(k: usize) -> RGBColor {
     RGBColor((r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8)
 }
 
-fn band_of(v: f64, lim: f64) -> usize {
+pub fn band_of(v: f64, lim: f64) -> usize {
     let k = ((v / lim + 1.0) * BANDS as f64).floor();
     k.clamp(0.0, (2 * BANDS - 1) as f64) as usize
 }
@@ -92,6 +91,53 @@ pub fn interpolate(grid: &CmmGrid, xs: &[f64], phi_deg: f64, x_in: f64) -> Optio
 
 fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("{e:?}")
+}
+
+/// The colour bar beside a map: the bands with their edges (±`lim`), the
+/// sense of the sign, and grey labelled `grey_label`.
+pub fn colour_bar<DB: DrawingBackend>(
+    bar: &DrawingArea<DB, Shift>,
+    lim: f64,
+    grey_label: &str,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let (_, h) = bar.dim_in_pixel();
+    let (top, bottom) = (50i32, h as i32 - 70);
+    let step = (bottom - top) / (2 * BANDS) as i32;
+    let font = ("sans-serif", 13).into_font().color(&BLACK);
+    bar.draw_text("error, µin", &font, (6, top - 30))
+        .map_err(err)?;
+    for k in 0..2 * BANDS {
+        let y1 = bottom - step * k as i32;
+        bar.draw(&Rectangle::new(
+            [(10, y1 - step), (40, y1)],
+            band_color(k).filled(),
+        ))
+        .map_err(err)?;
+        let edge = -lim + 2.0 * lim * k as f64 / (2 * BANDS) as f64;
+        bar.draw_text(&crate::plot::tick_label(edge, lim), &font, (46, y1 - 7))
+            .map_err(err)?;
+    }
+    bar.draw_text(
+        &crate::plot::tick_label(lim, lim),
+        &font,
+        (46, bottom - step * (2 * BANDS) as i32 - 7),
+    )
+    .map_err(err)?;
+    bar.draw(&Rectangle::new(
+        [(10, bottom + 16), (40, bottom + 32)],
+        RGBColor(170, 170, 170).filled(),
+    ))
+    .map_err(err)?;
+    bar.draw_text(grey_label, &font, (46, bottom + 18))
+        .map_err(err)?;
+    bar.draw_text("+ excess stock", &font, (6, top - 14))
+        .map_err(err)?;
+    bar.draw_text("− too deep", &font, (6, bottom + 40))
+        .map_err(err)?;
+    Ok(())
 }
 
 fn draw<DB: DrawingBackend>(
@@ -142,7 +188,7 @@ where
         .x_labels(13)
         .x_label_formatter(&|v| format!("{v:.0}"))
         .y_labels(7)
-        .y_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| crate::plot::tick_label(*v, xs[xs.len() - 1] - xs[0]))
         .disable_mesh()
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
@@ -154,41 +200,7 @@ where
         .collect();
     ch.draw_series(pts.into_iter().map(|p| Circle::new(p, 1, BLACK.filled())))
         .map_err(err)?;
-    // The colour bar with its band edges.
-    let (_, h) = bar.dim_in_pixel();
-    let (top, bottom) = (50i32, h as i32 - 70);
-    let step = (bottom - top) / (2 * BANDS) as i32;
-    let font = ("sans-serif", 13).into_font().color(&BLACK);
-    bar.draw_text("error, µin", &font, (6, top - 30))
-        .map_err(err)?;
-    for k in 0..2 * BANDS {
-        let y1 = bottom - step * k as i32;
-        bar.draw(&Rectangle::new(
-            [(10, y1 - step), (40, y1)],
-            band_color(k).filled(),
-        ))
-        .map_err(err)?;
-        let edge = -lim + 2.0 * lim * k as f64 / (2 * BANDS) as f64;
-        bar.draw_text(&crate::plot::tick_label(edge, lim), &font, (46, y1 - 7))
-            .map_err(err)?;
-    }
-    bar.draw_text(
-        &crate::plot::tick_label(lim, lim),
-        &font,
-        (46, bottom - step * (2 * BANDS) as i32 - 7),
-    )
-    .map_err(err)?;
-    bar.draw(&Rectangle::new(
-        [(10, bottom + 16), (40, bottom + 32)],
-        grey.filled(),
-    ))
-    .map_err(err)?;
-    bar.draw_text("in a hole", &font, (46, bottom + 18))
-        .map_err(err)?;
-    bar.draw_text("+ excess stock", &font, (6, top - 14))
-        .map_err(err)?;
-    bar.draw_text("− too deep", &font, (6, bottom + 40))
-        .map_err(err)?;
+    colour_bar(&bar, lim, "in a hole")?;
     root.present().map_err(err)?;
     Ok(())
 }
@@ -202,24 +214,13 @@ pub fn write(dir: &Path, grid: &CmmGrid, xs: &[f64], title: &str) -> anyhow::Res
         xs.len(),
         grid.err_uin.first().map_or(0, Vec::len)
     );
-    crate::plot::register_font();
-    let size = (980, 560);
-    let svg = dir.join("error_map.svg");
-    draw(
-        SVGBackend::new(&svg, size).into_drawing_area(),
-        grid,
-        xs,
-        title,
-    )
-    .with_context(|| format!("writing {}", svg.display()))?;
-    let png = dir.join("error_map.png");
-    draw(
-        BitMapBackend::new(&png, size).into_drawing_area(),
-        grid,
-        xs,
-        title,
-    )
-    .with_context(|| format!("writing {}", png.display()))?;
+    crate::plot::write_svg_png(
+        dir,
+        "error_map",
+        (980, 560),
+        |a| draw(a, grid, xs, title),
+        |a| draw(a, grid, xs, title),
+    )?;
     let series: Vec<Series> = xs
         .iter()
         .enumerate()
@@ -281,5 +282,34 @@ mod tests {
         assert_eq!(nice_limit(8.0), 10.0);
         assert_eq!(nice_limit(1.3), 2.0);
         assert_eq!(nice_limit(450.0), 500.0);
+    }
+
+    #[test]
+    fn the_radius_axis_ticks_of_a_part_within_two_inches_are_distinct() {
+        // A part's radii, 0 .. 1.5 in: whole-inch labels read "0 0 1 1 1 1 0".
+        let xs = [0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5];
+        let g = grid(|_, x| Some(-0.1 - 0.4 * x));
+        let dir = std::env::temp_dir().join(format!("errmap-ticks-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        write(&dir, &g, &xs, "part").unwrap();
+        let svg = std::fs::read_to_string(dir.join("error_map.svg")).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        // The Y axis' tick labels: text elements right-aligned at the axis.
+        let labels: Vec<&str> = svg
+            .split("<text")
+            .skip(1)
+            .filter(|t| t.contains("text-anchor=\"end\""))
+            .filter_map(|t| t.split('>').nth(1)?.split('<').next())
+            .collect();
+        assert!(labels.len() >= 4, "{labels:?}");
+        let mut sorted = labels.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(
+            sorted.len(),
+            labels.len(),
+            "repeated Y tick labels: {labels:?}"
+        );
+        assert!(labels.iter().any(|l| l.contains('.')), "{labels:?}");
     }
 }

@@ -11,7 +11,10 @@
 //! * **Sense of rotation.** The part turns in +φ (counter-clockwise seen
 //!   from the tool, a lathe's forward sense); the tool stands still, so the
 //!   point of the part under the tool runs *backwards* in φ:
-//!   `φ_p = 180° − φ_c` with the index at φ = 90° of both. The command is
+//!   `φ_p = 180° − φ_c`. The generator resets to sine 0 at the index
+//!   (φ_c = 0 there, φ_p = 180°). The seeds never state the sense: it is
+//!   the one under which the simulated 1983 part correlates with eq 4-49's
+//!   lag prediction (`host-sim/tests/cut_frame.rs`). The command is
 //!   a polynomial in sin φ (eq 2-18..2-23) and `sin(180° − φ) = sin φ`:
 //!   the nominal part cannot tell the sense (tested below). The dynamic
 //!   errors can: a loop lagging by τ leaves `−τ dZ/dt = −τΩ ∂Z/∂φ_c` at the

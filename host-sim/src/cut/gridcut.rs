@@ -253,7 +253,6 @@ pub fn table(m: &RectMeasured) -> String {
 
 /// Writes `<dir>/grid_error.csv`: one row a point, empty where absent.
 pub fn write_csv(dir: &std::path::Path, m: &RectMeasured) -> anyhow::Result<()> {
-    use anyhow::Context;
     let path = dir.join("grid_error.csv");
     let mut out = String::from("x_in,y_in,radius_in,phi_deg,error_uin,finish_uin,absent\n");
     let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v}"));
@@ -274,7 +273,7 @@ pub fn write_csv(dir: &std::path::Path, m: &RectMeasured) -> anyhow::Result<()> 
             opt(p.finish_uin)
         );
     }
-    std::fs::write(&path, out).with_context(|| format!("cannot write {}", path.display()))
+    crate::outpath::replace(&path, out)
 }
 
 /// Recording windows (tool-centre X, in) around the grid's cut radii,

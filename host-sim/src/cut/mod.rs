@@ -27,6 +27,9 @@ pub mod errors;
 pub mod frame;
 pub mod errmap;
 pub mod gridcut;
+pub mod holezone;
+pub mod interruptions;
+pub mod zoneplot;
 pub mod nominal;
 pub mod part;
 pub mod partcut;
@@ -104,6 +107,15 @@ pub struct CutSpec {
     pub measure: cmm::Measure,
     /// A rectangular grid instead of the polar one (`cut --part --grid`).
     pub grid: Option<std::sync::Arc<rectgrid::RectGrid>>,
+    /// Also measure the hole zone (`holezone`: bands across the bolt
+    /// circle's ring, a dense grid around it).
+    pub hole_zone: bool,
+    /// The default part cut with this table instead of the default one
+    /// (`cut --table` without `--part`).
+    pub table_image: Option<&'static [u8]>,
+    /// A compensated table's axial slide program against the nominal's
+    /// (`crate::part::axial::AxialProgram`): added to the tool's height.
+    pub axial: Option<std::sync::Arc<crate::part::axial::AxialProgram>>,
 }
 
 impl CutSpec {
@@ -142,6 +154,10 @@ impl CutSpec {
         });
         check_part_side(scenario.cutting.part_side)
             .with_context(|| format!("scenario {}", f.name))?;
+        // The holes as the firmware's interruption block would carry them:
+        // a set it would refuse is refused before the pass.
+        interruptions::block_of(&scenario.cutting.bolt_holes)
+            .with_context(|| format!("scenario {}", f.name))?;
         let error_levels = scenario.file.errors.clone();
         Ok(Self {
             x_start_in: f.x.x0_in,
@@ -167,14 +183,49 @@ impl CutSpec {
             command_sign: sign::CommandSign::Normal,
             measure: cmm::Measure::Exact,
             grid: None,
+            hole_zone: false,
+            table_image: None,
+            axial: None,
         })
+    }
+
+    /// The hole zone's grid when this cut measures it: the scenario's
+    /// bolt holes (filled as `holes` says) on the part the pass cuts.
+    pub fn zone_grid(&self) -> anyhow::Result<Option<holezone::ZoneGrid>> {
+        if !self.hole_zone || self.grid.is_some() {
+            return Ok(None);
+        }
+        let gain = self.contact_gain()?;
+        let holes = crate::plant::cutting::BoltHoles {
+            filled: self.holes == Holes::Filled,
+            ..self.scenario.cutting.bolt_holes.clone()
+        };
+        Ok(holezone::ZoneGrid::new(
+            &holes,
+            gain,
+            self.x_start_in * gain,
+        ))
+    }
+
+    /// Makes this cut pass `pass` of the same part on the same machine
+    /// (a compensation cut: `pass` = the table's compensation steps): every
+    /// noise stream (plant, X, spindle, the spindle's asynchronous error
+    /// motion, the CMM) drawn afresh, while the deterministic sources (tool
+    /// wear along the pass, the drifts' schedule, gauge scale and
+    /// nonlinearity, X zero) repeat. Pass 0 is the scenario's own seeds.
+    pub fn set_pass(&mut self, pass: u64) {
+        if pass > 0 {
+            self.scenario = seeded(&self.scenario, PASS_STREAMS + pass);
+        }
     }
 
     /// The table image the firmware runs.
     pub fn table(&self) -> &'static [u8] {
-        self.part
-            .as_ref()
-            .map_or(zslide::DEFAULT_TABLE, |p| p.table)
+        match (&self.part, self.table_image) {
+            (Some(p), _) => p.table,
+            (None, Some(t)) => t,
+            (None, None) => zslide::DEFAULT_TABLE,
+        }
     }
 
     /// Radii the CMM measures (tool centre for a part, surface else), in.
@@ -249,9 +300,15 @@ pub struct Stretch {
     pub x_end_in: f64,
     /// Recording windows (tool-centre X), in.
     pub windows: Vec<(f64, f64)>,
+    /// Recording windows of the hole zone (tool-centre X), in.
+    pub zone: Vec<(f64, f64)>,
     /// Stream index of its seeds.
     pub index: u64,
 }
+
+/// Seed streams of the hole zone's stretches start here (the CMM bands
+/// keep theirs, 1..).
+pub const ZONE_SEED_BASE: u64 = 1000;
 
 impl Stretch {
     pub fn seconds(&self, spec: &CutSpec) -> f64 {
@@ -262,6 +319,13 @@ impl Stretch {
 /// The stretches of the pass: one band per CMM radius, or the whole pass.
 pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
     let f = spec.feed_per_rev_in;
+    // The zone's grid needs the part's own gain; a plan asked with another
+    // (a test's) has none.
+    let zone = spec
+        .zone_grid()
+        .ok()
+        .flatten()
+        .map_or(Vec::new(), |g| g.windows(spec.band_half_in));
     let windows: Vec<(f64, f64)> = match &spec.grid {
         Some(g) => gridcut::windows(g, spec.band_half_in),
         None => spec
@@ -278,19 +342,28 @@ pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
             x_start_in: spec.x_start_in,
             x_end_in: 0.0,
             windows,
+            zone,
             index: 0,
         }];
     }
-    windows
+    let bands = windows
         .into_iter()
         .enumerate()
         .map(|(k, (lo, hi))| Stretch {
             x_start_in: hi + spec.preroll_revs * f,
             x_end_in: lo - 2.0 * f,
             windows: vec![(lo, hi)],
+            zone: vec![],
             index: k as u64 + 1,
-        })
-        .collect()
+        });
+    let zone = zone.into_iter().enumerate().map(|(k, (lo, hi))| Stretch {
+        x_start_in: hi + spec.preroll_revs * f,
+        x_end_in: lo - 2.0 * f,
+        windows: vec![],
+        zone: vec![(lo, hi)],
+        index: ZONE_SEED_BASE + k as u64,
+    });
+    bands.chain(zone).collect()
 }
 
 /// What a stretch returns.
@@ -310,6 +383,9 @@ pub struct Extras {
     /// Keep a tick-by-tick trace of this many seconds of the recording.
     pub trace_s: f64,
 }
+
+/// Seed streams of later passes start here (stretches use 1..=8).
+const PASS_STREAMS: u64 = 1 << 32;
 
 /// Seeds of stretch `index` (0 = the scenario's own).
 fn seeded(sc: &Scenario, index: u64) -> Scenario {
@@ -397,6 +473,7 @@ pub fn build_stretch(
     let rec_start_s = st
         .windows
         .iter()
+        .chain(&st.zone)
         .map(|&(_, hi)| (hi - st.x_start_in) / v)
         .fold(f64::INFINITY, f64::min)
         .max(0.0);
@@ -413,7 +490,18 @@ pub fn build_stretch(
     {
         let mut c = cutter.borrow_mut();
         c.nominal_sign = spec.command_sign.factor();
+        c.axial = spec.axial.clone();
         c.log.grid = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
+        if !st.zone.is_empty() {
+            if let Some(g) = spec.zone_grid()? {
+                c.log.zone = Some(holezone::ZoneLog::new(
+                    &g,
+                    cutting.tool_radius_in,
+                    spec.feed_per_rev_in,
+                    st.zone.clone(),
+                ));
+            }
+        }
         c.errors = spec.applied_levels().map(|l| {
             errors::ErrorState::new(
                 l,
@@ -513,13 +601,11 @@ pub fn run_stretch(
     }
     let trace = match &extras.vcd {
         Some((path, from, to)) => {
-            let file = std::io::BufWriter::new(
-                std::fs::File::create(path)
-                    .with_context(|| format!("cannot write {}", path.display()))?,
-            );
+            let (partial, file) = crate::outpath::Partial::create(path)?;
             let t0 = ((rec_start_s + from) * 1e9) as u64;
             let t1 = ((rec_start_s + to) * 1e9) as u64;
-            Some(crate::vcd::machine::attach(&mut s, file, t0, t1)?)
+            let tr = crate::vcd::machine::attach(&mut s, std::io::BufWriter::new(file), t0, t1)?;
+            Some((partial, tr))
         }
         None => None,
     };
@@ -531,8 +617,9 @@ pub fn run_stretch(
         s.run_until(&mut w, t);
         progress(chunk.min(t_end) as f64 * 1e-9);
     }
-    if let Some(tr) = trace {
+    if let Some((partial, tr)) = trace {
         crate::vcd::machine::detach(&mut s, tr)?;
+        partial.commit()?;
     }
     let mut faults = Vec::new();
     if let Some(f) = w.fw.fault() {
@@ -569,6 +656,8 @@ pub struct CutOutcome {
     pub following_error_peak_uin: f64,
     /// Mean cutting force while recording, lbf.
     pub mean_force_lbf: f64,
+    /// Largest |coil current| while recording, A.
+    pub current_peak_a: f64,
     /// Tick-by-tick (t s, following error µin, force lbf) of the trace
     /// stretch.
     pub trace: Vec<(f64, f64, f64)>,
@@ -584,6 +673,12 @@ pub struct CutOutcome {
     /// The rectangular grid's measurement (`--grid`; the polar `grid` is
     /// then unmeasured: no stretch is at its radii).
     pub rect: Option<gridcut::RectMeasured>,
+    /// The hole zone (`CutSpec::hole_zone`; `None` where the part has no
+    /// holes).
+    pub zone: Option<holezone::ZoneMeasured>,
+    /// With `--measure cmm`: the true surface's band on the same grid (what
+    /// the CMM read is of), µin.
+    pub exact_band: Option<(f64, f64)>,
 }
 
 /// Runs the plan (stretches in parallel), measures the part.
@@ -608,7 +703,9 @@ pub fn run_pass(
     let wall_s = wall0.elapsed().as_secs_f64();
     let mut passes = PassLog::new();
     let mut grid_log = spec.grid.as_deref().map(gridcut::AngleLog::of_grid);
+    let mut zone_log: Option<holezone::ZoneLog> = None;
     let (mut sum_sq, mut n, mut peak, mut force) = (0.0, 0u64, 0.0f64, 0.0);
+    let mut current_peak_a = 0.0f64;
     let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
     let mut faults = Vec::new();
     let mut trace = Vec::new();
@@ -620,9 +717,16 @@ pub fn run_pass(
         if let (Some(a), Some(b)) = (grid_log.as_mut(), r.log.grid.take()) {
             a.merge(b);
         }
+        if let Some(b) = r.log.zone.take() {
+            match zone_log.as_mut() {
+                Some(a) => a.merge(&b),
+                None => zone_log = Some(b),
+            }
+        }
         sum_sq += r.log.fe_sum_sq;
         n += r.log.fe_n;
         peak = peak.max(r.log.fe_peak);
+        current_peak_a = current_peak_a.max(r.log.current_peak_a);
         force += r.log.force_sum;
         simulated_s += r.simulated_s;
         cpu_s += r.wall_s;
@@ -656,6 +760,9 @@ pub fn run_pass(
             |x, phi_deg| holes.over_hole(x, phi_deg / 360.0),
         )
     });
+    let exact_band = (spec.measure == cmm::Measure::Cmm)
+        .then(|| grid.band())
+        .flatten();
     let grid = match spec.measure {
         cmm::Measure::Exact => grid,
         cmm::Measure::Cmm => {
@@ -683,6 +790,7 @@ pub fn run_pass(
         following_error_rms_uin: (sum_sq / nf).sqrt() * 1e6,
         following_error_peak_uin: peak * 1e6,
         mean_force_lbf: force / nf,
+        current_peak_a,
         trace,
         traces,
         simulated_s,
@@ -691,5 +799,10 @@ pub fn run_pass(
         faults,
         stretches: stretches.len(),
         rect,
+        zone: spec
+            .zone_grid()?
+            .zip(zone_log)
+            .map(|(g, log)| holezone::ZoneMeasured::measure(&g, &log)),
+        exact_band,
     })
 }

@@ -60,23 +60,61 @@ pub struct Pass {
     pub e_in: f64,
 }
 
+/// The lowest nose arc over one surface point, gathered pass by pass:
+/// the material no pass removed (module doc), and whether passes cover
+/// the point on both sides within one and a half feeds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Envelope {
+    below: bool,
+    above: bool,
+    best: f64,
+}
+
+impl Default for Envelope {
+    fn default() -> Self {
+        Self {
+            below: false,
+            above: false,
+            best: f64::INFINITY,
+        }
+    }
+}
+
+impl Envelope {
+    /// A pass `u` in outward of the point's contact tool centre, with
+    /// tool-centre error `e_in`.
+    pub fn add(&mut self, u: f64, e_in: f64, r_t: f64, feed_in: f64) {
+        if u.abs() >= r_t {
+            return;
+        }
+        self.below |= u <= 0.0 && u > -1.5 * feed_in;
+        self.above |= u >= 0.0 && u < 1.5 * feed_in;
+        let h = e_in + (r_t - ((r_t - u) * (r_t + u)).sqrt());
+        self.best = self.best.min(h);
+    }
+
+    /// The passes of another stretch over the same point.
+    pub fn merge(&mut self, o: &Envelope) {
+        self.below |= o.below;
+        self.above |= o.above;
+        self.best = self.best.min(o.best);
+    }
+
+    /// The error, in; `None` unless cut on both sides.
+    pub fn value(&self) -> Option<f64> {
+        (self.below && self.above).then_some(self.best)
+    }
+}
+
 /// Error of the surface at the point whose contact tool centre is `xc`,
 /// in (positive = excess stock); `None` if no pass covers it on both
 /// sides within one feed (the point was not cut in the simulated span).
 pub fn envelope_error(passes: &[Pass], xc: f64, r_t: f64, feed_in: f64) -> Option<f64> {
-    let (mut below, mut above) = (false, false);
-    let mut best = f64::INFINITY;
+    let mut env = Envelope::default();
     for p in passes {
-        let u = p.x_in - xc;
-        if u.abs() >= r_t {
-            continue;
-        }
-        below |= u <= 0.0 && u > -1.5 * feed_in;
-        above |= u >= 0.0 && u < 1.5 * feed_in;
-        let h = p.e_in + (r_t - ((r_t - u) * (r_t + u)).sqrt());
-        best = best.min(h);
+        env.add(p.x_in - xc, p.e_in, r_t, feed_in);
     }
-    (below && above).then_some(best)
+    env.value()
 }
 
 /// Profilometer RMS (in) of the radial profile around `xc`: envelope

@@ -34,6 +34,11 @@ pub struct StretchLog {
     pub force_sum: f64,
     /// The passes at a rectangular grid's angles (`cut --grid`).
     pub grid: Option<super::gridcut::AngleLog>,
+    /// The hole zone's envelope (`holezone`), on its stretches.
+    pub zone: Option<super::holezone::ZoneLog>,
+    /// Largest |coil current| while recording (the grid's or the zone's
+    /// windows), A.
+    pub current_peak_a: f64,
 }
 
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
@@ -71,6 +76,8 @@ pub struct Cutter {
     pub drive: (f64, f64, f64, f64),
     /// The 1983 command generator, when it makes the 1983 loop's command.
     pub command1983: Option<super::command1983::AnalogCommand>,
+    /// A compensated table's axial slide program against the nominal's.
+    pub axial: Option<std::sync::Arc<crate::part::axial::AxialProgram>>,
 }
 
 impl Cutter {
@@ -109,6 +116,7 @@ impl Cutter {
             nominal_sign: 1.0,
             drive: (0.0, 0.0, 1.0, 0.0),
             command1983: None,
+            axial: None,
         }
     }
 
@@ -157,6 +165,9 @@ impl TickHook for Cutter {
                 (x, z_slide + er.tool_offset_in(t_s, x, phi_p, d_turns), hum)
             }
         };
+        // The axial slide on a compensated program carries the tool by
+        // its ΔY(X) against the nominal's.
+        let z = z + self.axial.as_ref().map_or(0.0, |a| a.at(x));
         let nom = self.nominal_sign * self.nominal.fast(x, phi);
         let e = z - nom;
         if t_s >= self.settle_s {
@@ -188,6 +199,7 @@ impl TickHook for Cutter {
             // The tool against the exact surface command at the true X and
             // φ (as `track`): what the part sees, whatever the controller.
             let fe = z_slide - nom;
+            self.log.current_peak_a = self.log.current_peak_a.max(rig.slide.current_a().abs());
             self.log.fe_sum_sq += fe * fe;
             self.log.fe_n += 1;
             self.log.fe_peak = self.log.fe_peak.max(fe.abs());
@@ -221,6 +233,24 @@ impl TickHook for Cutter {
             self.prev = Some((turns, x, z));
         } else {
             self.prev = None;
+        }
+        if let Some(zl) = self.log.zone.as_mut() {
+            if zl.recording(x) {
+                self.log.current_peak_a = self.log.current_peak_a.max(rig.slide.current_a().abs());
+                if let Some((turns0, x0, z0)) = zl.prev {
+                    let n = super::holezone::PHI_COUNT as f64;
+                    for (k, i) in super::holezone::ZoneLog::crossings(turns0, turns) {
+                        let w = (k as f64 / n - turns0) / (turns - turns0);
+                        let xc = x0 + (x - x0) * w;
+                        let zc = z0 + (z - z0) * w;
+                        let ec = zc - self.nominal_sign * self.nominal.exact(xc, i as f64 / n);
+                        zl.add(i, xc, ec);
+                    }
+                }
+                zl.prev = Some((turns, x, z));
+            } else {
+                zl.prev = None;
+            }
         }
     }
 }

@@ -455,6 +455,7 @@ fn simulate(
         x_start_in: x_start,
         x_end_in: x_at_inj - 1.0,
         windows: vec![(x_at_inj - 0.01, x_start)],
+        zone: vec![],
         index: seed_index,
     };
     let mut spec = spec.clone();

@@ -268,9 +268,62 @@ impl SurfaceCfg {
     }
 }
 
+/// An error inside `[surface]`, pointed at its key. The surface's kinds
+/// are read through serde's buffer for internally tagged enums, which
+/// keeps no positions: toml then points an unknown key or a value of the
+/// wrong type at the section's header, and a wrong type names no field.
+/// The key is found again in the document: the unknown one by its name,
+/// the mistyped one by its value. `None`: not such an error.
+fn at_the_key(text: &str, e: &toml::de::Error) -> Option<String> {
+    use toml::de::{DeTable, DeValue};
+    let msg = e.message();
+    let doc = DeTable::parse(text).ok()?;
+    let err_at = e.span()?.start;
+    // The top-level table the error points into.
+    let (section, table) = doc.get_ref().iter().find_map(|(k, v)| match v.get_ref() {
+        DeValue::Table(t) if v.span().contains(&err_at) || k.span().contains(&err_at) => {
+            Some((k.get_ref().to_string(), t))
+        }
+        _ => None,
+    })?;
+    let quoted = |after: &str| -> Option<String> {
+        let rest = &msg[msg.find(after)? + after.len()..];
+        let end = rest.find(['`', '"'])?;
+        Some(rest[..end].to_string())
+    };
+    let (key, what) = if let Some(name) = quoted("unknown field `") {
+        let key = table.iter().find(|(k, _)| k.get_ref() == &name)?.0;
+        let hint = if name.ends_with("_in") || name.ends_with("_deg") || name == "kind" {
+            ""
+        } else {
+            " (lengths are in inches: a name ends in `_in`; docs/PARTS.md)"
+        };
+        (key.span(), format!("{msg}{hint}"))
+    } else if let Some(value) = quoted("invalid type: string \"") {
+        let (k, _) = table
+            .iter()
+            .find(|(_, v)| matches!(v.get_ref(), DeValue::String(s) if *s == value))?;
+        (
+            k.span(),
+            format!(
+                "{section}.{}: {msg} (a bare number, in the unit its name ends with)",
+                k.get_ref()
+            ),
+        )
+    } else {
+        return None;
+    };
+    let line = text[..key.start].matches('\n').count() + 1;
+    let col = key.start - text[..key.start].rfind('\n').map_or(0, |n| n + 1) + 1;
+    let src = text.lines().nth(line - 1).unwrap_or("");
+    Some(format!(
+        "TOML parse error at line {line}, column {col}\n  |\n{line} | {src}\n  |\n{what}"
+    ))
+}
+
 impl PartFile {
     pub fn from_toml(text: &str) -> Result<Self, String> {
-        toml::from_str(text).map_err(|e| e.to_string())
+        toml::from_str(text).map_err(|e| at_the_key(text, &e).unwrap_or_else(|| e.to_string()))
     }
 
     /// Checks every field and builds the part; `dir` resolves a sag grid's

@@ -24,6 +24,7 @@
 //! [`split`] compensates the tool nose and splits the motion; [`table`]
 //! makes, measures and picks the table; [`config`] reads a part file.
 
+pub mod axial;
 pub mod biconic;
 pub mod config;
 pub mod plan;

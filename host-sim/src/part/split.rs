@@ -22,11 +22,15 @@
 //!
 //! # The split (eq 2-8)
 //!
-//! `Y(X) = max_φ T(X, φ)` is the axial slide's smooth motion and
-//! `Z(X, φ) = T(X, φ) − Y(X)` the Z slide's, so `Z ≤ 0` with `max_φ Z = 0`:
-//! the sign the firmware's load check demands (eq 2-14's choice of the
-//! maximum for `Y`). The maximum is found from 256 samples a turn, every
-//! sampled local maximum refined by golden section.
+//! `Y(X)` is the axial slide's smooth motion and `Z(X, φ) = T(X, φ) −
+//! Y(X)` the Z slide's. Eq 2-14 takes `Y = max_φ T`, so `Z ≤ 0` with
+//! `max_φ Z = 0`: the sign the firmware's load check demands. Where the
+//! maximum jumps between lobes of `T(X, ·)` that `Y` has a kink, so `Y`
+//! here is a smooth upper envelope of the lobe maxima ([`Envelope`]):
+//! `Z ≤ 0` still, `max_φ Z` within `τ ln n` of 0 (n lobes), and exactly
+//! `max_φ T` for a surface with one lobe (the paraboloid). The lobes are
+//! found from 256 samples a turn, every sampled local maximum refined by
+//! golden section.
 
 use super::Sag;
 use crate::coeffgen::Harmonics;
@@ -74,12 +78,20 @@ fn undefined(x: f64, phi: f64, what: &str) -> String {
     )
 }
 
-/// Maximum of a function of φ from `SAMPLES` samples: every sampled local
-/// maximum refined by golden section. Returns (max, φ at max).
-fn max_over_phi(samples: &[f64], f: impl Fn(f64) -> f64) -> (f64, f64) {
+/// Smoothing length of the upper envelope `Y(X)`, in (see [`Envelope`]).
+pub const ENVELOPE_TAU_IN: f64 = 40e-6;
+
+/// The local maxima ("lobes") of a function of φ from `SAMPLES` samples:
+/// every sampled local maximum refined by golden section, maxima within
+/// 1.5 sample steps of each other (a plateau, a peak between two samples)
+/// merged into their highest. Returns (value, φ, prominence) in the order
+/// of φ, the prominence being the height above the higher of the two
+/// minima that part it from its neighbours (above the lowest sample for a
+/// lone lobe; minima located by a parabola through three samples).
+fn lobes(samples: &[f64], f: impl Fn(f64) -> f64) -> Vec<(f64, f64, f64)> {
     let n = samples.len();
     let h = TAU / n as f64;
-    let (mut best, mut at) = (f64::NEG_INFINITY, 0.0);
+    let mut found: Vec<(f64, f64, usize)> = Vec::new();
     for i in 0..n {
         let (a, b, c) = (samples[(i + n - 1) % n], samples[i], samples[(i + 1) % n]);
         if !(b >= a && b >= c) {
@@ -108,12 +120,157 @@ fn max_over_phi(samples: &[f64], f: impl Fn(f64) -> f64) -> (f64, f64) {
             (f64::NEG_INFINITY, 0.0),
             |acc, c| if c.0 > acc.0 { c } else { acc },
         );
-        if v > best {
-            best = v;
-            at = p;
+        found.push((v, p, i));
+    }
+    // Clusters of sampled maxima at adjacent samples (wrapping) are one lobe.
+    let mut out: Vec<(f64, f64, usize)> = Vec::new();
+    let mut first_start: Option<usize> = None;
+    let mut prev_i: Option<usize> = None;
+    for &(v, p, i) in &found {
+        match prev_i {
+            Some(pi) if i - pi <= 1 => {
+                let last = out.last_mut().expect("a cluster is open");
+                if v > last.0 {
+                    *last = (v, p, i);
+                }
+            }
+            _ => {
+                if first_start.is_none() {
+                    first_start = Some(i);
+                }
+                out.push((v, p, i));
+            }
+        }
+        prev_i = Some(i);
+    }
+    // The last cluster wraps onto the first (samples n−1 and 0 adjacent).
+    if out.len() > 1 && first_start == Some(0) && prev_i == Some(n - 1) {
+        let last = out.pop().expect("len > 1");
+        if last.0 > out[0].0 {
+            out[0] = last;
         }
     }
-    (best, at)
+    out.sort_by_key(|l| l.2);
+    // The lowest sample strictly between samples a and b (cyclic, b = a:
+    // the whole turn), its value refined by the parabola through it and
+    // its neighbours.
+    let valley = |a: usize, b: usize| {
+        let span = if b > a { b - a } else { b + n - a };
+        let j = (1..span)
+            .map(|k| (a + k) % n)
+            .min_by(|&p, &q| samples[p].total_cmp(&samples[q]))
+            .unwrap_or(a);
+        let (l, c, r) = (samples[(j + n - 1) % n], samples[j], samples[(j + 1) % n]);
+        let curv = l - 2.0 * c + r;
+        if curv > 0.0 {
+            c - (l - r) * (l - r) / (8.0 * curv)
+        } else {
+            c
+        }
+    };
+    let k = out.len();
+    (0..k)
+        .map(|i| {
+            let (v, p, at) = out[i];
+            let left = valley(out[(i + k - 1) % k].2, at);
+            let right = valley(at, out[(i + 1) % k].2);
+            (v, p, v - left.max(right))
+        })
+        .collect()
+}
+
+/// Prominence (in) below which a lobe hardly counts in the envelope (see
+/// [`Envelope`]): a lobe born as X grows enters it as it rises.
+pub const ENVELOPE_PROMINENCE_IN: f64 = ENVELOPE_TAU_IN;
+
+/// Slope difference (in/in) below which two lobes' crossing is left as it
+/// is (see [`Envelope`]): a kink of this slope jump costs a table at most
+/// `S0·h/4`, 0.02 µin at the finest binary step.
+pub const ENVELOPE_SLOPE_IN_PER_IN: f64 = 1e-5;
+
+/// The axial slide's `Y(X)` from the lobes of `T(X, ·)`: a smooth upper
+/// envelope.
+///
+/// `max_φ T` has a kink wherever the maximum jumps from one lobe to
+/// another as X changes, and a table's mean column inherits it (linear
+/// interpolation across a kink errs by the slope jump times the step). So
+/// `Y` is a log-sum-exp of the lobe maxima `M_i` about the highest, `m`:
+///
+/// ```text
+/// Y = m + τ ln(1 + Σ_{i ≠ top} ω_i exp((M_i − m)/τ)),
+/// ω_i = Δ_i²/(Δ_i² + S0²) · P_i²/(P_i² + P0²),
+/// Δ_i = ∂M_i/∂X − ∂M_top/∂X,  P_i the lobe's prominence,
+/// τ = ENVELOPE_TAU_IN,  S0 = ENVELOPE_SLOPE_IN_PER_IN,  P0 = ENVELOPE_PROMINENCE_IN
+/// ```
+///
+/// Where two lobes cross (`M_a = M_b`; ω the same from either side) it is
+/// continuous whichever is on top, and smooth but for the factor `(1 −
+/// ω)/(1 + ω)` of the slope jump: a crossing with a slope jump well above
+/// S0 is rounded over `~τ/Δ` of X (curvature `Δ²/4τ`). Lobes that rise
+/// together (a symmetric part's twins, every lobe near the axis) have ω ≈ 0
+/// and leave `Y = m`; a lobe born as X grows (prominence 0) enters as it
+/// rises instead of at once (a jump of up to `τ ln 2` else). And `m ≤ Y ≤ m + τ ln n` (n lobes): `Z = T − Y ≤ 0`
+/// stays (the firmware's sign check), with `max_φ Z` between `−τ ln n` and
+/// 0 (the stated margin: 0 with one lobe or twins, the paraboloid's case,
+/// where `Y = m` to the bit).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Envelope {
+    pub y: f64,
+    /// Each lobe's share of `Y`'s slope (`∂Y/∂M_i` with the weights ω held;
+    /// Σ = 1) and its φ.
+    pub lobes: Vec<(f64, f64)>,
+}
+
+/// A lobe of `T(X, ·)`: its maximum, the φ of it, and `∂M/∂X` there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Lobe {
+    m: f64,
+    phi: f64,
+    slope: f64,
+    prominence: f64,
+}
+
+impl Envelope {
+    fn of(lobes: &[Lobe]) -> Self {
+        let top = lobes
+            .iter()
+            .enumerate()
+            .fold(0, |b, (i, l)| if l.m > lobes[b].m { i } else { b });
+        let (m, s) = (lobes[top].m, lobes[top].slope);
+        let (tau, s0) = (ENVELOPE_TAU_IN, ENVELOPE_SLOPE_IN_PER_IN);
+        let w: Vec<f64> = lobes
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                if i == top {
+                    0.0
+                } else {
+                    let d = l.slope - s;
+                    let p = l.prominence;
+                    let p0 = ENVELOPE_PROMINENCE_IN;
+                    d * d / (d * d + s0 * s0)
+                        * (p * p / (p * p + p0 * p0))
+                        * ((l.m - m) / tau).exp()
+                }
+            })
+            .collect();
+        let rest: f64 = w.iter().sum();
+        let sum = 1.0 + rest;
+        Self {
+            y: m + tau * rest.ln_1p(),
+            lobes: lobes
+                .iter()
+                .zip(&w)
+                .enumerate()
+                .map(|(i, (l, w))| (if i == top { 1.0 } else { *w } / sum, l.phi))
+                .collect(),
+        }
+    }
+
+    /// The stated margin: `Y − max_φ T ≤ τ ln n`.
+    pub fn margin_bound_in(&self) -> f64 {
+        ENVELOPE_TAU_IN * (self.lobes.len() as f64).ln()
+    }
 }
 
 impl Part {
@@ -151,17 +308,34 @@ impl Part {
         ))
     }
 
-    /// The ridge `max_φ f_φ(x)` and its slope (envelope theorem: the
-    /// profile's slope at the maximising φ).
-    fn ridge(&self, x: f64) -> Result<(f64, f64), String> {
+    /// The ridge (the smooth envelope of `f_φ(x)`'s lobes, [`Envelope`]),
+    /// its slope (envelope theorem: the profile's slope at each lobe's φ,
+    /// weighted) and the number of lobes.
+    fn ridge(&self, x: f64) -> Result<(f64, f64, usize), String> {
         let s: Vec<f64> = (0..SAMPLES)
             .map(|j| self.profile(x, TAU * j as f64 / SAMPLES as f64).0)
             .collect();
         if let Some(j) = s.iter().position(|v| !v.is_finite()) {
             return Err(undefined(x, TAU * j as f64 / SAMPLES as f64, ""));
         }
-        let (y, at) = max_over_phi(&s, |p| self.profile(x, p).0);
-        Ok((y, self.profile(x, at).1))
+        let lb: Vec<Lobe> = lobes(&s, |p| self.profile(x, p).0)
+            .into_iter()
+            .map(|(m, phi, prominence)| Lobe {
+                m,
+                phi,
+                slope: self.profile(x, phi).1,
+                prominence,
+            })
+            .collect();
+        let env = Envelope::of(&lb);
+        // The envelope's slope: Σ w_i ∂M_i/∂x, each lobe's by the envelope
+        // theorem (the profile's slope at its maximising φ).
+        let d = env
+            .lobes
+            .iter()
+            .map(|&(w, at)| w * self.profile(x, at).1)
+            .sum::<f64>();
+        Ok((env.y, d, env.lobes.len()))
     }
 
     /// The section at tool-centre radius `x` (≥ 0).
@@ -179,10 +353,24 @@ impl Part {
                     .iter()
                     .map(|&p| self.centre_profile_normal(x, p).map(|v| v.0))
                     .collect::<Result<Vec<_>, _>>()?;
-                let (y, _) = max_over_phi(&t, |p| {
+                // ∂T/∂X at fixed φ is the profile's slope at the contact
+                // (the offset curve is parallel to the profile).
+                let lb = lobes(&t, |p| {
                     self.centre_profile_normal(x, p)
                         .map_or(f64::NEG_INFINITY, |v| v.0)
-                });
+                })
+                .into_iter()
+                .map(|(m, phi, prominence)| {
+                    let xc = self.centre_profile_normal(x, phi)?.1;
+                    Ok(Lobe {
+                        m,
+                        phi,
+                        slope: self.profile(xc, phi).1,
+                        prominence,
+                    })
+                })
+                .collect::<Result<Vec<_>, String>>()?;
+                let y = Envelope::of(&lb).y;
                 Ok(Section {
                     x,
                     y,
@@ -195,12 +383,14 @@ impl Part {
                 let mut x1 = x;
                 let mut conv = false;
                 for _ in 0..100 {
-                    let (_, d) = self.ridge(x1)?;
+                    let (_, d, env_lobes) = self.ridge(x1)?;
                     let next = x + rt * d / d.hypot(1.0);
-                    // The ridge's slope comes from a located maximum (its
-                    // φ to ~1e-8 rad): x1 settles to ~1e-13 in, not to
-                    // the last bit.
-                    let done = (next - x1).abs() <= 1e-12;
+                    // The ridge's slope comes from located maxima (each φ
+                    // to ~1e-8 rad): x1 settles to ~1e-13 in with one
+                    // lobe, to ~1e-11 with several weighted (`Envelope`),
+                    // not to the last bit.
+                    let done =
+                        (next - x1).abs() <= 1e-12 || (env_lobes > 1 && (next - x1).abs() <= 1e-10);
                     x1 = next;
                     if done || rt == 0.0 {
                         conv = true;
@@ -212,7 +402,7 @@ impl Part {
                         "FOREX4's contact radius at X = {x} in does not converge (nose {rt} in)"
                     ));
                 }
-                let (ry, d) = self.ridge(x1)?;
+                let (ry, d, _) = self.ridge(x1)?;
                 let rt_cos_a = rt / d.hypot(1.0);
                 let z: Vec<f64> = phis.iter().map(|&p| self.profile(x1, p).0 - ry).collect();
                 Ok(Section {

@@ -263,7 +263,8 @@ pub fn pick(
     let finest = steps.iter().cloned().fold(f64::INFINITY, f64::min);
     let mut why = format!(
         "no table within the format (at most {MAX_HARMONICS} harmonics, grid steps down to {finest} in) \
-         meets {bound_uin} µin (a budget of {budget} µin after the firmware's {allowance_uin} µin)"
+         meets {bound_uin} µin (a budget of {} µin after the firmware's {allowance_uin} µin)",
+        (budget * 1e6).round() / 1e6
     );
     let least_trunc = tried
         .iter()
@@ -284,6 +285,16 @@ pub fn pick(
             "; the best tried, {k} harmonics at {s} in, errs {:.4} µin (truncation {:.4}, interpolation {:.4}, quantisation {:.4})",
             e.total_uin, e.truncation_uin, e.interpolation_uin, e.quantization_uin
         );
+    }
+    if tried.is_empty() {
+        // Not one candidate was a table the format holds: the finest
+        // step's refusal says why (a range no step divides, most often).
+        if let Some(e) = with(finest, 1).format_spec().validate().err() {
+            why += &format!(
+                ": no grid step gives a table the format accepts over X {x_lo}..{x_hi} in; \
+                 the finest, {finest} in: {e}"
+            );
+        }
     }
     Err(why)
 }

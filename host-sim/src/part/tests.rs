@@ -633,3 +633,39 @@ mod plan_checks {
         assert!(ok.feasible, "{:?}", failed(&ok));
     }
 }
+
+#[test]
+fn a_wrong_unit_key_and_a_unit_in_a_value_are_reported_at_their_own_line() {
+    let part = "[surface]\nkind = \"sinusoidal-grid\"\namplitude_mm = 0.01\nperiod_x_in = 1.0\n\
+                period_y_in = 1.0\n[tool]\nnose_radius_in = 0.125\nclearance_deg = 7.0\n\
+                [table]\nx_max_in = 2.0\nbound_uin = 0.1\n";
+    let e = super::config::PartFile::from_toml(part).unwrap_err();
+    assert!(e.starts_with("TOML parse error at line 3, column 1"), "{e}");
+    assert!(e.contains("unknown field `amplitude_mm`"), "{e}");
+    assert!(e.contains("inches"), "{e}");
+    let part = part.replace("amplitude_mm = 0.01", "amplitude_in = \"0.8 mil\"");
+    let e = super::config::PartFile::from_toml(&part).unwrap_err();
+    assert!(e.starts_with("TOML parse error at line 3, column 1"), "{e}");
+    assert!(
+        e.contains("surface.amplitude_in: invalid type: string \"0.8 mil\""),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_range_no_grid_step_divides_is_refused_with_that_reason() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tables");
+    let text = std::fs::read_to_string(dir.join("toric-lens.toml"))
+        .unwrap()
+        .replace("x_max_in = 1.5", "x_max_in = 0.6");
+    let lp = super::config::PartFile::from_toml(&text)
+        .unwrap()
+        .load("x06", &dir)
+        .unwrap();
+    let why = lp.pick().unwrap_err();
+    assert!(
+        why.contains("no grid step gives a table the format accepts over X 0..0.6 in"),
+        "{why}"
+    );
+    assert!(why.contains("must divide"), "{why}");
+}

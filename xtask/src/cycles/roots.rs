@@ -1,5 +1,6 @@
 //! Where a crate's module trees start: its `[lib]`/`[[bin]]`/`[[test]]`
-//! paths, the default roots, `src/bin/*.rs` and `tests/*.rs`.
+//! paths, the default roots, `src/bin/*.rs`, `tests/*.rs` and
+//! `tests/*/main.rs`.
 
 use std::collections::BTreeSet;
 use std::fs;
@@ -43,9 +44,16 @@ pub(super) fn crate_roots(dir: &Path) -> crate::Result<Vec<Root>> {
         let Ok(rd) = fs::read_dir(dir.join(sub)) else {
             continue;
         };
+        // Cargo's two target layouts: `sub/NAME.rs` and `sub/NAME/main.rs`.
         let mut files: Vec<PathBuf> = rd
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "rs"))
+            .filter_map(|p| {
+                if p.extension().is_some_and(|x| x == "rs") {
+                    Some(p)
+                } else {
+                    Some(p.join("main.rs")).filter(|m| m.is_file())
+                }
+            })
             .collect();
         files.sort();
         for path in files {

@@ -178,3 +178,31 @@ fn literals_and_lifetimes_are_not_paths() {
     assert!(!t.contains(&Tok::Ident("crate".into())), "{t:?}");
     assert!(t.contains(&Tok::Ident("str".into())));
 }
+
+/// The quoted strings of the root manifest's `[workspace]` array `key`.
+fn workspace_list(toml: &str, key: &str) -> Vec<String> {
+    let start = toml
+        .find(&format!("\n{key} = ["))
+        .unwrap_or_else(|| panic!("no {key} in the root Cargo.toml"));
+    let body = &toml[start..];
+    let body = &body[..body.find(']').unwrap()];
+    body.split('"')
+        .skip(1)
+        .step_by(2)
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn every_crate_of_the_workspace_is_checked() {
+    let toml = fs::read_to_string(crate::root().join("Cargo.toml")).unwrap();
+    let mut want = workspace_list(&toml, "members");
+    want.extend(workspace_list(&toml, "exclude"));
+    want.sort();
+    let mut have: Vec<String> = super::CRATES.iter().map(|c| c.to_string()).collect();
+    have.sort();
+    assert_eq!(
+        have, want,
+        "cycles::CRATES against the workspace's members and exclude"
+    );
+}

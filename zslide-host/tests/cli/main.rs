@@ -5,7 +5,12 @@ use clap::error::ErrorKind;
 use clap::{CommandFactory, Parser};
 use std::time::Duration;
 use zslide::link::proto::{CaptureInfo, CaptureState, Sample, Trigger};
-use zslide_host::cli::{parse_trigger, run_line, Cli, Link};
+use zslide_host::capture::parse_trigger;
+use zslide_host::cli::{run_line, Cli};
+use zslide_host::client::Link;
+
+/// `identify`'s Bode plots read back (one test binary: a link each).
+mod bode_plot;
 
 fn parse(args: &[&str]) -> Result<Cli, ErrorKind> {
     Cli::try_parse_from(std::iter::once("zslide").chain(args.iter().copied())).map_err(|e| e.kind())
@@ -134,6 +139,37 @@ fn capture_csv_converts_codes_to_units() {
         "-0.000050,100,10000.0000,0.0000,10000.0000,-5.000000,90.0000,1.5000000"
     );
     assert!(rows[2].starts_with("0.000000,101,"));
+    // A tick before the first X reading: X left empty, not 0 in.
+    let unknown = Sample {
+        x_bits: zslide::link::proto::X_UNKNOWN,
+        ..s
+    };
+    let csv = zslide_host::capture::csv(&info, &[s, unknown], 20_000);
+    assert!(csv.lines().nth(2).unwrap().ends_with(",90.0000,"), "{csv}");
+
+    // The scope's snapshot: every panel on the screen, the DAC's with it.
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../target/zslide-host-test/scope-snapshot");
+    std::fs::create_dir_all(&dir).unwrap();
+    use zslide_host::scope::Signal;
+    let signals = [
+        Signal::Command,
+        Signal::Position,
+        Signal::Error,
+        Signal::Dac,
+    ];
+    zslide_host::scope::snapshot_plot(&dir.join("scope-1"), &signals, &info, &[s, s], 20_000)
+        .unwrap();
+    let svg = std::fs::read_to_string(dir.join("scope-1.svg")).unwrap();
+    for title in [
+        "command, µin",
+        "position, µin",
+        "following error, µin",
+        "DAC, V",
+    ] {
+        assert!(svg.contains(title), "no {title} panel");
+    }
+    assert!(dir.join("scope-1.png").exists());
 }
 
 /// `--pre` with an immediate trigger used to come back quietly shorter
@@ -186,5 +222,8 @@ fn an_unwritable_capture_file_is_refused_first() {
         "capture --samples 10 --trigger fault --csv /nonexistent/dir/c.csv",
     )
     .unwrap_err();
-    assert!(e.contains("/nonexistent/dir/c.csv: cannot write"), "{e}");
+    assert!(
+        e.contains("--csv /nonexistent/dir/c.csv: directory /nonexistent/dir does not exist"),
+        "{e}"
+    );
 }
