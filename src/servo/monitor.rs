@@ -24,9 +24,11 @@
 //! * **X stalled**: `x_stall_revs` revolutions with the table command live
 //!   and no new X → retract.
 //!
-//! Each fault is raised once per arming. While a fault is latched (its
-//! reaction runs) only the frozen gauge is still watched: the retract is
-//! driven on the gauge.
+//! Each fault is raised once per arming. The contour checks (depth,
+//! oscillation, X) watch the engaged loop only: while it engages or
+//! disarms (the command a slew profile, not the surface) and while a
+//! fault is latched (its reaction runs) only the frozen gauge is still
+//! watched: the approach and the retract are driven on the gauge.
 
 use super::design::MonitorConfig;
 use super::repetitive::{Freeze, LearnSample};
@@ -113,11 +115,16 @@ impl Monitor {
             self.reset();
         }
         let frozen = self.frozen(s.gauge_code());
-        if s.freeze() == Some(Freeze::Fault) {
-            // A latched fault's reaction runs: where the tool goes is its
-            // business now, but a gauge that stops following the slide
-            // must still turn the amplifier off (the retract is driven on
-            // the gauge).
+        if matches!(s.freeze(), Some(Freeze::Fault | Freeze::NotEngaged)) {
+            // A latched fault's reaction runs, or the loop is not yet (or
+            // no longer) engaged on the table: the command is a slew
+            // profile to or from the goal, not the part's surface, and the
+            // loop's closing transient after the sign check's open-loop
+            // doublet is its own (the following-error and current limits
+            // watch it). The contour checks start afresh at the
+            // engagement. A gauge that stops following the slide must
+            // still turn the amplifier off (a retract, an approach, are
+            // driven on the gauge).
             self.reset_contour();
             return self.once(frozen);
         }

@@ -233,3 +233,31 @@ fn a_latched_fault_rests_the_contour_checks_but_not_the_frozen_gauge() {
     assert_eq!(deep(&mut m, 9), None);
     assert_eq!(deep(&mut m, 10), Some(Fault::DepthGuard));
 }
+
+/// While the loop engages (or disarms) the command is a slew profile, not
+/// the surface: an error deep toward the stock raises nothing, and the
+/// engaged loop's depth guard starts afresh (three engaged ticks). A
+/// frozen gauge is still raised.
+#[test]
+fn the_contour_checks_wait_for_the_engagement_but_the_frozen_gauge_does_not() {
+    let c = cfg();
+    let g = c.depth_guard_q8 + 1;
+    let engaging = |e: i32, k: i32| {
+        LearnSample::new(e, None, Some(Freeze::NotEngaged), LearnRequests::NONE).with_gauge(k)
+    };
+    let mut m = Monitor::new(c);
+    // Deep and ringing (±10 guards, far above the oscillation limit)
+    // for longer than the oscillation window.
+    for k in 0..(4 << OSC_SHIFT) {
+        let e = if k % 2 == 0 { 10 * g } else { -10 * g };
+        assert_eq!(m.sample(&engaging(e, k)), None, "engaging, tick {k}");
+    }
+    assert_eq!(m.sample(&live(g, 1, 0)), None);
+    assert_eq!(m.sample(&live(g, 2, 0)), None);
+    assert_eq!(m.sample(&live(g, 3, 0)), Some(Fault::DepthGuard));
+    let mut m = Monitor::new(c);
+    for _ in 0..c.gauge_frozen_ticks {
+        assert_eq!(m.sample(&engaging(0, 7)), None);
+    }
+    assert_eq!(m.sample(&engaging(0, 7)), Some(Fault::GaugeFrozen));
+}
