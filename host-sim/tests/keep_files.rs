@@ -106,19 +106,27 @@ fn a_trace_refused_or_interrupted_keeps_the_old_vcd() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    child
-        .stdin
-        .as_mut()
-        .unwrap()
-        .write_all(b"0.000001 ")
-        .unwrap();
+    // stdin stays open until the tool has exited: closed earlier, its EOF
+    // could end the read (exit 1) before the signal thread exits 130.
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(b"0.000001 ").unwrap();
     std::thread::sleep(Duration::from_millis(300));
     let ok = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
         .unwrap();
     assert!(ok.success());
-    let out = child.wait_with_output().unwrap();
+    let status = child.wait().unwrap();
+    drop(stdin);
+    let out = std::process::Output {
+        status,
+        stdout: Vec::new(),
+        stderr: {
+            let mut e = Vec::new();
+            std::io::Read::read_to_end(&mut child.stderr.take().unwrap(), &mut e).unwrap();
+            e
+        },
+    };
     assert_eq!(
         out.status.code(),
         Some(130),

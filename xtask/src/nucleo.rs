@@ -26,13 +26,17 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use zslide::link::proto::{CaptureState, LoopPhase, Reply, Request, Status, Trigger};
+use zslide::link::proto::{CaptureState, LoopPhase, Reply, Request, Trigger};
 use zslide::params::ParamSource;
 use zslide::safety::{Device, Fault};
-use zslide_host::cli::run_line;
 use zslide_host::client::{unexpected, Client, Link};
 
+use crate::link::{cli, wait_for};
 use crate::Result;
+
+/// How long the emulated board may take to reach a state (its link is
+/// slower than QEMU's: the emulator runs the H7's clock on one host core).
+const EMU_WAIT: Duration = Duration::from_secs(60);
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -245,20 +249,6 @@ fn session<T>(
     }
 }
 
-fn wait_for(c: &mut Link, what: &str, f: impl Fn(&Status) -> bool) -> Result<Status> {
-    let start = Instant::now();
-    loop {
-        let s = c.client()?.status()?;
-        if f(&s) {
-            return Ok(s);
-        }
-        if start.elapsed() > Duration::from_secs(60) {
-            return Err(format!("{what}: not within 60 s; last status: {s:?}"));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 struct Checks(u32);
 impl Checks {
     fn ok(&mut self, ok: bool, what: &str) -> Result<()> {
@@ -269,14 +259,6 @@ impl Checks {
             Err(format!("emulated NUCLEO: {what}"))
         }
     }
-}
-
-fn cli(c: &mut Link, line: &str) -> Result<String> {
-    let text = run_line(c, line)?;
-    for l in text.lines() {
-        eprintln!("  zslide {line:<32} | {l}");
-    }
-    Ok(text)
 }
 
 /// The QEMU image's tracking on the same script, µin, from its log.
@@ -335,7 +317,9 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
     let (first, (booted, armed, tracking_max_uin, capture_ticks, faults_latched)) =
         session(Emu::start(&table, &bank2, ms, "boot1")?, |emu| {
             let mut c = emu.connect()?;
-            let s = wait_for(&mut c, "the loop ticking", |s| s.state.ticks > 100)?;
+            let s = wait_for(&mut c, "the loop ticking", EMU_WAIT, |s| {
+                s.state.ticks > 100
+            })?;
             let booted = s.table == Ok(want)
                 && matches!(s.params, ParamSource::BuiltIn)
                 && s.state.fault.is_none();
@@ -347,16 +331,18 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
                 ),
             )?;
             cli(&mut c, "link status")?;
-            wait_for(&mut c, "the spindle referenced and X in", |s| {
+            wait_for(&mut c, "the spindle referenced and X in", EMU_WAIT, |s| {
                 s.state.phi.is_some() && s.state.x_bits.is_some()
             })?;
             let armed_text = cli(&mut c, "link arm")?;
-            let s = wait_for(&mut c, "engaged", |s| s.state.phase == LoopPhase::Engaged)?;
+            let s = wait_for(&mut c, "engaged", EMU_WAIT, |s| {
+                s.state.phase == LoopPhase::Engaged
+            })?;
             let armed = s.state.amplifier_enabled && armed_text.contains("armed");
             checks.ok(armed, "arm")?;
             // Let the loop settle (the arm's transient), then capture what it tracks.
             let from = s.state.ticks;
-            wait_for(&mut c, "1000 ticks engaged", |s| {
+            wait_for(&mut c, "1000 ticks engaged", EMU_WAIT, |s| {
                 s.state.ticks.wrapping_sub(from) >= 1_000
             })?;
             match c.client()?.call(&Request::CaptureStart {
@@ -394,7 +380,9 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
 
             // One fault: the gauge's data line stuck high.
             emu.command("break-gauge")?;
-            let s = wait_for(&mut c, "the gauge bus fault", |s| s.state.fault.is_some())?;
+            let s = wait_for(&mut c, "the gauge bus fault", EMU_WAIT, |s| {
+                s.state.fault.is_some()
+            })?;
             let latched =
                 s.state.fault == Some(Fault::Bus(Device::GaugeAdc)) && !s.state.amplifier_enabled;
             checks.ok(
@@ -408,7 +396,9 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
 
             // A parameter saved to the bank-2 flash model.
             cli(&mut c, "link disarm")?;
-            wait_for(&mut c, "disarmed", |s| s.state.phase == LoopPhase::Disarmed)?;
+            wait_for(&mut c, "disarmed", EMU_WAIT, |s| {
+                s.state.phase == LoopPhase::Disarmed
+            })?;
             cli(&mut c, "params set hum_notch_q 10")?;
             let saved = cli(&mut c, "params save")?;
             checks.ok(saved.contains("saved"), &format!("params save: {saved}"))?;
@@ -432,7 +422,9 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
     crate::step("emulated NUCLEO: power cycle (the same bank 2)");
     let (second, ()) = session(Emu::start(&table, &bank2, SHORT_BOOT_MS, "boot2")?, |emu| {
         let mut c = emu.connect()?;
-        let s = wait_for(&mut c, "the loop ticking", |s| s.state.ticks > 100)?;
+        let s = wait_for(&mut c, "the loop ticking", EMU_WAIT, |s| {
+            s.state.ticks > 100
+        })?;
         checks.ok(
             matches!(s.params, ParamSource::Block { .. }),
             &format!(
@@ -462,7 +454,9 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
     )?;
     let (third, ()) = session(corrupt, |emu| {
         let mut c = emu.connect()?;
-        let s = wait_for(&mut c, "the loop ticking", |s| s.state.ticks > 100)?;
+        let s = wait_for(&mut c, "the loop ticking", EMU_WAIT, |s| {
+            s.state.ticks > 100
+        })?;
         checks.ok(
             s.table.is_err() && matches!(s.state.fault, Some(Fault::Table(_))),
             &format!("corrupt table: {:?}, fault {:?}", s.table, s.state.fault),

@@ -88,12 +88,12 @@ pub enum Cmd {
 #[derive(clap::Subcommand, Debug)]
 pub enum TableCmd {
     /// Make the table of a part file (docs/PARTS.md, every surface kind;
-    /// the smallest table that meets its bound, as `host-sim part-table`),
-    /// or of a table configuration of `host-sim coeffs` (tables/default.toml):
+    /// the smallest table that meets its bound, as host-sim's part-table),
+    /// or of a table configuration of host-sim's coeffs (tables/default.toml):
     /// `--config PART.toml --out PART.zsct`.
     Build(BuildArgs),
-    /// A table compensating a measured part's error (`host-sim
-    /// compensate`'s code): `MEASURED --out F.zsct [--from T.zsct] [--gain G]`.
+    /// A table compensating a measured part's error (host-sim's compensate,
+    /// the same code): `MEASURED --out F.zsct [--from T.zsct] [--gain G]`.
     Compensate(host_sim::cmd::compensate::Args),
     /// Check a table file as the firmware checks it (parser, CRC, sign
     /// check, region size) and print its identity.
