@@ -187,7 +187,7 @@ pub fn end_to_end() -> Result<u32> {
         &format!("unix:{}", session.socket.display()),
         Duration::from_secs(10),
     )?);
-    let mut checks = Checks(0);
+    let mut checks = Checks::new("link end to end");
     let mut check = |ok: bool, what: &str| checks.ok(ok, what);
 
     // Status: disarmed, the table of the region, the loop running.
@@ -486,7 +486,7 @@ pub fn end_to_end() -> Result<u32> {
         "malformed frames not counted",
     )?;
     drop(session);
-    let n = checks.0;
+    let n = checks.passed;
     eprintln!(
         "host link end to end: {n} checks passed (files in {})",
         dir.display()
@@ -494,14 +494,23 @@ pub fn end_to_end() -> Result<u32> {
     Ok(n)
 }
 
-struct Checks(u32);
+/// A session's checks: the count that passed, or the first that failed,
+/// named after the session (`session`).
+pub struct Checks {
+    pub passed: u32,
+    session: &'static str,
+}
+
 impl Checks {
-    fn ok(&mut self, ok: bool, what: &str) -> Result<()> {
+    pub fn new(session: &'static str) -> Self {
+        Self { passed: 0, session }
+    }
+    pub fn ok(&mut self, ok: bool, what: &str) -> Result<()> {
         if ok {
-            self.0 += 1;
+            self.passed += 1;
             Ok(())
         } else {
-            Err(format!("link end to end: {what}"))
+            Err(format!("{}: {what}", self.session))
         }
     }
 }

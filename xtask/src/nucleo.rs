@@ -31,7 +31,7 @@ use zslide::params::ParamSource;
 use zslide::safety::{Device, Fault};
 use zslide_host::client::{unexpected, Client, Link};
 
-use crate::link::{cli, wait_for};
+use crate::link::{cli, wait_for, Checks};
 use crate::Result;
 
 /// How long the emulated board may take to reach a state (its link is
@@ -249,18 +249,6 @@ fn session<T>(
     }
 }
 
-struct Checks(u32);
-impl Checks {
-    fn ok(&mut self, ok: bool, what: &str) -> Result<()> {
-        if ok {
-            self.0 += 1;
-            Ok(())
-        } else {
-            Err(format!("emulated NUCLEO: {what}"))
-        }
-    }
-}
-
 /// The QEMU image's tracking on the same script, µin, from its log.
 pub fn qemu_tracking_uin() -> Result<f64> {
     let log =
@@ -311,7 +299,7 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
     let want = zslide::table::CoeffTable::parse(&fs::read(&table).map_err(|e| e.to_string())?)
         .map_err(|e| e.to_string())?
         .identity();
-    let mut checks = Checks(0);
+    let mut checks = Checks::new("emulated NUCLEO");
 
     crate::step("emulated NUCLEO: boot, arm, track, a gauge bus fault, a save");
     let (first, (booted, armed, tracking_max_uin, capture_ticks, faults_latched)) =
@@ -509,7 +497,7 @@ pub fn check(ms: u64) -> Result<serde_json::Value> {
         "unmodelled_accesses": unmodelled,
         "faults_injected": 1,
         "faults_latched": faults_latched,
-        "link_checks_passed": checks.0,
+        "link_checks_passed": checks.passed,
         "qemu_tracking_max_uin": qemu,
         "tracking_tolerance_uin": TRACKING_TOLERANCE_UIN,
         "machine_ms": ms_total,
