@@ -31,6 +31,18 @@ pub fn nice_limit(max_abs: f64) -> f64 {
         .unwrap_or(10.0 * e)
 }
 
+/// The colour scale's limit for a grid of errors (µin; `None`: not
+/// measured): [`nice_limit`] of its largest magnitude.
+pub fn grid_limit(err_uin: &[Vec<Option<f64>>]) -> f64 {
+    nice_limit(
+        err_uin
+            .iter()
+            .flatten()
+            .flatten()
+            .fold(0.0f64, |m, v| m.max(v.abs())),
+    )
+}
+
 /// Diverging colour of band `k` of `2·BANDS` (0 = deepest blue).
 pub fn band_color(k: usize) -> RGBColor {
     let n = BANDS as f64;
@@ -150,13 +162,7 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(err)?;
-    let max_abs = grid
-        .err_uin
-        .iter()
-        .flatten()
-        .flatten()
-        .fold(0.0f64, |m, v| m.max(v.abs()));
-    let lim = nice_limit(max_abs);
+    let lim = grid_limit(&grid.err_uin);
     let (main, bar) = root.split_horizontally(820);
     let mut ch = ChartBuilder::on(&main)
         .caption(title, ("sans-serif", 18))

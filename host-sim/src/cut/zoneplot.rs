@@ -5,7 +5,7 @@
 //! ±15° around the hole with the largest error next to it, at the grid's
 //! own resolution. With `hole_zone.csv`: every grid point.
 
-use super::errmap::{band_color, band_of, colour_bar, nice_limit};
+use super::errmap::{band_color, band_of, colour_bar, grid_limit};
 use super::holezone::{half_width_deg, ZoneGrid, ZoneMeasured, PHI_COUNT};
 use anyhow::Context;
 use plotters::coord::Shift;
@@ -134,13 +134,7 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(err)?;
-    let max_abs = z
-        .err_uin
-        .iter()
-        .flatten()
-        .flatten()
-        .fold(0.0f64, |m, v| m.max(v.abs()));
-    let lim = nice_limit(max_abs);
+    let lim = grid_limit(&z.err_uin);
     let root = root.titled(title, ("sans-serif", 18)).map_err(err)?;
     let (w, _) = root.dim_in_pixel();
     let (main, bar) = root.split_horizontally(w - 130);
