@@ -324,3 +324,67 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(cut: &[&str]) -> Args {
+        Args {
+            passes: 2,
+            gain: 1.0,
+            keep_tilt: false,
+            dir: None,
+            json: true,
+            cut: cut.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    /// `7 + 100 sin φ` is even about 90° (a series in sin φ), `30 cos φ`
+    /// odd: the split gives peaks 107 and 30, one unmeasured point
+    /// taking its mirror out with it.
+    #[test]
+    fn parity_splits_sin_phi_from_cos_phi_about_90_degrees() {
+        let mut g = CmmGrid {
+            err_uin: (0..36)
+                .map(|i| {
+                    let p = (10.0 * f64::from(i)).to_radians();
+                    vec![Some(7.0 + 100.0 * p.sin() + 30.0 * p.cos()); 2]
+                })
+                .collect(),
+            in_hole: vec![vec![false; 2]; 36],
+            finish_by_x_uin: vec![None; 2],
+        };
+        g.err_uin[9][1] = None;
+        let p = parity(&g);
+        assert!((p.even_peak_uin - 107.0).abs() < 1e-9, "{p:?}");
+        assert!((p.odd_peak_uin - 30.0).abs() < 1e-9, "{p:?}");
+        // RMS of 30 cos φ over whole turns: 30/√2.
+        assert!((p.odd_rms_uin - 30.0 / 2f64.sqrt()).abs() < 0.5, "{p:?}");
+    }
+
+    #[test]
+    fn the_iterations_own_cut_options_are_refused() {
+        for o in [
+            "--table=t.zsct",
+            "--part",
+            "--grid",
+            "--out",
+            "--json",
+            "--budget",
+            "--force-sensitivity",
+            "--measure",
+        ] {
+            let e = cut_args(&args(&[o, "x"])).unwrap_err().to_string();
+            assert!(e.contains("the iteration sets it itself"), "{o}: {e}");
+        }
+        let e = cut_args(&args(&["--no-such-option"]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("the cut options after --"), "{e}");
+        let c = cut_args(&args(&["--scenario", "modern-hw", "--errors", "all"])).unwrap();
+        assert_eq!(c.measure, crate::cut::cmm::Measure::Cmm);
+        assert_eq!(c.hole_zone, cut::HoleZoneArg::Off);
+        assert_eq!(c.scenario.scenario, "modern-hw");
+    }
+}
