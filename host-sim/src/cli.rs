@@ -25,6 +25,8 @@ pub enum Command {
     PartTable(cmd::parttable::Args),
     /// A table compensating a measured part's error (nominal − gain × fitted error).
     Compensate(cmd::compensate::Args),
+    /// Measure, compensate, cut again, N times on one machine: the bands after each pass.
+    CompensateIterate(cmd::iterate::Args),
     /// Feasibility of a part on the machine before cutting (exit 1 with the reasons if not).
     Plan(cmd::plan::Args),
     /// Z command from the firmware's fixed-point path for `x_in,phi_deg` lines on stdin.
@@ -80,6 +82,7 @@ pub fn run(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Coeffs(a) => cmd::coeffs::run(a),
         Command::Compensate(a) => cmd::compensate::run(a),
+        Command::CompensateIterate(a) => cmd::iterate::run(a),
         Command::Accuracy(a) => cmd::accuracy::run(a),
         Command::Zcmd(a) => cmd::zcmd::run(a),
         Command::PartTable(a) => cmd::parttable::run(a),

@@ -8,8 +8,8 @@
 //! <!-- fig cmd="response --loop digital" path=".margins.phase_margin_deg" digits="0" -->40<!-- /fig -->
 //! ```
 //!
-//! * `cmd`: `host-sim` arguments; `--json` is appended. Figures with the
-//!   same `cmd` share one run.
+//! * `cmd`: `host-sim` arguments; `--json` is appended (before a `--`).
+//!   Figures with the same `cmd` share one run.
 //! * `path`: where the number is in the JSON (`.a.b`, `[k]` indexes an
 //!   array; `[-1]` the last element).
 //! * `digits`: decimals to print (default: as JSON prints it); `scale`
@@ -228,7 +228,10 @@ fn host_sim(release: bool) -> Result<PathBuf> {
 fn run_cmd(bin: &Path, cmd: &str) -> Result<serde_json::Value> {
     let mut args: Vec<&str> = cmd.split_whitespace().collect();
     if !args.contains(&"--json") {
-        args.push("--json");
+        // Before a `--`: what follows it is another command's options
+        // (`compensate-iterate -- CUT OPTIONS`).
+        let at = args.iter().position(|a| *a == "--").unwrap_or(args.len());
+        args.insert(at, "--json");
     }
     eprintln!("  host-sim {}", args.join(" "));
     let out = Command::new(bin)

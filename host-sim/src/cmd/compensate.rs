@@ -43,6 +43,12 @@ pub struct Args {
     /// --json`'s `measure`; else chapter 5's CMM, 23 µin).
     #[arg(long)]
     pub noise_uin: Option<f64>,
+    /// Take the fitted tilt off the part too. By default it is fitted but
+    /// left on: a CMM aligned to the part's face leaves a tilt of its own
+    /// (`cut::cmm`: 3 µin per in, a new direction each measurement), which
+    /// one measurement cannot tell from the part's.
+    #[arg(long)]
+    pub keep_tilt: bool,
     /// The machine the stroke and slope are checked against.
     #[command(flatten)]
     pub scenario: crate::scenario::ScenarioArg,
@@ -63,6 +69,12 @@ pub struct Report {
     pub limits: Limits,
     pub largest_hole_in: f64,
     pub fit: fit::ErrorFit,
+    /// The fitted tilt's height at the fit's radius, µin, and the most
+    /// the CMM's alignment leaves there (its residual tilt × the radius).
+    pub tilt_edge_uin: f64,
+    pub setup_tilt_edge_uin: f64,
+    /// Whether the tilt is in the correction (`--keep-tilt`).
+    pub tilt_compensated: bool,
     /// Leave-one-out error of every order tried.
     pub orders: Vec<OrderScore>,
     pub gain: f64,
@@ -130,11 +142,19 @@ pub fn make(args: &Args) -> anyhow::Result<(Vec<u8>, Record, Report)> {
     };
     let limits = Limits::default();
     let FitReport {
-        fit,
+        mut fit,
         orders,
         largest_hole_in,
     } = fit::fit(&m.points, lp.table.x_null, noise, &limits)
         .map_err(|e| anyhow!("{}: no fit: {e}", args.measured.display()))?;
+    if !args.keep_tilt {
+        fit.excluded = fit::TILT
+            .into_iter()
+            .filter(|&j| j <= fit.coefficients_uin.len())
+            .collect();
+    }
+    let setup_tilt_edge_uin =
+        crate::cut::cmm::CmmLevels::renault().tilt_in_per_in * fit.radius_in * 1e6;
     steps.push(Step {
         measurement: args.measured.display().to_string(),
         sha256: m.sha256.clone(),
@@ -181,6 +201,9 @@ pub fn make(args: &Args) -> anyhow::Result<(Vec<u8>, Record, Report)> {
         instrument_noise_uin: noise,
         limits,
         largest_hole_in,
+        tilt_edge_uin: fit.tilt_edge_uin(),
+        setup_tilt_edge_uin,
+        tilt_compensated: args.keep_tilt,
         fit,
         orders,
         gain: args.gain,
@@ -214,13 +237,18 @@ fn write(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))
 }
 
+/// Writes the table and its record beside it.
+pub fn save(out: &Path, image: &[u8], record: &Record) -> anyhow::Result<()> {
+    write(out, image)?;
+    write(
+        &record_path(out),
+        serde_json::to_string_pretty(record)?.as_bytes(),
+    )
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (image, record, r) = make(&args)?;
-    write(&args.out, &image)?;
-    write(
-        &record_path(&args.out),
-        serde_json::to_string_pretty(&record)?.as_bytes(),
-    )?;
+    save(&args.out, &image, &record)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
         return Ok(());
@@ -243,6 +271,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         r.instrument_noise_uin,
         f.noise_share * 100.0,
         r.largest_hole_in
+    );
+    println!(
+        "tilt: {:.1} µin at {} in ({}); the CMM's alignment alone leaves up to {:.1} µin there{}",
+        r.tilt_edge_uin,
+        f.radius_in,
+        if r.tilt_compensated {
+            "compensated, --keep-tilt"
+        } else {
+            "left on the part: a set-up term"
+        },
+        r.setup_tilt_edge_uin,
+        if !r.tilt_compensated && r.tilt_edge_uin > 2.0 * r.setup_tilt_edge_uin {
+            ": more than twice that, the part's own tilt? level it on the faceplate, or --keep-tilt"
+        } else {
+            ""
+        }
     );
     let t = &r.table;
     println!(

@@ -235,8 +235,8 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         k_e_lbf_per_in: spec.scenario.cutting.k_e_lbf_per_in,
         current_peak_a: o.current_peak_a,
         current_limit_a: spec.scenario.file.amplifier.current_limit_a,
-        exact_contour_error_min_uin: o.exact_band.map(|b| b.0),
-        exact_contour_error_max_uin: o.exact_band.map(|b| b.1),
+        exact_contour_error_min_uin: o.exact.as_ref().and_then(|g| g.band()).map(|b| b.0),
+        exact_contour_error_max_uin: o.exact.as_ref().and_then(|g| g.band()).map(|b| b.1),
     }
 }
 
@@ -431,6 +431,17 @@ fn simulate(spec: &CutSpec, extras: &Extras) -> anyhow::Result<CutOutcome> {
     );
     pb.finish_and_clear();
     o
+}
+
+/// One cut as `run` makes it without plots (`compensate-iterate`'s
+/// passes): its summary and outcome.
+pub fn cut_once(args: &Args) -> anyhow::Result<(Summary, CutOutcome)> {
+    let wall0 = std::time::Instant::now();
+    let spec = spec_of(args, args.controller)?;
+    let o = simulate(&spec, &Extras::default())?;
+    let mut s = summarise(&spec, &o);
+    s.command_wall_s = wall0.elapsed().as_secs_f64();
+    Ok((s, o))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod center;
 pub mod coeffs;
 pub mod compensate;
+pub mod iterate;
 pub mod csmp;
 pub mod cut;
 pub mod faults;

@@ -91,13 +91,42 @@ pub struct ErrorFit {
     /// Share of the measurement's variance about its mean the fit leaves
     /// (treats as noise).
     pub noise_share: f64,
+    /// Noll indices fitted but left out of the correction: the
+    /// measurement's set-up terms ([`TILT`]), which one measurement cannot
+    /// tell from the instrument's own alignment. Fitted all the same, so
+    /// that the other terms are estimated free of them.
+    #[serde(default)]
+    pub excluded: Vec<usize>,
 }
+
+/// Noll's tilt terms (`j` = 2, 3: `2ρ cos θ`, `2ρ sin θ`): a plane through
+/// the axis, what a CMM's alignment to the part's face leaves in a
+/// direction of its own each measurement (`cut::cmm`).
+pub const TILT: [usize; 2] = [2, 3];
 
 impl ErrorFit {
     /// The fitted error as a surface, in (`part::zernike`).
     pub fn surface(&self) -> Result<Zernike, String> {
-        let c: Vec<f64> = self.coefficients_uin.iter().map(|v| v * 1e-6).collect();
+        let c: Vec<f64> = self
+            .coefficients_uin
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                if self.excluded.contains(&(i + 1)) {
+                    0.0
+                } else {
+                    v * 1e-6
+                }
+            })
+            .collect();
         Zernike::new(Ordering::Standard, self.radius_in, None, &c)
+    }
+
+    /// The fitted tilt's height at the fit's radius, µin (`2·|(a₂, a₃)|`:
+    /// Noll's tilt peaks at 2 on the unit circle); 0 when the fit has none.
+    pub fn tilt_edge_uin(&self) -> f64 {
+        let a = |j: usize| self.coefficients_uin.get(j - 1).copied().unwrap_or(0.0);
+        2.0 * a(TILT[0]).hypot(a(TILT[1]))
     }
 }
 
@@ -245,6 +274,7 @@ pub fn fit(
             noise_estimate_uin: sigma,
             loo_rms_uin: loo,
             noise_share: if total > 0.0 { ss / total } else { 0.0 },
+            excluded: vec![],
         },
         orders,
         largest_hole_in: hole,

@@ -10,6 +10,7 @@ use crate::part::config::LoadedPart;
 use crate::part::split::{Compensation, Part, Tool};
 use crate::part::table::PartTableSpec;
 use crate::part::xypoly::XyPolynomial;
+use crate::part::zernike::{Ordering, Zernike};
 use crate::part::Sag;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -248,7 +249,26 @@ fn known_error() -> ErrorFit {
         noise_estimate_uin: 0.0,
         loo_rms_uin: 0.0,
         noise_share: 0.0,
+        excluded: vec![],
     }
+}
+
+/// A fit with its tilt excluded (the measurement's set-up term) corrects
+/// everything else it fitted and no tilt: its surface is the known error
+/// less exactly the Noll 2 and 3 terms, and its reported tilt is the
+/// known one (2 × |(30, −20)| µin at the edge).
+#[test]
+fn an_excluded_tilt_is_fitted_and_reported_but_not_corrected() {
+    let mut f = known_error();
+    f.excluded = crate::compensate::fit::TILT.to_vec();
+    let with = known_error().surface().unwrap();
+    let without = f.surface().unwrap();
+    let tilt = Zernike::new(Ordering::Standard, 2.0, None, &[0.0, 30e-6, -20e-6]).unwrap();
+    for (x, y) in [(0.3, -1.1), (1.9, 0.2), (-1.2, 1.4), (0.0, 0.0)] {
+        let d = with.sag(x, y) - without.sag(x, y) - tilt.sag(x, y);
+        assert!(d.abs() < 1e-12, "at ({x}, {y}): {d:e} in");
+    }
+    assert!((f.tilt_edge_uin() - 2.0 * 30f64.hypot(20.0)).abs() < 1e-9);
 }
 
 /// With gain 1 the firmware's command (its fixed-point path on the

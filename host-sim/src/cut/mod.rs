@@ -676,9 +676,9 @@ pub struct CutOutcome {
     /// The hole zone (`CutSpec::hole_zone`; `None` where the part has no
     /// holes).
     pub zone: Option<holezone::ZoneMeasured>,
-    /// With `--measure cmm`: the true surface's band on the same grid (what
-    /// the CMM read is of), µin.
-    pub exact_band: Option<(f64, f64)>,
+    /// With `--measure cmm`: the true surface on the same grid (what the
+    /// CMM read is of), µin.
+    pub exact: Option<CmmGrid>,
 }
 
 /// Runs the plan (stretches in parallel), measures the part.
@@ -760,9 +760,7 @@ pub fn run_pass(
             |x, phi_deg| holes.over_hole(x, phi_deg / 360.0),
         )
     });
-    let exact_band = (spec.measure == cmm::Measure::Cmm)
-        .then(|| grid.band())
-        .flatten();
+    let exact = (spec.measure == cmm::Measure::Cmm).then(|| grid.clone());
     let grid = match spec.measure {
         cmm::Measure::Exact => grid,
         cmm::Measure::Cmm => {
@@ -803,6 +801,6 @@ pub fn run_pass(
             .zone_grid()?
             .zip(zone_log)
             .map(|(g, log)| holezone::ZoneMeasured::measure(&g, &log)),
-        exact_band,
+        exact,
     })
 }
