@@ -48,12 +48,77 @@ pub struct ErrorLevels {
     pub gen_tach_rate_error: f64,
     pub gen_reset_hold_us: f64,
     pub gen_multiplier_offset_mv: f64,
+    /// Tilt of the contour against the face the CMM levels on, µin per in
+    /// of radius, and the part-frame angle φ0 (degrees) where it crosses
+    /// zero rising: the part's grid gains `δ·X·sin(φ − φ0)` (`cut::errors`).
+    pub face_tilt_uin_per_in: f64,
+    pub face_tilt_phase_deg: f64,
+    /// The part as a plate clamped on the faceplate (`cut::ringing`):
+    /// the faceplate's radius, the part's outer radius and thickness, in
+    /// (chapter 5), its material (modulus psi, density lb/in³, Poisson's
+    /// ratio) and the first mode's damping ratio. `part_thickness_in = 0`:
+    /// the part is rigid.
+    pub part_support_radius_in: f64,
+    pub part_outer_radius_in: f64,
+    pub part_thickness_in: f64,
+    pub part_modulus_psi: f64,
+    pub part_density_lb_per_in3: f64,
+    pub part_poisson: f64,
+    pub part_mode_zeta: f64,
+    /// Broadband cutting-force fluctuation (chip formation), lbf RMS,
+    /// white over the loop tick's band, on the tool and on the part.
+    pub cut_force_noise_lbf: f64,
 }
 
 impl ErrorLevels {
     /// Range checks naming the field.
     pub fn validate(&self) -> anyhow::Result<()> {
-        let checks: [(&str, f64, f64, f64); 17] = [
+        let checks: [(&str, f64, f64, f64); 27] = [
+            (
+                "errors.face_tilt_uin_per_in",
+                self.face_tilt_uin_per_in,
+                -1000.0,
+                1000.0,
+            ),
+            (
+                "errors.face_tilt_phase_deg",
+                self.face_tilt_phase_deg,
+                -360.0,
+                360.0,
+            ),
+            (
+                "errors.part_support_radius_in",
+                self.part_support_radius_in,
+                0.0,
+                100.0,
+            ),
+            (
+                "errors.part_outer_radius_in",
+                self.part_outer_radius_in,
+                0.0,
+                100.0,
+            ),
+            (
+                "errors.part_thickness_in",
+                self.part_thickness_in,
+                0.0,
+                20.0,
+            ),
+            ("errors.part_modulus_psi", self.part_modulus_psi, 0.0, 1e9),
+            (
+                "errors.part_density_lb_per_in3",
+                self.part_density_lb_per_in3,
+                0.0,
+                1.0,
+            ),
+            ("errors.part_poisson", self.part_poisson, 0.0, 0.5),
+            ("errors.part_mode_zeta", self.part_mode_zeta, 0.0, 1.0),
+            (
+                "errors.cut_force_noise_lbf",
+                self.cut_force_noise_lbf,
+                0.0,
+                100.0,
+            ),
             (
                 "errors.gauge_scale_error",
                 self.gauge_scale_error,
@@ -167,6 +232,21 @@ impl ErrorLevels {
                 "errors.gen_tach_rate_error/gen_reset_hold_us/gen_multiplier_offset_mv are set but \
                  errors.gen_calibrated_rpm is not: the 1983 command generator needs the speed it was trimmed at"
             );
+        }
+        if self.part_thickness_in > 0.0 {
+            let ok = self.part_outer_radius_in > self.part_support_radius_in
+                && self.part_support_radius_in > 0.0
+                && self.part_modulus_psi > 0.0
+                && self.part_density_lb_per_in3 > 0.0
+                && self.part_mode_zeta > 0.0
+                && self.part_mode_zeta < 1.0;
+            if !ok {
+                anyhow::bail!(
+                    "errors.part_thickness_in > 0 asks for the part's overhang mode: it needs \
+                     0 < part_support_radius_in < part_outer_radius_in, part_modulus_psi > 0, \
+                     part_density_lb_per_in3 > 0 and 0 < part_mode_zeta < 1"
+                );
+            }
         }
         Ok(())
     }

@@ -83,12 +83,16 @@ fn a_gauge_scale_error_eps_leaves_minus_eps_times_z() {
 }
 
 /// The interferometer reads X + δ: the tool at part radius x follows
-/// Z(x + δ). The band keeps its pre-roll on the part (`cut::build_stretch`
-/// starts the machine δ further out), so both runs cut the same part
-/// history and the grid moves by `Z(x + δ) − Z(x)`. Its difference from
-/// `∂Z/∂X·δ` is bounded by the mechanisms, each from an independent
+/// Z(x + δ), and the axial slide, on the same hand-set zero, follows its
+/// path at x + δ: `Y_tc(x + δ)`. The band keeps its pre-roll on the part
+/// (`cut::build_stretch` starts the machine δ further out), so both runs
+/// cut the same part history and the grid moves by
+/// `Z(x + δ) − Z(x) + Y_tc(x + δ) − Y_tc(x)`. Its difference from
+/// `(∂Z/∂X + Y_tc′)·δ` (Y_tc′ from the surface's closed-form ridge, not
+/// from the cutter) is bounded by the mechanisms, each from an independent
 /// figure, not from this run:
-/// - the Taylor remainder `½ max|∂²Z/∂X²| δ²` (the surface);
+/// - the Taylor remainder `½ max|∂²Z/∂X²| δ²` (the surface) and
+///   `½ Y_tc″ δ²` of the axial path;
 /// - what the loop leaves of the added command `∂Z/∂X·δ`: the loop is
 ///   linear in its command, so at most the fraction ρ it leaves of the
 ///   command itself, ρ = (p-v of the base column) / (p-v of Z) (the base
@@ -103,7 +107,7 @@ fn a_gauge_scale_error_eps_leaves_minus_eps_times_z() {
 ///   angle, measured on the base run; the difference of two draws is within
 ///   4·√2·σ at all 36 angles but with probability ≈ 0.2 %.
 #[test]
-fn a_constant_x_zero_error_gives_the_slope_times_the_offset() {
+fn a_constant_x_zero_error_gives_the_slopes_of_z_and_of_the_axial_path_times_the_offset() {
     let delta = 0.01;
     let x = 7.0;
     let (base, finish) = column_and_finish(&spec(None), x);
@@ -122,6 +126,18 @@ fn a_constant_x_zero_error_gives_the_slope_times_the_offset() {
         .collect();
     let slope_delta: Vec<f64> = phis.iter().map(|&p| sec.dz_dx(p) * delta * 1e6).collect();
     let largest = slope_delta.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // The axial path's slope from the ridge in closed form (eq 2-14
+    // corrected: dY/dx1 = v/√(1 − v²), v = x1/r0; the tool centre adds
+    // r_t·cos α, α = asin(x1/r0), whose slope is −r_t·v/√(1 − v²)/r0),
+    // times dx1/dX.
+    let r0 = surf.r0();
+    let v = sec.x1 / r0;
+    let y_slope = surf.ridge_slope(sec.x1) * (1.0 - surf.tool_radius() / r0) * surf.contact_gain();
+    assert!((surf.ridge_slope(sec.x1) - v / (1.0 - v * v).sqrt()).abs() < 1e-15);
+    let axial = y_slope * delta * 1e6;
+    // Y_tc″ = (1 − v²)^(−3/2)/r0 · dx1/dX: 1.01/r0 covers v ≤ 0.08.
+    let axial_taylor = 0.5 * 1.01 / r0 * delta * delta * 1e6 * surf.contact_gain();
+    eprintln!("Y_tc' = {y_slope:.5}: Y_tc'·δ = {axial:.2} µin");
     assert!(largest > 10.0, "the test sees the slope ({largest:.1} µin)");
     let zxx = phis
         .iter()
@@ -135,19 +151,53 @@ fn a_constant_x_zero_error_gives_the_slope_times_the_offset() {
     let rho = pv(&base) / pv(&z);
     let command_path = 2.0 * 0.052;
     let scatter = 4.0 * std::f64::consts::SQRT_2 * finish;
-    let bound = taylor + rho * largest + command_path + scatter;
+    let bound = taylor + axial_taylor + rho * largest + command_path + scatter;
     let worst = (0..CMM_PHI_COUNT)
-        .map(|i| (with[i] - base[i] - slope_delta[i]).abs())
+        .map(|i| (with[i] - base[i] - slope_delta[i] - axial).abs())
         .fold(0.0f64, f64::max);
     eprintln!(
-        "X zero δ = {delta} in at X = {x} in: slope × δ up to {largest:.2} µin; deviation {worst:.3} µin; \
+        "X zero δ = {delta} in at X = {x} in: slope × δ up to {largest:.2} µin, axial {axial:.2}; deviation {worst:.3} µin; \
          bound {bound:.3} = Taylor {taylor:.3} + ρ·max {:.3} (ρ = {rho:.2e}) + command path {command_path:.3} \
          + scatter {scatter:.3} (pass scatter σ = {finish:.3})",
         rho * largest
     );
     assert!(
         worst <= bound,
-        "worst deviation from slope × δ: {worst:.3} µin, bound {bound:.3} µin"
+        "worst deviation from (∂Z/∂X + Y_tc′)·δ: {worst:.3} µin, bound {bound:.3} µin"
+    );
+}
+
+/// The contour tilted by δ against the face the CMM levels on: the grid
+/// gains `δ·X·sin(φ − φ0)` in the part frame (φ the CMM's angle), whatever
+/// the command. The tilt is a tool offset the gauge does not see, and the
+/// previous revolution carries it too, so the depth of cut and the loop do
+/// not change: both runs differ by the tilt alone, within the scatter of
+/// a grid point between two runs (as the X-zero test) and 1 % of it.
+#[test]
+fn a_face_tilt_delta_gives_delta_x_sin_phi_minus_phi0() {
+    let (delta, phi0) = (100.0, 30.0f64);
+    let x = 7.0;
+    let (base, finish) = column_and_finish(&spec(None), x);
+    let with = column(
+        &spec(Some(ErrorLevels {
+            face_tilt_uin_per_in: delta,
+            face_tilt_phase_deg: phi0,
+            ..ErrorLevels::default()
+        })),
+        x,
+    );
+    let scatter = 4.0 * std::f64::consts::SQRT_2 * finish;
+    let mut worst = 0.0f64;
+    for i in 0..CMM_PHI_COUNT {
+        let phi = TAU * i as f64 / CMM_PHI_COUNT as f64;
+        let expect = delta * x * (phi - phi0.to_radians()).sin();
+        worst = worst.max((with[i] - base[i] - expect).abs());
+    }
+    let bound = 0.01 * delta * x + scatter;
+    eprintln!("face tilt {delta} µin/in at X = {x} in: deviation {worst:.3} µin, bound {bound:.3}");
+    assert!(
+        worst <= bound,
+        "deviation from δ·X·sin(φ − φ0): {worst:.3} µin > {bound:.3}"
     );
 }
 

@@ -27,10 +27,14 @@ pub enum Source {
     /// The 1983 command generator (tach rate, index reset, amplitude
     /// trimmed at one speed; `analog1983::generator`): the 1983 loop only.
     CommandGenerator,
+    /// The contour tilted against the face the CMM levels on.
+    FaceTilt,
+    /// The overhang's first mode under the cutting force (`ringing`).
+    PartRinging,
 }
 
 impl Source {
-    pub const ALL: [Source; 9] = [
+    pub const ALL: [Source; 11] = [
         Source::GaugeScale,
         Source::GaugeNonlinearity,
         Source::GaugeDrift,
@@ -40,6 +44,8 @@ impl Source {
         Source::ToolWear,
         Source::Thermal,
         Source::CommandGenerator,
+        Source::FaceTilt,
+        Source::PartRinging,
     ];
     pub fn name(self) -> &'static str {
         match self {
@@ -52,6 +58,8 @@ impl Source {
             Source::ToolWear => "tool wear",
             Source::Thermal => "thermal drift",
             Source::CommandGenerator => "1983 command generator",
+            Source::FaceTilt => "face tilt",
+            Source::PartRinging => "part ringing",
         }
     }
     /// Whether `levels` give this source a non-zero level.
@@ -66,6 +74,8 @@ impl Source {
             Source::ToolWear => l.tool_wear_uin_per_kin != 0.0,
             Source::Thermal => l.thermal_drift_uin_per_h != 0.0,
             Source::CommandGenerator => l.gen_calibrated_rpm > 0.0,
+            Source::FaceTilt => l.face_tilt_uin_per_in != 0.0,
+            Source::PartRinging => l.part_thickness_in > 0.0,
         }
     }
     /// Whether the source exists with `controller` (the digital firmware
@@ -99,6 +109,20 @@ impl Source {
                 o.gen_reset_hold_us = l.gen_reset_hold_us;
                 o.gen_multiplier_offset_mv = l.gen_multiplier_offset_mv;
             }
+            Source::FaceTilt => {
+                o.face_tilt_uin_per_in = l.face_tilt_uin_per_in;
+                o.face_tilt_phase_deg = l.face_tilt_phase_deg;
+            }
+            Source::PartRinging => {
+                o.part_support_radius_in = l.part_support_radius_in;
+                o.part_outer_radius_in = l.part_outer_radius_in;
+                o.part_thickness_in = l.part_thickness_in;
+                o.part_modulus_psi = l.part_modulus_psi;
+                o.part_density_lb_per_in3 = l.part_density_lb_per_in3;
+                o.part_poisson = l.part_poisson;
+                o.part_mode_zeta = l.part_mode_zeta;
+                o.cut_force_noise_lbf = l.cut_force_noise_lbf;
+            }
         }
         o
     }
@@ -118,6 +142,9 @@ impl Source {
         o.gen_tach_rate_error *= k;
         o.gen_reset_hold_us *= k;
         o.gen_multiplier_offset_mv *= k;
+        o.face_tilt_uin_per_in *= k;
+        // The ringing scales with the force that drives it.
+        o.cut_force_noise_lbf *= k;
         o
     }
     /// The level as the scenario states it, with its unit.
@@ -141,6 +168,20 @@ impl Source {
                 l.gen_multiplier_offset_mv,
                 l.gen_calibrated_rpm
             ),
+            Source::FaceTilt => format!(
+                "{} µin/in, zero at φ0 = {}°",
+                l.face_tilt_uin_per_in, l.face_tilt_phase_deg
+            ),
+            Source::PartRinging => match super::ringing::PlateMode::of(l) {
+                Some(m) => format!(
+                    "{:.0} Hz, {:.2e} lbf/in at the rim, ζ {}, force noise {} lbf RMS",
+                    m.freq_hz(),
+                    m.k_lbf_per_in,
+                    l.part_mode_zeta,
+                    l.cut_force_noise_lbf
+                ),
+                None => "rigid".to_string(),
+            },
         }
     }
 }
@@ -213,6 +254,20 @@ pub struct ErrorState {
     ou: f64,
     last_t: Option<f64>,
     rng: rand_xoshiro::Xoshiro256PlusPlus,
+    /// The part (`with_part`): the axial slide's path `Y(X)` the X zero
+    /// also acts through, and `dx1/dX` (surface radius per tool-centre
+    /// radius) for the sources given on the part's radius.
+    part: Option<crate::surface::Surface>,
+    gain: f64,
+    /// `dY/dX` of the axial path at the last 0.01 in bucket of X (the
+    /// path's curvature, 1/161 in, moves it by 6e-5 across a bucket).
+    axial_slope: (i64, f64),
+    /// The overhang's mode, the generalised force held since `ring_t`,
+    /// and the force noise's stream and held value.
+    ringing: Option<super::ringing::Ringing>,
+    ring_t: Option<f64>,
+    ring_force: f64,
+    noise_rng: rand_xoshiro::Xoshiro256PlusPlus,
 }
 
 impl ErrorState {
@@ -232,13 +287,79 @@ impl ErrorState {
                 x_stretch_start,
                 feed_per_rev_in,
             ),
+            ringing: super::ringing::PlateMode::of(&levels).map(super::ringing::Ringing::new),
             levels,
             x_pass_start,
             v_in_per_s: feed_per_rev_in * rpm / 60.0,
             ou: 0.0,
             last_t: None,
             rng: rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x5EED_E770),
+            part: None,
+            gain: 1.0,
+            axial_slope: (i64::MIN, 0.0),
+            ring_t: None,
+            ring_force: 0.0,
+            noise_rng: rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0xC41F_0A15),
         }
+    }
+
+    /// The part being cut: the X zero then also moves the axial slide's
+    /// path, and the tilt and the ringing act at the contact radius.
+    pub fn with_part(mut self, surf: crate::surface::Surface) -> Self {
+        self.gain = surf.contact_gain();
+        self.part = Some(surf);
+        self
+    }
+
+    /// `Y(x_read) − Y(x)`: the axial slide follows its program at the X
+    /// it reads (the tape's zero is the same hand-set zero as the
+    /// interferometer's, chapter 5), so the tool centre stands
+    /// `Y′(x)·δ` higher along +Y_t than the part's radius asks: excess
+    /// stock for δ > 0.
+    fn axial_x_zero_in(&mut self, x: f64) -> f64 {
+        let delta = self.levels.x_zero_error_in;
+        let Some(surf) = self.part.as_ref() else {
+            return 0.0;
+        };
+        if delta == 0.0 {
+            return 0.0;
+        }
+        let bucket = crate::fastmath::floor_i64(x * 100.0);
+        if bucket != self.axial_slope.0 {
+            let xc = (bucket as f64 + 0.5) / 100.0;
+            let h = 1e-3;
+            let y = |x: f64| {
+                surf.section(x.max(0.0))
+                    .map_or(0.0, |s| s.tool_centre_axial())
+            };
+            self.axial_slope = (bucket, (y(xc + h) - y(xc - h)) / (2.0 * h));
+        }
+        self.axial_slope.1 * delta
+    }
+
+    /// The broadband cutting-force fluctuation of this tick, lbf (a new
+    /// draw each call; 0 without the source).
+    pub fn force_noise_lbf(&mut self) -> f64 {
+        use rand_distr::Distribution;
+        let sigma = self.levels.cut_force_noise_lbf;
+        if sigma == 0.0 {
+            return 0.0;
+        }
+        let w: f64 = rand_distr::StandardNormal.sample(&mut self.noise_rng);
+        sigma * w
+    }
+
+    /// The overhang's mode is driven by the force `f_lbf` on the tool at
+    /// tool-centre radius `x` from `t_s` on (held until the next call).
+    pub fn drive_part(&mut self, t_s: f64, x: f64, f_lbf: f64) {
+        let Some(r) = self.ringing.as_mut() else {
+            return;
+        };
+        if let Some(t0) = self.ring_t {
+            r.step(t_s - t0, self.ring_force);
+        }
+        self.ring_t = Some(t_s);
+        self.ring_force = r.mode.shape(self.gain * x) * f_lbf;
     }
 
     /// Hours since the pass started when the tool is at radius `x`.
@@ -294,7 +415,15 @@ impl ErrorState {
             };
         }
         self.last_t = Some(t_s);
-        self.wear.recession_in() + thermal - sync - self.ou
+        // The tilt, in the part frame: δ·X·sin(φ − φ0) at the contact
+        // radius X, whatever the command.
+        let tilt = l.face_tilt_uin_per_in
+            * 1e-6
+            * self.gain
+            * x
+            * (TAU * phi_p - l.face_tilt_phase_deg.to_radians()).sin();
+        let ring = self.ringing.as_ref().map_or(0.0, |r| r.at(self.gain * x));
+        self.wear.recession_in() + thermal - sync - self.ou + tilt + ring + self.axial_x_zero_in(x)
     }
 
     /// The force the amplifier's input hum puts on the slide, lbf, at

@@ -35,6 +35,7 @@ pub mod part;
 pub mod partcut;
 pub mod plot;
 pub mod rectgrid;
+pub mod ringing;
 pub mod run;
 pub mod sensitivity;
 pub mod sign;
@@ -502,15 +503,25 @@ pub fn build_stretch(
                 ));
             }
         }
+        // The default part's axial path and contact radius (a part of
+        // one's own, `--part`, keeps X as the radius and no axial term).
+        let surf_for_errors = match &spec.part {
+            None => Some(spec.surface()?.0),
+            Some(_) => None,
+        };
         c.errors = spec.applied_levels().map(|l| {
-            errors::ErrorState::new(
+            let st = errors::ErrorState::new(
                 l,
                 spec.x_start_in,
                 st.x_start_in,
                 spec.feed_per_rev_in,
                 spec.rpm,
                 sc.rig.seed,
-            )
+            );
+            match surf_for_errors {
+                Some(surf) => st.with_part(surf),
+                None => st,
+            }
         });
         let m = &sc.file.motor;
         c.drive = (

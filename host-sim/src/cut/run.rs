@@ -171,7 +171,17 @@ impl TickHook for Cutter {
         }
         self.last_error_in = e;
         let c = self.eng.step(x, phi, e);
-        rig.set_force_lbf(c.force_lbf + self.extra_force_lbf + hum);
+        // The chip's broadband force acts on the tool and on the part; the
+        // part's overhang mode takes the whole force at the tool's radius.
+        let noise = match self.errors.as_mut() {
+            None => 0.0,
+            Some(er) => {
+                let n = er.force_noise_lbf();
+                er.drive_part(t_s, x, c.force_lbf + n + self.extra_force_lbf);
+                n
+            }
+        };
+        rig.set_force_lbf(c.force_lbf + noise + self.extra_force_lbf + hum);
 
         // Spindle load, once per revolution (the speed sags over seconds).
         let rev = crate::fastmath::floor_i64(turns);
