@@ -156,29 +156,48 @@ fn coeffs_under(pubs: &[(f64, bool)], sets: &Rc<Vec<Set>>, at: &Schedule) -> Vec
             }
         })
     };
+    let mut ev = x_handler();
+    let log = {
+        let sh2 = sh.clone();
+        recorded(
+            move |addr| sh2.coefficients().lock().word_at(addr),
+            &check,
+            || {
+                for &(x, null) in pubs {
+                    ev.publish(&sh, XInches::from_f64(x), null).unwrap();
+                }
+            },
+        )
+    };
+    let mut lp = lp.borrow_mut();
+    tick_reads(&mut lp, &sh);
+    assert_eq!(lp.coeff_seen, pubs.len() as u32);
+    holds(&lp, sets, pubs.len() as u32).unwrap();
+    log
+}
+
+/// Runs `write` with every store it makes recorded (as `word_at` names
+/// it) and `check` called with the count of stores so far, before the
+/// first (0) and after each.
+fn recorded(
+    word_at: impl Fn(usize) -> Option<LockWord> + 'static,
+    check: &Rc<dyn Fn(usize)>,
+    write: impl FnOnce(),
+) -> Vec<Option<LockWord>> {
     let log = Rc::new(RefCell::new(Vec::new()));
     check(0);
     let hook = {
-        let (sh, log, check) = (sh.clone(), log.clone(), check.clone());
+        let (log, check) = (log.clone(), check.clone());
         move |addr: usize, _: u32| {
             let n = {
                 let mut log = log.borrow_mut();
-                log.push(sh.coefficients().lock().word_at(addr));
+                log.push(word_at(addr));
                 log.len()
             };
             check(n);
         }
     };
-    let mut ev = x_handler();
-    with_hook(Box::new(hook), || {
-        for &(x, null) in pubs {
-            ev.publish(&sh, XInches::from_f64(x), null).unwrap();
-        }
-    });
-    let mut lp = lp.borrow_mut();
-    tick_reads(&mut lp, &sh);
-    assert_eq!(lp.coeff_seen, pubs.len() as u32);
-    holds(&lp, sets, pubs.len() as u32).unwrap();
+    with_hook(Box::new(hook), write);
     log.take()
 }
 
@@ -328,26 +347,20 @@ fn index_under(pairs: &[(u32, u32)], at: &Schedule) -> Vec<Option<LockWord>> {
             }
         })
     };
-    let log = Rc::new(RefCell::new(Vec::new()));
-    check(0);
-    let hook = {
-        let (sh, log, check) = (sh.clone(), log.clone(), check.clone());
-        move |addr: usize, _: u32| {
-            let n = {
-                let mut log = log.borrow_mut();
-                log.push(sh.index_lock().word_at(addr));
-                log.len()
-            };
-            check(n);
-        }
+    let log = {
+        let sh2 = sh.clone();
+        recorded(
+            move |addr| sh2.index_lock().word_at(addr),
+            &check,
+            || {
+                for &(count, edge) in pairs {
+                    sh.index_event(edge, count);
+                }
+            },
+        )
     };
-    with_hook(Box::new(hook), || {
-        for &(count, edge) in pairs {
-            sh.index_event(edge, count);
-        }
-    });
     assert_eq!(state.borrow().3.max(sh.index_events()), pairs.len() as u32);
-    log.take()
+    log
 }
 
 #[test]
