@@ -198,4 +198,32 @@ mod tests {
             }
         }
     }
+
+    /// The fast gains take over exactly when |innovation| exceeds the
+    /// switch level (an innovation equal to it does not), and stay for
+    /// `hold_ticks` updates, the one that saw it included.
+    #[test]
+    fn the_fast_gains_hold_for_their_ticks_after_an_innovation_beyond_the_switch() {
+        let cfg = ServoDesign::brief(20_000).config().unwrap();
+        let k = cfg.observer;
+        assert!(k.hold_ticks > 2 && k.switch_q8 > 0);
+        for (step, fast) in [(k.switch_q8, false), (k.switch_q8 + 1, true)] {
+            let mut o = Observer::new(k);
+            o.reset(0);
+            // At rest with no input the prediction is 0: the innovation
+            // is the reading itself.
+            o.update(0, step);
+            assert_eq!(o.fast(), fast, "innovation {step} (switch {})", k.switch_q8);
+            if fast {
+                let mut on = 1;
+                while o.fast() {
+                    let y = o.estimate().z_q8;
+                    o.update(0, y);
+                    on += 1;
+                    assert!(on <= k.hold_ticks, "still fast after {on} ticks");
+                }
+                assert_eq!(on, k.hold_ticks);
+            }
+        }
+    }
 }
