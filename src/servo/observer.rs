@@ -150,6 +150,7 @@ impl Observer {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
     use crate::servo::ServoDesign;
