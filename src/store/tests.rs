@@ -267,3 +267,20 @@ fn an_unreadable_store_boots_the_built_in_design_refused() {
         params::ParamSource::Refused(crate::safety::ParamError::StoreUnreadable)
     );
 }
+
+/// [`MAX_BLOCK`] is exactly the block of every parameter once (the
+/// design's own values), the buffer holds it with the key in whole
+/// 32-byte flash words, and the store saves and loads it.
+#[test]
+fn the_largest_block_is_every_parameter_once() {
+    let d = base();
+    let entries: Vec<(u16, f64)> = params::PARAMS.iter().map(|p| (p.id, p.get(&d))).collect();
+    let mut out = std::vec![0u8; 2 * MAX_BLOCK];
+    let n = params::encode_block(&entries, &d, &mut out).unwrap();
+    assert_eq!(n, MAX_BLOCK);
+    assert!(BUFFER >= 1 + MAX_BLOCK && BUFFER < 1 + MAX_BLOCK + 32 && BUFFER % 32 == 0);
+    // Pages of 1 KiB: the test region's 256-byte pages cannot hold it.
+    let mut s = Store::new(RamFlash::<4096, 1024, 32>::new(), 0..4096).unwrap();
+    s.save(&out[..n], &d).unwrap();
+    assert_eq!(s.load(&d).unwrap(), Some(&out[..n]));
+}
