@@ -284,3 +284,16 @@ fn the_largest_block_is_every_parameter_once() {
     s.save(&out[..n], &d).unwrap();
     assert_eq!(s.load(&d).unwrap(), Some(&out[..n]));
 }
+
+/// The station saves through [`ParamStore`]: the store's impl writes the
+/// block (it loads back), a board without a driver refuses by name.
+#[test]
+fn a_save_through_param_store_reaches_the_flash_or_is_refused_by_name() {
+    let mut s = Store::new(Flash::new(), 0..REGION).unwrap();
+    ParamStore::save(&mut s, &block(3), &base()).unwrap();
+    assert_eq!(s.load(&base()).unwrap(), Some(&block(3)[..]));
+    assert_eq!(
+        ParamStore::save(&mut NoStore, &block(3), &base()),
+        Err(StoreError::NoDriver)
+    );
+}
