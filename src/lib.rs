@@ -21,6 +21,8 @@ pub mod hw;
 pub mod safety;
 pub mod trig;
 pub mod units;
+// The word the hand-offs between priorities share.
+pub mod word;
 // The coefficient table: its format, parser and interpolation.
 pub mod table;
 // The data path, one folder per stage: X position and its coefficient

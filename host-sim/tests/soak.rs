@@ -5,7 +5,8 @@ use host_sim::soak::{run, SoakSpec};
 
 /// Glitching X latches, index jitter, speed noise and force noise are the
 /// shop floor, not faults: none is raised. The firmware's spindle phase
-/// stays unbiased (mean within 0.01°) and within 0.5° of the truth (the
+/// stays unbiased (mean within 0.01°) and within the bound its index
+/// jitter and tachometer noise allow (`phase_error_bound_deg`; the
 /// learning's bins are 1.4° wide); the tool's following error is the
 /// force and gauge noise through the design's loop (its RMS within ±20 %
 /// of the closed form) and stays within the 300 µin depth of cut of its
@@ -34,7 +35,12 @@ fn a_short_soak_raises_no_false_fault_and_keeps_phase_and_tool_bounded() {
         "X went out and in: {h:?}"
     );
     assert!(h.phase_error_mean_deg.abs() < 0.01, "{h:?}");
-    assert!(h.phase_error_max_deg < 0.5, "{h:?}");
+    let bound = phase_error_bound_deg(&spec, h.rpm_max);
+    eprintln!(
+        "phase error {:.4}° max, bound {bound:.4}°",
+        h.phase_error_max_deg
+    );
+    assert!(h.phase_error_max_deg <= bound, "bound {bound:.4}°: {h:?}");
     // The following error is the force and gauge noise through the loop
     // (without either it is 0.3 µin), held to the design's closed form
     // (`following_error_rms_predicted_uin`) within ±20 %: the continuous-
@@ -126,6 +132,32 @@ fn following_error_rms_predicted_uin(spec: &SoakSpec) -> f64 {
         gauge += (t.0 * t.0 + t.1 * t.1) * psd(g.white_rms_in, g.white_bw_hz, w) * df;
     }
     (force + gauge).sqrt() * 1e6
+}
+
+/// The largest phase error of the tachometer + index estimator
+/// (`zslide::spindle::tach`), degrees, at speeds up to `rpm_max`:
+///
+/// * Each index re-phases the angle to its edge, which the soak jitters by
+///   j, uniform in ±√3·J (`machine::spindle`): an error ω·j at once.
+/// * Each index also recalibrates the tach gain: the turn integrated
+///   between two edges is off by ω·(j_k − j_{k−1}) whatever the old gain
+///   (its error cancels), and the gain is the mean of the old and that:
+///   ε_k = (ε_{k−1} − ω(j_k − j_{k−1})/turn)/2. Over the next turn the
+///   angle drifts by ε_k·turn, so just before the next index the error is
+///   −ω·(3/2·j_k − Σ_{i≥1} 2^{−(i+1)} j_{k−i}): at most 2·ω·√3·J.
+/// * The tachometer's noise (σ_n mV RMS, a new draw each loop tick, `N`
+///   ticks a turn) integrates over a turn to σ_n/mV·√N/N turns, and
+///   reaches the angle through the same two paths, the variance weights
+///   9/4 + Σ 4^{−(i+1)} = 7/3: at 5σ (a per-turn probability below 10⁻⁶)
+///   5·√(7/3)·σ_n/(mV·√N) turns.
+fn phase_error_bound_deg(spec: &SoakSpec, rpm_max: f64) -> f64 {
+    let sp = &spec.scenario.file.spindle;
+    let rev_per_s = rpm_max / 60.0;
+    let jitter = 2.0 * rev_per_s * 3f64.sqrt() * spec.index_jitter_us * 1e-6;
+    let mv = sp.tach_mv_per_rpm * sp.rpm;
+    let ticks_per_turn = f64::from(spec.scenario.loop_hz) * 60.0 / sp.rpm;
+    let tach = 5.0 * (7.0f64 / 3.0).sqrt() * sp.tach_noise_mv / (mv * ticks_per_turn.sqrt());
+    (jitter + tach) * 360.0
 }
 
 /// The run is reproducible from the scenario's seed, and another seed

@@ -19,12 +19,19 @@
 //! the region are invalidated after every erase and program, so the store
 //! reads what the flash holds.
 //!
-//! Not handled yet: a power cut during a flash-word program can leave the
-//! word with an uncorrectable ECC error, and reading it is a bus error
-//! (HardFault, then the watchdog's reset) at every boot. ST's EEPROM
-//! emulation catches DBECCERR (FLASH_ECC_FA2R gives the word) instead;
-//! until this does, `zslide params flash` rewrites the region. Not run on
-//! a board: built, and the sequences checked against RM0433 only.
+//! A power cut during a flash-word program can leave the word partly
+//! programmed, with an uncorrectable ECC error: reading it sets DBECCERR2
+//! in SR2 (FLASH_ECC_FA2R: the word) and answers the load with a bus
+//! error (RM0433 §4.3.12), which would be a HardFault, and the watchdog's
+//! reset, at every boot. So every read runs one flash word at a time with
+//! the bus fault ignored (FAULTMASK raised, SCB CCR.BFHFNMIGN set:
+//! ARMv7-M ARM B3.2.8; a D-cache line is one 32-byte flash word, so an
+//! error is never shared with a neighbour), and a word with DBECCERR2 set
+//! afterwards is reported as [`FlashError::Ecc`], which the store reads
+//! as a corrupt item (`zslide::store::ecc`) and its page's next erase
+//! clears. FAULTMASK holds off the loop tick for the few bus cycles of one
+//! word's reads. Not run on a board: built, and the sequences checked
+//! against RM0433 and the ARMv7-M ARM only.
 
 use core::sync::atomic::{compiler_fence, Ordering};
 
@@ -66,6 +73,17 @@ const SR_EOP: u32 = 1 << 16;
 /// WRPERR, PGSERR, STRBERR, INCERR, OPERR, RDPERR, RDSERR, SNECCERR,
 /// DBECCERR (bits 17-19, 21-26); CCR2 clears each at the same bit.
 const SR_ERRORS: u32 = 0b111 << 17 | 0b11_1111 << 21;
+/// SR2's uncorrectable (double) ECC error on a read (DBECCERR2).
+const SR_DBECCERR: u32 = 1 << 26;
+
+/// SCB CCR.BFHFNMIGN: at priority -1 (FAULTMASK) a precise data bus fault
+/// is ignored, the load's value unknown (ARMv7-M ARM B3.2.8).
+const CCR_BFHFNMIGN: u32 = 1 << 8;
+/// CFSR's BusFault status (write 1 to clear): PRECISERR, IMPRECISERR,
+/// BFARVALID.
+const CFSR_BUS: u32 = 1 << 9 | 1 << 10 | 1 << 15;
+/// SHCSR.BUSFAULTPENDED: an imprecise bus fault waiting for FAULTMASK.
+const SHCSR_BUSFAULTPENDED: u32 = 1 << 14;
 
 /// The longest a busy-wait may last: an erase takes 2-4 s (datasheet);
 /// beyond this the flash interface is taken to be stuck.
@@ -87,6 +105,17 @@ pub enum FlashError {
     Flags(u32),
     /// The bank stayed busy past [`TIMEOUT_US`].
     Timeout,
+    /// A read met a flash word with an uncorrectable ECC error (DBECCERR2):
+    /// the word's offset in the region.
+    Ecc(u32),
+    /// A read ended in a bus fault without an ECC error (SCB CFSR bits).
+    Bus(u32),
+}
+
+impl zslide::store::ecc::EccError for FlashError {
+    fn uncorrectable(&self) -> bool {
+        matches!(self, FlashError::Ecc(_))
+    }
 }
 
 impl NorFlashError for FlashError {
@@ -107,6 +136,16 @@ impl defmt::Format for FlashError {
             FlashError::Locked => defmt::write!(f, "bank 2 did not unlock (KEYR2)"),
             FlashError::Flags(sr) => defmt::write!(f, "bank 2 error flags SR2 = {=u32:#010x}", sr),
             FlashError::Timeout => defmt::write!(f, "bank 2 busy for over 10 s"),
+            FlashError::Ecc(at) => {
+                defmt::write!(
+                    f,
+                    "uncorrectable ECC error in the flash word at {=u32:#x}",
+                    at
+                )
+            }
+            FlashError::Bus(cfsr) => {
+                defmt::write!(f, "bus fault on a read, CFSR = {=u32:#010x}", cfsr)
+            }
         }
     }
 }
@@ -261,6 +300,64 @@ impl<W: FnMut()> Bank2<W> {
     }
 }
 
+impl<W: FnMut()> Bank2<W> {
+    /// Reads `out` from `addr`, all inside one flash word, with a bus
+    /// fault ignored; the word's ECC error (SR2 DBECCERR2) as an error.
+    fn read_word(&mut self, addr: u32, out: &mut [u8]) -> Result<(), FlashError> {
+        // SAFETY: SCB's CCR, CFSR and SHCSR are read and written only
+        // here and at boot; CCR is put back as it was before FAULTMASK is
+        // released, and only the bus-fault status this read caused is
+        // cleared.
+        let cp = unsafe { cortex_m::Peripherals::steal() };
+        let ccr = cp.SCB.ccr.read();
+        // SAFETY: FAULTMASK raises the priority to -1 for the reads below
+        // (no handler preempts them) and is released at once after.
+        unsafe { core::arch::asm!("cpsid f", options(nomem, nostack, preserves_flags)) };
+        // SAFETY: BFHFNMIGN only changes how a data bus fault is taken at
+        // priority -1, which this code alone runs at.
+        unsafe { cp.SCB.ccr.write(ccr | CCR_BFHFNMIGN) };
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        for (i, b) in out.iter_mut().enumerate() {
+            // SAFETY: inside the region (`span`, the caller), readable
+            // flash whether erased or programmed (a torn word's bus error
+            // is ignored above), never covered by a Rust reference (the
+            // bank changes under it); no operation runs on the bank while
+            // this reads (each ends before its call returns).
+            *b = unsafe { core::ptr::read_volatile((addr as *const u8).add(i)) };
+        }
+        cortex_m::asm::dsb();
+        let bus = cp.SCB.cfsr.read() & CFSR_BUS;
+        // SAFETY: write-1-to-clear of the bus-fault status just read, and
+        // of a bus fault pended by these reads (taken otherwise the moment
+        // FAULTMASK drops); CCR as it was.
+        unsafe {
+            cp.SCB.cfsr.write(bus);
+            cp.SCB.shcsr.modify(|v| v & !SHCSR_BUSFAULTPENDED);
+            cp.SCB.ccr.write(ccr);
+        }
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        // SAFETY: as above: the priority back to what it was.
+        unsafe { core::arch::asm!("cpsie f", options(nomem, nostack, preserves_flags)) };
+        if self.sr() & SR_DBECCERR != 0 {
+            // SAFETY: CCR2's DBECCERR bit only clears the flag (and with
+            // it FLASH_ECC_FA2R).
+            unsafe {
+                self.flash.bank2().ccr().write(|w| w.bits(SR_DBECCERR));
+            }
+            let (base, _) = region();
+            return Err(FlashError::Ecc(
+                addr.wrapping_sub(base) & !(WORD as u32 - 1),
+            ));
+        }
+        if bus != 0 {
+            return Err(FlashError::Bus(bus));
+        }
+        Ok(())
+    }
+}
+
 /// The region's lines dropped from the D-cache, so the next read sees the
 /// flash (RM0433 §4.3.8: the cache is not kept coherent by the bank).
 fn invalidate(addr: u32, len: usize) {
@@ -294,12 +391,15 @@ impl<W: FnMut()> ReadNorFlash for Bank2<W> {
 
     async fn read(&mut self, offset: u32, out: &mut [u8]) -> Result<(), Self::Error> {
         let addr = span(offset, out.len())?;
-        for (i, b) in out.iter_mut().enumerate() {
-            // SAFETY: inside the region (`span`), readable flash whether
-            // erased or programmed, never covered by a Rust reference (the
-            // bank changes under it); no operation runs on the bank while
-            // this reads (each ends before its call returns).
-            *b = unsafe { core::ptr::read_volatile((addr as *const u8).add(i)) };
+        let mut rest = out;
+        let mut at = addr;
+        // One flash word at a time: the first from `addr` to its end.
+        while !rest.is_empty() {
+            let n = (WORD - at as usize % WORD).min(rest.len());
+            let (word, tail) = rest.split_at_mut(n);
+            self.read_word(at, word)?;
+            at += n as u32;
+            rest = tail;
         }
         Ok(())
     }

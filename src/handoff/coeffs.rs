@@ -7,7 +7,8 @@
 use super::seqlock::Seqlock;
 use crate::command::{Coefficients, COLS};
 use crate::units::XInches;
-use core::sync::atomic::{AtomicU32, Ordering};
+use crate::word::Word;
+use core::sync::atomic::Ordering;
 
 /// The meta word of a null set (no live columns: the null command).
 pub(crate) const NULL_META: u32 = 1 << 31;
@@ -48,7 +49,7 @@ impl CoeffHandoff {
         &self,
         g: u32,
         x: XInches,
-        fill: impl FnOnce(&[AtomicU32]) -> Result<u32, E>,
+        fill: impl FnOnce(&[Word]) -> Result<u32, E>,
     ) -> Result<(), E> {
         let w = self.0.begin(g);
         w[X].store(x.to_bits() as u32, Ordering::Relaxed);
@@ -67,7 +68,7 @@ impl CoeffHandoff {
     fn read<R>(
         &self,
         seen: &mut u32,
-        read: impl FnOnce(&[AtomicU32], u32, XInches) -> R,
+        read: impl FnOnce(&[Word], u32, XInches) -> R,
     ) -> Result<Option<R>, XInches> {
         let g = self.0.latest();
         if g == *seen {

@@ -15,21 +15,22 @@
 //! it). A lock would delay the reader by a whole write; this costs a few
 //! instructions.
 
-use core::sync::atomic::{fence, AtomicU32, Ordering};
+use crate::word::Word;
+use core::sync::atomic::{fence, Ordering};
 
 /// One slot: its sequence word and its data.
 struct Slot<const N: usize> {
     /// Generation being written into / held by this slot; stored before
     /// the data, so a reader that finds it unchanged after reading has a
     /// whole set.
-    seq: AtomicU32,
-    words: [AtomicU32; N],
+    seq: Word,
+    words: [Word; N],
 }
 
 /// Two slots of `N` words and the published generation (0: none yet).
 /// `const`-constructible, so a board can keep it in a `static`.
 pub(crate) struct Seqlock<const N: usize> {
-    gen: AtomicU32,
+    gen: Word,
     slots: [Slot<N>; 2],
 }
 
@@ -37,7 +38,7 @@ impl<const N: usize> Seqlock<N> {
     /// Nothing published; both slots hold `init`.
     pub(crate) const fn new(init: [u32; N]) -> Self {
         Self {
-            gen: AtomicU32::new(0),
+            gen: Word::new(0),
             slots: [Slot::new(init), Slot::new(init)],
         }
     }
@@ -51,7 +52,7 @@ impl<const N: usize> Seqlock<N> {
     /// The writer: starts generation `g` (the last published plus one) in
     /// its slot and returns that slot's words to store (`Relaxed`).
     #[inline(always)]
-    pub(crate) fn begin(&self, g: u32) -> &[AtomicU32; N] {
+    pub(crate) fn begin(&self, g: u32) -> &[Word; N] {
         let slot = &self.slots[(g & 1) as usize];
         slot.seq.store(g, Ordering::Relaxed);
         fence(Ordering::Release);
@@ -75,7 +76,7 @@ impl<const N: usize> Seqlock<N> {
     /// `g` afterwards, `Err` with it if the writer overwrote the slot
     /// meanwhile (the result may then mix two generations).
     #[inline(always)]
-    pub(crate) fn read<R>(&self, g: u32, read: impl FnOnce(&[AtomicU32; N]) -> R) -> Result<R, R> {
+    pub(crate) fn read<R>(&self, g: u32, read: impl FnOnce(&[Word; N]) -> R) -> Result<R, R> {
         let slot = &self.slots[(g & 1) as usize];
         let r = read(&slot.words);
         fence(Ordering::Acquire);
@@ -90,25 +91,48 @@ impl<const N: usize> Seqlock<N> {
 #[cfg(test)]
 impl<const N: usize> Seqlock<N> {
     /// Generation `g`'s slot (a writer's single steps, in tests).
-    pub(crate) fn slot(&self, g: u32) -> &[AtomicU32; N] {
+    pub(crate) fn slot(&self, g: u32) -> &[Word; N] {
         &self.slots[(g & 1) as usize].words
     }
-    /// The sequence word of generation `g`'s slot.
-    pub(crate) fn seq(&self, g: u32) -> u32 {
-        self.slots[(g & 1) as usize].seq.load(Ordering::Relaxed)
+    /// Which of this seqlock's words is at `addr` (a store reported by
+    /// `crate::word::recording`), if any.
+    pub(crate) fn word_at(&self, addr: usize) -> Option<LockWord> {
+        let at = |w: &Word| core::ptr::from_ref(w) as usize == addr;
+        if at(&self.gen) {
+            return Some(LockWord::Gen);
+        }
+        for (s, slot) in self.slots.iter().enumerate() {
+            if at(&slot.seq) {
+                return Some(LockWord::Seq(s));
+            }
+            if let Some(i) = slot.words.iter().position(at) {
+                return Some(LockWord::Data(s, i));
+            }
+        }
+        None
     }
+}
+
+/// A word of a [`Seqlock`]: the generation, a slot's sequence word, word
+/// `i` of a slot.
+#[cfg(test)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum LockWord {
+    Gen,
+    Seq(usize),
+    Data(usize, usize),
 }
 
 impl<const N: usize> Slot<N> {
     const fn new(init: [u32; N]) -> Self {
-        let mut words = [const { AtomicU32::new(0) }; N];
+        let mut words = [const { Word::new(0) }; N];
         let mut i = 0;
         while i < N {
-            words[i] = AtomicU32::new(init[i]);
+            words[i] = Word::new(init[i]);
             i += 1;
         }
         Self {
-            seq: AtomicU32::new(0),
+            seq: Word::new(0),
             words,
         }
     }

@@ -9,6 +9,7 @@
 
 use embedded_storage_async::nor_flash::NorFlash;
 
+use super::ecc::EccError;
 use super::{block_on, Store, StoreError, MAX_BLOCK};
 use crate::params::{self, ParamSource};
 use crate::safety::{DesignError, ParamError};
@@ -20,7 +21,10 @@ pub fn at_boot<F: NorFlash>(
     store: &mut Store<F>,
     region: &[u8],
     base: &ServoDesign,
-) -> Result<(ServoDesign, ServoConfig, ParamSource), DesignError> {
+) -> Result<(ServoDesign, ServoConfig, ParamSource), DesignError>
+where
+    F::Error: EccError,
+{
     let refused = |e: ParamError| Ok((*base, base.config()?, ParamSource::Refused(e)));
     match store.load(base) {
         Ok(Some(block)) => params::at_boot(block, base),
@@ -38,7 +42,10 @@ pub fn at_boot<F: NorFlash>(
 pub fn at_boot_owned<F: NorFlash>(
     store: &mut Store<F>,
     base: &ServoDesign,
-) -> Result<(ServoDesign, ServoConfig, ParamSource), DesignError> {
+) -> Result<(ServoDesign, ServoConfig, ParamSource), DesignError>
+where
+    F::Error: EccError,
+{
     let mut head = [0xFF; MAX_BLOCK];
     // A failed read leaves it erased; the store's own read reports it.
     if block_on(store.flash().read(0, &mut head)).is_err() || !head.starts_with(&params::MAGIC) {

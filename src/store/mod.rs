@@ -13,7 +13,10 @@
 //! firmware would accept from a region.
 //!
 //! The flash is any `embedded_storage_async` `NorFlash` (boards: the
-//! STM32H7's bank-2 sectors; QEMU and host-sim: a flash model). The map's
+//! STM32H7's bank-2 sectors; QEMU and host-sim: a flash model) whose error
+//! tells an uncorrectable ECC error apart ([`ecc`]): a flash word a cut
+//! left unreadable is read as a corrupt item, so it costs that one save,
+//! not every boot after it. The map's
 //! API is async; every flash here completes at once, so [`block_on`] polls
 //! each future to completion on the calling thread.
 //!
@@ -38,7 +41,10 @@ use sequential_storage::map::{MapConfig, MapStorage};
 use crate::params;
 
 pub mod boot;
+pub mod ecc;
 pub mod ram;
+
+use ecc::{EccError, SkipUnreadable};
 
 /// The map key of the parameter block.
 pub const KEY: u8 = 1;
@@ -83,7 +89,10 @@ pub trait ParamStore {
     fn save(&mut self, block: &[u8], base: &crate::servo::ServoDesign) -> Result<(), StoreError>;
 }
 
-impl<F: NorFlash> ParamStore for Store<F> {
+impl<F: NorFlash> ParamStore for Store<F>
+where
+    F::Error: EccError,
+{
     // Never inlined: `cargo xtask no-panic` stops its check of the link's
     // service here (the map's code has panic paths; `THREAD_STOPS`).
     #[inline(never)]
@@ -154,16 +163,22 @@ pub fn block_on<F: Future>(f: F) -> F::Output {
 }
 
 /// The parameter store on `flash` over `range` (whole erase pages).
-pub struct Store<F: NorFlash> {
-    map: MapStorage<u8, F, Cache<Uncached, Uncached, Uncached, u8>>,
+pub struct Store<F: NorFlash>
+where
+    F::Error: EccError,
+{
+    map: MapStorage<u8, SkipUnreadable<F>, Cache<Uncached, Uncached, Uncached, u8>>,
     buf: [u8; BUFFER],
 }
 
-impl<F: NorFlash> Store<F> {
+impl<F: NorFlash> Store<F>
+where
+    F::Error: EccError,
+{
     pub fn new(flash: F, range: Range<u32>) -> Result<Self, StoreError> {
         let cfg = MapConfig::try_new(range).map_err(|_| StoreError::Config)?;
         Ok(Self {
-            map: MapStorage::new(flash, cfg, Cache::new_uncached()),
+            map: MapStorage::new(SkipUnreadable::new(flash), cfg, Cache::new_uncached()),
             buf: [0; BUFFER],
         })
     }
@@ -197,12 +212,18 @@ impl<F: NorFlash> Store<F> {
     /// The flash under the store (a simulated machine keeps its image
     /// across runs; a model's operation count).
     pub fn flash(&mut self) -> &mut F {
-        self.map.flash()
+        &mut self.map.flash().flash
+    }
+
+    /// Reads that met a flash word left unreadable by a cut (read as a
+    /// corrupt item), since this store was made.
+    pub fn unreadable_reads(&mut self) -> u32 {
+        self.map.flash().unreadable
     }
 
     /// The flash back (a test's model, to "reboot" on).
     pub fn into_flash(self) -> F {
-        self.map.destroy().0
+        self.map.destroy().0.flash
     }
 }
 

@@ -4,7 +4,13 @@
 //! It is no kinder than the STM32H7's bank: a write may only program an
 //! erased word (the H7's ECC refuses a second write to a 256-bit flash
 //! word), and with a power budget it stops after that many operations,
-//! the last one torn (half its words written, or half its page erased).
+//! the last one torn: half its page erased, or half its words written and
+//! the word the cut fell in either left erased ([`Tear::Between`]) or
+//! partly programmed ([`Tear::Inside`]). A partly programmed word no
+//! longer matches its ECC bits: every read that touches it fails with
+//! [`RamFlashError::Ecc`] (the H7: DBECCERR in FLASH_SR2 and a bus error on
+//! the load, RM0433 §4.3.12), and it cannot be programmed again, until its
+//! page is erased.
 
 use embedded_storage_async::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
@@ -19,7 +25,30 @@ pub enum RamFlashError {
     NotErased,
     /// The power budget ran out (this operation was cut, or came after).
     PowerCut,
+    /// The read touched a word whose ECC does not match (a word torn by
+    /// a cut inside it): an uncorrectable error, the word at this offset.
+    Ecc(u32),
 }
+
+impl crate::store::ecc::EccError for RamFlashError {
+    fn uncorrectable(&self) -> bool {
+        matches!(self, RamFlashError::Ecc(_))
+    }
+}
+
+/// What a cut leaves of the flash word it falls in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tear {
+    /// The cut fell between words: the word was never started (erased).
+    Between,
+    /// The cut fell inside the word: partly programmed, unreadable (ECC).
+    Inside,
+}
+
+/// How many words left unreadable by cuts the model holds at once (the
+/// power-cut tests make at most two before an erase clears them); a cut
+/// beyond that tears [`Tear::Between`].
+pub const MAX_TORN: usize = 8;
 
 impl NorFlashError for RamFlashError {
     fn kind(&self) -> NorFlashErrorKind {
@@ -50,6 +79,10 @@ pub struct RamFlash<const N: usize, const PAGE: usize, const WORD: usize> {
     /// Writes and erases done (the cut one included), and of them erases.
     pub ops: u32,
     pub erases: u32,
+    /// What a cut leaves of the word it falls in.
+    pub tear: Tear,
+    /// The offsets of the words a cut left unreadable, until erased.
+    pub torn: [Option<u32>; MAX_TORN],
 }
 
 impl<const N: usize, const PAGE: usize, const WORD: usize> RamFlash<N, PAGE, WORD> {
@@ -60,7 +93,23 @@ impl<const N: usize, const PAGE: usize, const WORD: usize> RamFlash<N, PAGE, WOR
             budget: None,
             ops: 0,
             erases: 0,
+            tear: Tear::Between,
+            torn: [None; MAX_TORN],
         }
+    }
+
+    /// How many words are unreadable (torn inside, not erased since).
+    pub fn torn_words(&self) -> usize {
+        self.torn.iter().flatten().count()
+    }
+
+    /// The first unreadable word that `from..to` touches.
+    fn torn_in(&self, from: usize, to: usize) -> Option<u32> {
+        self.torn
+            .iter()
+            .flatten()
+            .copied()
+            .find(|&w| (w as usize) < to && w as usize + WORD > from)
     }
 
     /// Flash holding `image` from address 0 (what QEMU's loader put there).
@@ -110,6 +159,9 @@ impl<const N: usize, const PAGE: usize, const WORD: usize> ReadNorFlash
             .bytes
             .get(at..at + out.len())
             .ok_or(RamFlashError::OutOfBounds)?;
+        if let Some(w) = self.torn_in(at, at + out.len()) {
+            return Err(RamFlashError::Ecc(w));
+        }
         out.copy_from_slice(src);
         Ok(())
     }
@@ -136,6 +188,11 @@ impl<const N: usize, const PAGE: usize, const WORD: usize> NorFlash for RamFlash
             self.erases += 1;
             let end = if whole { page + PAGE } else { page + PAGE / 2 };
             self.bytes[page..end].fill(0xFF);
+            for t in &mut self.torn {
+                if t.is_some_and(|w| (page..end).contains(&(w as usize))) {
+                    *t = None;
+                }
+            }
             if !whole {
                 return Err(RamFlashError::PowerCut);
             }
@@ -152,7 +209,7 @@ impl<const N: usize, const PAGE: usize, const WORD: usize> NorFlash for RamFlash
             .bytes
             .get(at..at + data.len())
             .ok_or(RamFlashError::OutOfBounds)?;
-        if dst.iter().any(|&b| b != 0xFF) {
+        if dst.iter().any(|&b| b != 0xFF) || self.torn_in(at, at + data.len()).is_some() {
             return Err(RamFlashError::NotErased);
         }
         let whole = self.spend()?;
@@ -160,9 +217,17 @@ impl<const N: usize, const PAGE: usize, const WORD: usize> NorFlash for RamFlash
         let n = if whole { words } else { words / 2 } * WORD;
         self.bytes[at..at + n].copy_from_slice(&data[..n]);
         if whole {
-            Ok(())
-        } else {
-            Err(RamFlashError::PowerCut)
+            return Ok(());
         }
+        if n < data.len() && self.tear == Tear::Inside {
+            if let Some(slot) = self.torn.iter_mut().find(|t| t.is_none()) {
+                // Programming only clears bits: half the word's bytes
+                // reached the cells when the power failed.
+                let half = WORD / 2;
+                self.bytes[at + n..at + n + half].copy_from_slice(&data[n..n + half]);
+                *slot = Some((at + n) as u32);
+            }
+        }
+        Err(RamFlashError::PowerCut)
     }
 }

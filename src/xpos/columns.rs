@@ -16,7 +16,8 @@ use crate::command::{Coefficients, CommandGen, COEFF_LIMIT};
 use crate::safety::Fault;
 use crate::table::MAX_TERMS;
 use crate::units::XInches;
-use core::sync::atomic::{AtomicU32, Ordering};
+use crate::word::Word;
+use core::sync::atomic::Ordering;
 
 /// Capacity of the slope table, words (8 KiB).
 pub const SLOPES: usize = 2048;
@@ -52,7 +53,7 @@ pub(crate) struct IntervalCache {
 pub(crate) fn general_columns(
     g: &CommandGen<'static>,
     terms: usize,
-    values: &[AtomicU32],
+    values: &[Word],
     x: XInches,
 ) -> Result<bool, Fault> {
     let mut c = Coefficients::NULL;
@@ -204,7 +205,7 @@ pub(crate) fn fast_columns(
     g: &CommandGen<'static>,
     c: &mut IntervalCache,
     n: usize,
-    values: &[AtomicU32],
+    values: &[Word],
     x: XInches,
 ) -> Result<bool, Fault> {
     let f = match c.seek(g, x)? {

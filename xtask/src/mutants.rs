@@ -110,10 +110,10 @@ pub const MODULES: [Module; 12] = [
     },
     Module {
         name: "store",
-        files: &["**/store/mod.rs", "**/store/boot.rs", "**/store/ram.rs"],
+        files: &["**/store/mod.rs", "**/store/boot.rs", "**/store/ram.rs", "**/store/ecc.rs"],
         re: None,
         tests: &["--lib"],
-        what: "the parameter store, its boot order and the power-cut flash model",
+        what: "the parameter store, its boot order, unreadable words and the power-cut flash model",
     },
     Module {
         name: "handoff",

@@ -617,6 +617,12 @@ pub fn tune(link: &mut Link, a: &TuneArgs, out: &mut dyn Write) -> Result<ServoD
     for line in crate::predict::table(&now, &after) {
         say_to(out, &line)?;
     }
+    crate::predict::check_margins(&after.margins).map_err(|e| {
+        format!(
+            "the design from {} is refused: {e} (nothing set)",
+            a.plant.display()
+        )
+    })?;
     if a.dry_run {
         return Ok(d);
     }

@@ -62,11 +62,73 @@ pub fn fitted_machine(data_sheet: &Scenario, p: &Plant, design: &ServoDesign) ->
     Ok(sc)
 }
 
+/// The least phase margin `tune` sets a design with, degrees
+/// (docs/TUNING.md, "The margins `tune` asks for"): below the shipped
+/// designs' least (modern-hw, 29.5°) by more than the prediction's error
+/// against the machine (±1.5°, `tests/identify.rs`); at 25° the peak of
+/// |S| is at least 1/(2 sin(PM/2)) = 7.7 dB.
+pub const MIN_PHASE_MARGIN_DEG: f64 = 25.0;
+/// The least gain margin, dB: a factor 2 of loop gain (the shipped
+/// designs' least is modern-hw's 7.7 dB).
+pub const MIN_GAIN_MARGIN_DB: f64 = 6.0;
+
+/// Why `tune` refuses a design's predicted margins: `Ok` when they meet
+/// the minimums above. A loop without a crossover, or whose phase margin
+/// cannot be read, is refused; no phase crossover above the crossover is
+/// an unbounded gain margin.
+pub fn check_margins(m: &Margins) -> std::result::Result<(), String> {
+    let (Some(fc), Some(pm)) = (m.crossover_hz, m.phase_margin_deg) else {
+        return Err("the predicted loop gain never crosses 1 in the sweep: no phase margin".into());
+    };
+    if pm < MIN_PHASE_MARGIN_DEG {
+        return Err(format!(
+            "predicted phase margin {pm:.1} deg at {fc:.1} Hz is below the {MIN_PHASE_MARGIN_DEG} \
+             deg minimum"
+        ));
+    }
+    if let (Some(gm), Some(at)) = (m.gain_margin_db, m.phase_crossover_hz) {
+        if gm < MIN_GAIN_MARGIN_DB {
+            return Err(format!(
+                "predicted gain margin {gm:.1} dB at {at:.0} Hz is below the {MIN_GAIN_MARGIN_DB} \
+                 dB minimum"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The sweep for `design`: [`SWEEP`], and across each notch of the design
+/// (f₀·(1 ± 2/Q), where its phase swings through ±90° within a few per cent
+/// of f₀) 16 points more, so that a narrow notch's phase excursion, which
+/// can carry the loop's phase through −180° above the crossover, is
+/// bracketed and not stepped over.
+pub fn sweep_for(design: &ServoDesign) -> Vec<f64> {
+    let mut f = host_sim::analyser::log_freqs(SWEEP.0, SWEEP.1, SWEEP.2);
+    for (f0, q) in [
+        (design.hum_notch_hz, design.hum_notch_q),
+        (design.mode_notch_hz, design.mode_notch_q),
+    ] {
+        if q > 0.0 {
+            let half = (2.0 / q).min(0.5);
+            f.extend((0..16).map(|k| f0 * (1.0 - half + 2.0 * half * f64::from(k) / 15.0)));
+        }
+    }
+    f.retain(|&x| (SWEEP.0..=SWEEP.1).contains(&x));
+    f.sort_by(f64::total_cmp);
+    f.dedup();
+    f
+}
+
+/// The digital loop's margins for `design` on the fitted plant.
+pub fn margins(data_sheet: &Scenario, p: &Plant, design: &ServoDesign) -> Result<Margins> {
+    let sc = fitted_machine(data_sheet, p, design)?;
+    Ok(sweep_digital(&sc, &sweep_for(design), DIGITAL_AMPLITUDE_IN, false).1)
+}
+
 /// The figures of `design` on the fitted plant.
 pub fn predict(data_sheet: &Scenario, p: &Plant, design: &ServoDesign) -> Result<Prediction> {
     let sc = fitted_machine(data_sheet, p, design)?;
-    let freqs = host_sim::analyser::log_freqs(SWEEP.0, SWEEP.1, SWEEP.2);
-    let (_, margins) = sweep_digital(&sc, &freqs, DIGITAL_AMPLITUDE_IN, false);
+    let margins = margins(data_sheet, p, design)?;
     let spec = TrackSpec {
         freq_hz: TRACK_FREQ_HZ,
         amplitude_in: TRACK_AMPLITUDE_IN,

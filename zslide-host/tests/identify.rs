@@ -128,7 +128,8 @@ fn identify_recovers_a_perturbed_plant_and_tune_tracks_as_the_nominal_design() {
     // (perturbed) machine does: the margins of the tuned loop, and the
     // tracking of the design in force and of the tuned one (below).
     let (_, predicted_crossover) = tune_row(&tune, "crossover, Hz");
-    let freqs = host_sim::analyser::log_freqs(10.0, 6400.0, 40);
+    // The prediction's own frequencies (its crossings bracketed alike).
+    let freqs = zslide_host::predict::sweep_for(&design);
     let (_, truth) = host_sim::cmd::response::sweep_digital(
         &tuned_machine,
         &freqs,

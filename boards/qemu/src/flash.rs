@@ -10,15 +10,18 @@
 //! [`FILE`] in QEMU's working directory: read at boot (none: a new board,
 //! erased flash) and written back after every flash operation, as a real
 //! flash keeps each operation. With `cut=N` the power fails during flash
-//! operation N: the model tears it (half its words written, half its sector
-//! erased), the file keeps that, and the image stops at once, as a board
-//! whose supply died would; the next boot finds what the cut left.
+//! operation N: the model tears it (half its words written and the word the
+//! cut fell in left erased, or half its sector erased), the file keeps
+//! that, and the image stops at once, as a board whose supply died would;
+//! the next boot finds what the cut left. (A word left unreadable by the
+//! cut is the store's host tests' case, `zslide::store::tests`: the file
+//! holds bytes, not the model's ECC state.)
 
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m_semihosting::nr;
 use embedded_storage_async::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
-use zslide::store::ram::{Bank2Region, RamFlashError, BANK2_REGION_BYTES};
+use zslide::store::ram::{Bank2Region, RamFlashError, Tear, BANK2_REGION_BYTES, MAX_TORN};
 
 /// The flash file in QEMU's working directory (NUL-terminated for
 /// semihosting's `SYS_OPEN`).
@@ -72,6 +75,8 @@ impl ImageFlash {
             core::ptr::addr_of_mut!((*at).budget).write(cut);
             core::ptr::addr_of_mut!((*at).ops).write(0);
             core::ptr::addr_of_mut!((*at).erases).write(0);
+            core::ptr::addr_of_mut!((*at).tear).write(Tear::Between);
+            core::ptr::addr_of_mut!((*at).torn).write([None; MAX_TORN]);
             &mut *at
         };
         if persist && !load(&mut model.bytes) {

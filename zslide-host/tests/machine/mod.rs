@@ -22,9 +22,15 @@ impl Machine {
         let addr = listener.address();
         let stop = Arc::new(AtomicBool::new(false));
         let s = stop.clone();
-        let thread = std::thread::spawn(move || {
-            serve(&setup, &listener, &s).unwrap();
-        });
+        // The machine's world is built on this thread's stack (a board's
+        // worth of firmware state): more than a test thread's default.
+        let thread = std::thread::Builder::new()
+            .name(format!("machine {name}"))
+            .stack_size(64 << 20)
+            .spawn(move || {
+                serve(&setup, &listener, &s).unwrap();
+            })
+            .unwrap();
         Machine {
             stop,
             thread: Some(thread),
