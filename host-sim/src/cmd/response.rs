@@ -79,6 +79,19 @@ pub struct Args {
     /// peak; for the digital loop the margins) instead of the CSV on stdout.
     #[arg(long)]
     pub json: bool,
+    /// The process stiffness on the slide, lbf/in (digital loop only): the
+    /// engaged part as a spring, `F = −k·(z − z₀)` on the slide carriage,
+    /// updated at every loop tick as the cut's force is (0 = in air; the
+    /// force model's value at the scenario's depth of cut and feed:
+    /// `cut::stiffness`, ≈ 2200 lbf/in at the nominal k_e).
+    #[arg(long, default_value_t = 0.0)]
+    pub process_stiffness: f64,
+    /// Instead of one sweep: the margins over the process stiffness, from
+    /// in air to k_e × 5 of the scenario's force model (`cut::stiffness`),
+    /// with the learning's convergence factor at each (JSON rows; `--svg`
+    /// plots them against the stiffness, `--csv` writes the rows).
+    #[arg(long)]
+    pub stiffness_sweep: bool,
     /// Scenario (the digital loop's plant and `[servo]` design).
     #[command(flatten)]
     pub scenario: crate::scenario::ScenarioArg,
@@ -207,6 +220,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     let freqs = log_freqs(args.f_min, args.f_max, args.points);
+    anyhow::ensure!(
+        args.process_stiffness.is_finite() && args.process_stiffness >= 0.0,
+        "--process-stiffness {}: need a finite stiffness >= 0 lbf/in",
+        args.process_stiffness
+    );
+    anyhow::ensure!(
+        args.which == Loop::Digital || (args.process_stiffness == 0.0 && !args.stiffness_sweep),
+        "--process-stiffness and --stiffness-sweep apply to --loop digital only"
+    );
     if args.which == Loop::Digital {
         return run_digital(&args, &freqs);
     }
@@ -380,6 +402,21 @@ pub fn measure_digital(
     amplitude_in: f64,
     rigid: bool,
 ) -> LoopPoint {
+    measure_digital_on(sc, f_hz, amplitude_in, rigid, 0.0)
+}
+
+/// [`measure_digital`] with the tool engaged in a part of stiffness
+/// `stiffness_lbf_per_in`: from the injection's start the slide carriage
+/// carries `F = −k·(z − z₀)` (z₀ where it stood then), set before every
+/// loop tick as the cut sets its force (`cut::run`), so the spring is
+/// sampled as the board's cut samples it.
+pub fn measure_digital_on(
+    sc: &crate::scenario::Scenario,
+    f_hz: f64,
+    amplitude_in: f64,
+    rigid: bool,
+    stiffness_lbf_per_in: f64,
+) -> LoopPoint {
     use crate::fwrig::{firmware_with, FirmwareWorld};
     use crate::plant::GaugeParams;
     use crate::sched::Periodic;
@@ -394,8 +431,9 @@ pub fn measure_digital(
     let wr = std::f64::consts::TAU * f_hz;
     let t0 = 200_000_000u64;
     s.run_until(&mut w, t0);
-    // The injection is set just before each conversion (higher priority
-    // than the tick at the same instant).
+    let z0 = w.rig.slide.position_in();
+    // The injection (and the spring's force) is set just before each
+    // conversion (higher priority than the tick at the same instant).
     s.add(Periodic::new(
         "injection",
         255,
@@ -404,6 +442,10 @@ pub fn measure_digital(
         move |t, w: &mut FirmwareWorld| {
             let tt = (t - t0) as f64 * 1e-9;
             w.rig.gauge_injection_in = amplitude_in * (wr * tt).sin();
+            if stiffness_lbf_per_in != 0.0 {
+                let z = w.rig.slide.position_in();
+                w.rig.set_force_lbf(-stiffness_lbf_per_in * (z - z0));
+            }
         },
     ));
     let settle = (0.3f64).max(10.0 / f_hz);
@@ -592,11 +634,21 @@ pub fn sweep_digital(
     amplitude_in: f64,
     rigid: bool,
 ) -> (Vec<LoopPoint>, Margins) {
-    let pts: Vec<LoopPoint> = freqs
-        .iter()
-        .map(|&f| measure_digital(sc, f, amplitude_in, rigid))
-        .collect();
-    let m = margins_refined(&pts, &|f| measure_digital(sc, f, amplitude_in, rigid));
+    sweep_digital_on(sc, freqs, amplitude_in, rigid, 0.0)
+}
+
+/// [`sweep_digital`] with the tool engaged in a part of stiffness
+/// `stiffness_lbf_per_in` ([`measure_digital_on`]).
+pub fn sweep_digital_on(
+    sc: &crate::scenario::Scenario,
+    freqs: &[f64],
+    amplitude_in: f64,
+    rigid: bool,
+    stiffness_lbf_per_in: f64,
+) -> (Vec<LoopPoint>, Margins) {
+    let at = |f: f64| measure_digital_on(sc, f, amplitude_in, rigid, stiffness_lbf_per_in);
+    let pts: Vec<LoopPoint> = freqs.iter().map(|&f| at(f)).collect();
+    let m = margins_refined(&pts, &at);
     (pts, m)
 }
 
@@ -607,7 +659,8 @@ pub const DIGITAL_AMPLITUDE_IN: f64 = 20e-6;
 fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
     let sc = args.scenario.load()?;
     let amp = args.amplitude.map_or(DIGITAL_AMPLITUDE_IN, |v| v * 0.001);
-    let (pts, m) = sweep_digital(&sc, freqs, amp, args.rigid);
+    let k = args.process_stiffness;
+    let (pts, m) = sweep_digital_on(&sc, freqs, amp, args.rigid, k);
     let mut csv =
         String::from("f_hz,s_mag_db,s_phase_deg,t_mag_db,t_phase_deg,l_mag_db,l_phase_deg\n");
     for p in &pts {
@@ -635,6 +688,7 @@ fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
             serde_json::to_string_pretty(&serde_json::json!({
                 "loop": "digital",
                 "scenario": sc.file.name,
+                "process_stiffness_lbf_per_in": k,
                 "points": pts.len(),
                 "margins": m,
             }))?
