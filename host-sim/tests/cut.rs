@@ -145,6 +145,23 @@ fn digital_loop_cuts_the_second_part_within_the_brief_goals() {
     assert!(lo >= -5.0 && hi <= 5.0, "modern-hw: {lo:.1} .. {hi:.1} µin");
 }
 
+/// Twice the force model's edge constant (the engaged part a spring of
+/// 4350 lbf/in instead of 2185) leaves the second part inside the brief's
+/// ±30 µin on `legacy-hw`, with no fault: the learning's low-pass
+/// (`learning_lowpass_hz`) keeps it converging against the spring
+/// (without it, `learning_lowpass_hz = 0`: a limit cycle, −560 .. −470
+/// µin).
+#[test]
+fn digital_loop_holds_the_band_with_twice_the_edge_force() {
+    let mut sc = host_sim::scenario::load("legacy-hw").unwrap();
+    sc.cutting.k_e_lbf_per_in *= 2.0;
+    let s = CutSpec::chapter5(sc, Controller::Digital, None, Some(Holes::Filled), false).unwrap();
+    let o = run_pass(&s, |_| Extras::default(), &|_| {}).unwrap();
+    assert!(o.faults.is_empty(), "{:?}", o.faults);
+    let (lo, hi) = o.grid.band().unwrap();
+    assert!(lo >= -30.0 && hi <= 30.0, "k_e × 2: {lo:.1} .. {hi:.1} µin");
+}
+
 /// The 1983 loop on the same machine and part leaves errors of the order
 /// chapter 5 measured (−500 .. +900 µin on the second part): its following
 /// error at the part's 2/rev through the lag-compensated loop (eq 4-47)

@@ -656,8 +656,172 @@ pub fn sweep_digital_on(
 /// inside the gauge's range and above its quantisation.
 pub const DIGITAL_AMPLITUDE_IN: f64 = 20e-6;
 
+/// One row of `response --loop digital --stiffness-sweep`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StiffnessRow {
+    /// The force model's k_e scale (0: in air).
+    pub ke_factor: f64,
+    pub stiffness_lbf_per_in: f64,
+    /// Measured through the firmware on the rig (`sweep_digital_on`).
+    pub margins: Margins,
+    /// The sampled-data model's largest |S| (`loopmodel`), dB.
+    pub model_peak_sensitivity_db: f64,
+    /// The learning's largest revolution-to-revolution factor over the
+    /// spindle harmonics at the scenario's speed (< 1: it converges), and
+    /// where, Hz (`loopmodel::LoopModel::learning_factor`).
+    pub learning_factor: f64,
+    pub learning_factor_hz: f64,
+}
+
+/// The k_e scales of the stiffness sweep: in air to k_e × 5.
+pub const STIFFNESS_SWEEP_KE: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0];
+
+/// The margins over the process stiffness of chapter 5's cut on `sc`.
+pub fn stiffness_sweep(
+    sc: &crate::scenario::Scenario,
+    freqs: &[f64],
+    amplitude_in: f64,
+) -> anyhow::Result<Vec<StiffnessRow>> {
+    let spec = crate::cut::CutSpec::chapter5(
+        sc.clone(),
+        crate::cut::Controller::Digital,
+        None,
+        None,
+        false,
+    )?;
+    let latency = sc.rig.dac_latency_ns as f64 * 1e-9;
+    let rpm = sc.file.spindle.rpm;
+    let mut rows = Vec::new();
+    for f in STIFFNESS_SWEEP_KE {
+        let mut c = sc.cutting.clone();
+        c.k_e_lbf_per_in *= f;
+        let k = if f == 0.0 {
+            0.0
+        } else {
+            crate::cut::sensitivity::stiffness_lbf_per_in(&c, spec.depth_in, spec.feed_per_rev_in)
+        };
+        let (_, margins) = sweep_digital_on(sc, freqs, amplitude_in, false, k);
+        let m = crate::loopmodel::LoopModel::new(
+            &sc.servo_design,
+            sc.file.motor.l_over_r_ms * 1e-3,
+            latency,
+            k,
+        );
+        let (g, gf) = m.learning_factor(rpm);
+        rows.push(StiffnessRow {
+            ke_factor: f,
+            stiffness_lbf_per_in: k,
+            margins,
+            model_peak_sensitivity_db: m.peak_sensitivity_db(1.0, 5000.0, 2000).0,
+            learning_factor: g,
+            learning_factor_hz: gf,
+        });
+    }
+    Ok(rows)
+}
+
+fn run_stiffness_sweep(
+    args: &Args,
+    sc: &crate::scenario::Scenario,
+    freqs: &[f64],
+    amp: f64,
+) -> anyhow::Result<()> {
+    let rows = stiffness_sweep(sc, freqs, amp)?;
+    let mut csv = String::from(
+        "ke_factor,stiffness_lbf_per_in,crossover_hz,phase_margin_deg,gain_margin_db,peak_sensitivity_db,model_peak_sensitivity_db,learning_factor,learning_factor_hz\n",
+    );
+    let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.3}"));
+    for r in &rows {
+        csv.push_str(&format!(
+            "{},{:.1},{},{},{},{:.3},{:.3},{:.4},{:.1}\n",
+            r.ke_factor,
+            r.stiffness_lbf_per_in,
+            o(r.margins.crossover_hz),
+            o(r.margins.phase_margin_deg),
+            o(r.margins.gain_margin_db),
+            r.margins.peak_sensitivity_db,
+            r.model_peak_sensitivity_db,
+            r.learning_factor,
+            r.learning_factor_hz
+        ));
+    }
+    if let Some(path) = &args.csv {
+        crate::outpath::replace(path, &csv)?;
+    }
+    if let Some(path) = &args.svg {
+        crate::outpath::replace_with(path, |tmp| plot_stiffness(tmp, &rows, &sc.file.name))?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "loop": "digital",
+                "scenario": sc.file.name,
+                "rows": rows,
+            }))?
+        );
+    } else if args.csv.is_none() {
+        std::io::stdout().write_all(csv.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn plot_stiffness(path: &Path, rows: &[StiffnessRow], scenario: &str) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    crate::plot::register_font();
+    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, bottom) = root.split_vertically(300);
+    let k1 = rows.last().map_or(1.0, |r| r.stiffness_lbf_per_in).max(1.0);
+    {
+        let mut ch = ChartBuilder::on(&top)
+            .caption(
+                format!("digital loop on {scenario}: peak |S| (dB) against the process stiffness"),
+                ("sans-serif", 18),
+            )
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..k1, 0.0..12.0)?;
+        ch.configure_mesh().x_desc("stiffness (lbf/in)").draw()?;
+        ch.draw_series(LineSeries::new(
+            rows.iter().map(|r| (r.stiffness_lbf_per_in, r.margins.peak_sensitivity_db)),
+            &BLUE,
+        ))?
+        .label("measured (firmware on the rig)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        ch.draw_series(LineSeries::new(
+            rows.iter().map(|r| (r.stiffness_lbf_per_in, r.model_peak_sensitivity_db)),
+            &RED,
+        ))?
+        .label("sampled-data model")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+        ch.configure_series_labels().border_style(BLACK).draw()?;
+    }
+    {
+        let mut ch = ChartBuilder::on(&bottom)
+            .caption("learning: largest factor per revolution (< 1 converges)", ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..k1, 0.5..1.1)?;
+        ch.configure_mesh().x_desc("stiffness (lbf/in)").draw()?;
+        ch.draw_series(LineSeries::new(
+            rows.iter().map(|r| (r.stiffness_lbf_per_in, r.learning_factor)),
+            &BLUE,
+        ))?;
+        ch.draw_series(LineSeries::new([(0.0, 1.0), (k1, 1.0)], &BLACK))?;
+    }
+    root.present()?;
+    Ok(())
+}
+
 fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
     let sc = args.scenario.load()?;
+    if args.stiffness_sweep {
+        let amp = args.amplitude.map_or(DIGITAL_AMPLITUDE_IN, |v| v * 0.001);
+        return run_stiffness_sweep(args, &sc, freqs, amp);
+    }
     let amp = args.amplitude.map_or(DIGITAL_AMPLITUDE_IN, |v| v * 0.001);
     let k = args.process_stiffness;
     let (pts, m) = sweep_digital_on(&sc, freqs, amp, args.rigid, k);
