@@ -69,7 +69,12 @@ impl LoopModel {
     /// The loop of `design` on its slide with the electrical time constant
     /// `l_over_r_s`, a DAC latency `latency_s` after the gauge's sample,
     /// and the part's spring `stiffness_lbf_per_in` on the slide.
-    pub fn new(design: &ServoDesign, l_over_r_s: f64, latency_s: f64, stiffness_lbf_per_in: f64) -> Self {
+    pub fn new(
+        design: &ServoDesign,
+        l_over_r_s: f64,
+        latency_s: f64,
+        stiffness_lbf_per_in: f64,
+    ) -> Self {
         let s = &design.slide;
         let fs = f64::from(design.rate_hz);
         let h = 1.0 / fs;
@@ -129,10 +134,13 @@ impl LoopModel {
         let o = nalgebra::Matrix3::from_rows(&[ca, ca * am, ca * am * am]);
         let id = nalgebra::Matrix3::<f64>::identity();
         let poly = am * am * am - 3.0 * p * am * am + 3.0 * p * p * am - p * p * p * id;
-        let lg = poly * o.try_inverse().expect("observable") * nalgebra::Vector3::new(0.0, 0.0, 1.0);
+        let lg =
+            poly * o.try_inverse().expect("observable") * nalgebra::Vector3::new(0.0, 0.0, 1.0);
 
-        let hum = (design.hum_notch_q > 0.0).then(|| notch(design.hum_notch_hz, fs, design.hum_notch_q));
-        let mode = (design.mode_notch_q > 0.0).then(|| notch(design.mode_notch_hz, fs, design.mode_notch_q));
+        let hum =
+            (design.hum_notch_q > 0.0).then(|| notch(design.hum_notch_hz, fs, design.hum_notch_q));
+        let mode = (design.mode_notch_q > 0.0)
+            .then(|| notch(design.mode_notch_hz, fs, design.mode_notch_q));
 
         // One tick as a linear map of (state, gauge injection, reference).
         // State: plant (3), last output, estimate (3), hum notch (x1, x2,
@@ -272,10 +280,14 @@ impl LoopModel {
             let w = (x.sin() / x).powi(4);
             let z = C::from_polar(1.0, std::f64::consts::TAU * f / fs);
             let lp = C::new(alpha, 0.0) / (C::new(1.0, 0.0) - (1.0 - alpha) * z.inv());
-            let nh = self.hum.as_ref().map_or(C::new(1.0, 0.0), |c| biquad_at(c, z));
+            let nh = self
+                .hum
+                .as_ref()
+                .map_or(C::new(1.0, 0.0), |c| biquad_at(c, z));
             let turn = C::from_polar(1.0, std::f64::consts::TAU * f * lead / f_bin);
-            let g = (q * (C::new(1.0, 0.0)
-                - d.learning_gain * w * turn * nh * lp * self.reference_to_gauge(f)))
+            let g = (q
+                * (C::new(1.0, 0.0)
+                    - d.learning_gain * w * turn * nh * lp * self.reference_to_gauge(f)))
             .norm();
             if g > worst.0 {
                 worst = (g, f);
@@ -291,6 +303,9 @@ impl LoopModel {
                 let f = f_lo * (f_hi / f_lo).powf(i as f64 / (n - 1) as f64);
                 (20.0 * self.sensitivity(f).norm().log10(), f)
             })
-            .fold((f64::NEG_INFINITY, 0.0), |a, b| if b.0 > a.0 { b } else { a })
+            .fold(
+                (f64::NEG_INFINITY, 0.0),
+                |a, b| if b.0 > a.0 { b } else { a },
+            )
     }
 }

@@ -8,7 +8,12 @@ use host_sim::loopmodel::LoopModel;
 
 fn model(sc: &host_sim::scenario::Scenario, k: f64) -> LoopModel {
     let latency = (sc.rig.dac_latency_ns as f64) * 1e-9;
-    LoopModel::new(&sc.servo_design, sc.file.motor.l_over_r_ms * 1e-3, latency, k)
+    LoopModel::new(
+        &sc.servo_design,
+        sc.file.motor.l_over_r_ms * 1e-3,
+        latency,
+        k,
+    )
 }
 
 /// At 6600 lbf/in (k_e × 3 on chapter 5's cut) the firmware on the rig

@@ -785,13 +785,15 @@ fn plot_stiffness(path: &Path, rows: &[StiffnessRow], scenario: &str) -> anyhow:
             .build_cartesian_2d(0.0..k1, 0.0..12.0)?;
         ch.configure_mesh().x_desc("stiffness (lbf/in)").draw()?;
         ch.draw_series(LineSeries::new(
-            rows.iter().map(|r| (r.stiffness_lbf_per_in, r.margins.peak_sensitivity_db)),
+            rows.iter()
+                .map(|r| (r.stiffness_lbf_per_in, r.margins.peak_sensitivity_db)),
             &BLUE,
         ))?
         .label("measured (firmware on the rig)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
         ch.draw_series(LineSeries::new(
-            rows.iter().map(|r| (r.stiffness_lbf_per_in, r.model_peak_sensitivity_db)),
+            rows.iter()
+                .map(|r| (r.stiffness_lbf_per_in, r.model_peak_sensitivity_db)),
             &RED,
         ))?
         .label("sampled-data model")
@@ -800,14 +802,18 @@ fn plot_stiffness(path: &Path, rows: &[StiffnessRow], scenario: &str) -> anyhow:
     }
     {
         let mut ch = ChartBuilder::on(&bottom)
-            .caption("learning: largest factor per revolution (< 1 converges)", ("sans-serif", 18))
+            .caption(
+                "learning: largest factor per revolution (< 1 converges)",
+                ("sans-serif", 18),
+            )
             .margin(10)
             .x_label_area_size(30)
             .y_label_area_size(50)
             .build_cartesian_2d(0.0..k1, 0.5..1.1)?;
         ch.configure_mesh().x_desc("stiffness (lbf/in)").draw()?;
         ch.draw_series(LineSeries::new(
-            rows.iter().map(|r| (r.stiffness_lbf_per_in, r.learning_factor)),
+            rows.iter()
+                .map(|r| (r.stiffness_lbf_per_in, r.learning_factor)),
             &BLUE,
         ))?;
         ch.draw_series(LineSeries::new([(0.0, 1.0), (k1, 1.0)], &BLACK))?;

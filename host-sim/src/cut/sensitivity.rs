@@ -17,7 +17,11 @@ pub const FACTORS: [f64; 7] = [0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0];
 /// (`CuttingParams::thrust_lbf`), `k_t·f + k_e·√(r_t / (2d))`: 2185 lbf/in
 /// at chapter 5's 0.0003 in and 100 µin/rev with the nominal constants. The
 /// slope the loop meets as a spring (docs/TUNING.md).
-pub fn stiffness_lbf_per_in(c: &crate::plant::cutting::CuttingParams, depth_in: f64, feed_in: f64) -> f64 {
+pub fn stiffness_lbf_per_in(
+    c: &crate::plant::cutting::CuttingParams,
+    depth_in: f64,
+    feed_in: f64,
+) -> f64 {
     c.k_t_psi * feed_in + c.k_e_lbf_per_in * (c.tool_radius_in / (2.0 * depth_in)).sqrt()
 }
 
