@@ -129,7 +129,7 @@ fn contour_band(scenario: &str, controller: Controller) -> (f64, f64, Vec<String
 }
 
 /// Brief §6: the simulated second part within ±30 µin on the 1983 machine
-/// (`cargo sim -- --holes filled`: −8.0 .. −0.6 µin) and ±5 µin with the
+/// (`cargo sim -- --holes filled`: −7.9 .. −0.6 µin) and ±5 µin with the
 /// modern gauge (−0.7 .. −0.1, every encoder edge captured as on the
 /// NUCLEO), cutting force and its process stiffness on.
 #[test]
