@@ -13,6 +13,7 @@ pub mod faults;
 pub mod fastmath;
 pub mod fwrig;
 pub mod geometry;
+pub mod loopmodel;
 pub mod machine;
 pub mod outpath;
 pub mod part;

@@ -231,6 +231,7 @@ impl ServoDesign {
         if !(3..=32).contains(&self.learning_lead_bins)
             || !(1..=3).contains(&self.learning_q_shift)
             || !(self.learning_clip_uin > 0.0 && self.learning_clip_uin <= 10_000.0)
+            || !(self.learning_lowpass_hz >= 0.0 && self.learning_lowpass_hz < fs / 10.0)
         {
             return Err(E::Learning);
         }
@@ -287,6 +288,16 @@ impl ServoDesign {
             // ≤ 10 000 µin: 1.34·10⁸ < 2²⁸, the learner's product bound.
             learning_clip_q8: libm::round(self.learning_clip_uin * 1e-6 * cpi * 256.0).max(1.0)
                 as i32,
+            // α = 1 − e^{−2π f h} < 1 − e^{−π/5} = 0.47 (f < rate/10): Q16.
+            learning_lowpass_q16: if self.learning_lowpass_hz > 0.0 {
+                libm::round(
+                    (1.0 - libm::exp(-core::f64::consts::TAU * self.learning_lowpass_hz * h))
+                        * 65_536.0,
+                )
+                .max(1.0) as i32
+            } else {
+                0
+            },
             slew_q16: (codes_per_tick(self.slew_in_per_s) * 65_536.0).max(1.0) as i64,
             slew_accel_q16: (self.slew_accel_in_per_s2 * cpi * h * h * 65_536.0).max(1.0) as i64,
             command_limit_code: (self.command_limit_in * cpi) as i32,
@@ -422,7 +433,7 @@ impl DesignError {
                 "mode_notch_hz/mode_notch_q: frequency in (0, rate/2), q > 0 (0 = off)"
             }
             Self::Learning => {
-                "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=3 (a weaker Q-filter leaves the harmonics the lead turns past 90° unstable), learning_clip_uin in (0, 10000]"
+                "learning_gain in [0, 1), learning_lead_bins 3..=32, learning_q_shift 1..=3 (a weaker Q-filter leaves the harmonics the lead turns past 90° unstable), learning_clip_uin in (0, 10000], learning_lowpass_hz in [0, rate_hz / 10) (0 = off)"
             }
             Self::Slew => "slew_in_per_s in (0, 10], slew_accel_in_per_s2 in (0, 1000]",
             Self::CommandLimit => "command_limit_in: must be in (0, 0.010]",
@@ -460,6 +471,9 @@ pub struct ServoConfig {
     /// The clip on the error the learning takes in, gauge codes Q8
     /// (`learning_clip_uin`; `servo::repetitive`).
     pub learning_clip_q8: i32,
+    /// The learning's low-pass on the error, `α = 1 − e^{−2π f h}` Q16
+    /// (`learning_lowpass_hz`; 0 = off; `servo::repetitive`).
+    pub learning_lowpass_q16: i32,
     /// Largest command step per tick, gauge codes Q16.
     pub slew_q16: i64,
     /// Largest change of that step per tick, gauge codes Q16.

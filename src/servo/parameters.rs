@@ -98,6 +98,10 @@ macro_rules! servo_parameters {
                     "Duration of each half of the sign check's doublet, ms."),
                 (31, learning_clip_uin, f64, "uin", 300.0, 1.0, 10_000.0,
                     "Repetitive learning: the error it takes in is clipped to ± this, µin, so one revolution moves the learned correction by at most `learning_gain` × this (what a one-off transient can be replayed by); a periodic error beyond it is still learned, at that rate. Above the largest periodic error of the cut before it is learned (an interrupted cut's edges): docs/TUNING.md."),
+                // 40, not the next free id: the contour monitoring's
+                // parameters take 32.. on a parallel branch.
+                (40, learning_lowpass_hz, f64, "Hz (0 = off)", 80.0, 0.0, 1000.0,
+                    "Repetitive learning: first-order low-pass on the error it takes in, Hz (0 = off). Its lag takes back the lead's excess above ≈ 60 Hz, where the engaged part's spring turns the loop's phase forward: the learning converges at every harmonic from in air to 11 000 lbf/in (k_e × 5), docs/TUNING.md."),
             }
             slide {
                 (24, motor_kf_lbf_per_a, kf_lbf_per_a, f64, "lbf/A", 2.9, 0.1, 100.0,

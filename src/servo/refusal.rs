@@ -93,11 +93,13 @@ impl fmt::Display for Refusal<'_> {
             ),
             E::Learning => write!(
                 f,
-                "learning_gain = {} in [0, 1), learning_lead_bins = {} in 3..=32, learning_q_shift = {} in 1..=3, learning_clip_uin = {} in (0, 10000]: {}",
+                "learning_gain = {} in [0, 1), learning_lead_bins = {} in 3..=32, learning_q_shift = {} in 1..=3, learning_clip_uin = {} in (0, 10000], learning_lowpass_hz = {} in [0, rate_hz / 10 = {}): {}",
                 d.learning_gain,
                 d.learning_lead_bins,
                 d.learning_q_shift,
                 d.learning_clip_uin,
+                d.learning_lowpass_hz,
+                fs / 10.0,
                 E::Learning.reason()
             ),
             E::Slew => write!(

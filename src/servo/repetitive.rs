@@ -24,6 +24,13 @@
 //! revolution whatever the speed.
 //!
 //! Robustness: the lead (in bins) compensates the loop's residual lag; the
+//! error taken in passes a first-order low-pass (`learning_lowpass_hz`,
+//! 80 Hz): the minimum lead, 3 bins, is 105° at the 25th harmonic (125 Hz
+//! at 300 rpm), more than the loop's own lag there, and the engaged part's
+//! spring turns the loop's phase further forward around 100..200 Hz; the
+//! low-pass's lag (−57° at 125 Hz, and −31° .. −7° for harmonics 10..2,
+//! where the lead gives +42° .. +8°) keeps the learning's turn below 90°
+//! where its gain is not small (docs/TUNING.md, "The process spring"); the
 //! Q-filter `t[k] += (t[k−1] − 2t[k] + t[k+1]) / 2^shift`, applied twice
 //! to each bin per revolution when it is complete (for shift 2 the kernel
 //! [1 4 6 4 1]/16: gain cos⁴(πh/256) at harmonic h, 0.9976 at h = 2,
@@ -452,12 +459,28 @@ pub struct Learner {
     /// The hum notch on the error (at 300 rpm the 120 Hz hum is exactly
     /// the 24th spindle harmonic: learned, it would move the slide).
     hum: Option<Notch>,
+    /// The low-pass on the error: `α` Q16 (0 = off) and its output,
+    /// codes Q8 ([`lowpass`]).
+    lowpass_q16: i32,
+    lowpass_q8: i32,
     last_bin: Option<usize>,
     frozen: Option<Freeze>,
     /// Ticks to stay frozen after a jump.
     hold: u32,
     hold_reason: Freeze,
     passes: u32,
+}
+
+/// One step of the learning's first-order low-pass, `y ← y + α·(x − y)`:
+/// `y`, `x` codes Q8, `α` Q16 in (0, 2¹⁶]. `y` stays between its last value
+/// and `x` (a convex combination, rounded), so it never leaves the range of
+/// its inputs and the clip's bound (`learning_clip_uin`) holds after it as
+/// before. The rounding leaves `y` short of a constant `x` by at most
+/// 2¹⁵/α LSB (20 LSB, 0.0015 µin, at 80 Hz and 20 kHz).
+#[inline(always)]
+fn lowpass(y_q8: i32, x_q8: i32, alpha_q16: i32) -> i32 {
+    let d = i64::from(x_q8) - i64::from(y_q8);
+    y_q8 + ((d * i64::from(alpha_q16) + (1 << 15)) >> 16) as i32
 }
 
 impl Learner {
@@ -470,6 +493,8 @@ impl Learner {
             q_shift: cfg.learning_q_shift.clamp(1, 16),
             clip_q8: cfg.learning_clip_q8.clamp(1, 1 << 28),
             hum: cfg.hum_notch.map(Notch::from_bits),
+            lowpass_q16: cfg.learning_lowpass_q16.clamp(0, 65_536),
+            lowpass_q8: 0,
             last_bin: None,
             frozen: if gain_q16 > 0 {
                 None
@@ -491,6 +516,7 @@ impl Learner {
             table.clear();
             self.last_bin = None;
             self.passes = 0;
+            self.lowpass_q8 = 0;
         }
         if let Some((reason, ticks)) = r.held() {
             self.hold_for(reason, ticks);
@@ -498,6 +524,12 @@ impl Learner {
         let error_q8 = match &mut self.hum {
             Some(n) => n.process(s.error_q8()),
             None => s.error_q8(),
+        };
+        let error_q8 = if self.lowpass_q16 > 0 {
+            self.lowpass_q8 = lowpass(self.lowpass_q8, error_q8, self.lowpass_q16);
+            self.lowpass_q8
+        } else {
+            error_q8
         };
         match s.angle() {
             Some((phi, dphi)) => self.learn(table, phi, dphi, error_q8, s.freeze()),
@@ -611,6 +643,28 @@ mod tests {
     use super::*;
 
     const TURN: f64 = 4_294_967_296.0;
+
+    /// The learning's low-pass follows a step as its closed form
+    /// `y_n = x·(1 − (1 − α)ⁿ)`, within the rounding's bound: each step
+    /// rounds by ≤ ½ LSB and the filter forgets it by (1 − α) a step, so
+    /// the error stays below ½/α LSB (20 LSB at 80 Hz, 20 kHz).
+    #[test]
+    fn learning_lowpass_follows_the_closed_form_step() {
+        let alpha_q16 = 1_626; // 1 − e^{−2π·80/20000}
+        let a = f64::from(alpha_q16) / 65_536.0;
+        let x = 3 << 20;
+        let mut y = 0;
+        for n in 1..=3_000 {
+            y = lowpass(y, x, alpha_q16);
+            let exact = f64::from(x) * (1.0 - (1.0 - a).powi(n));
+            assert!(
+                (f64::from(y) - exact).abs() <= 0.5 / a + 1.0,
+                "n {n}: {y} vs {exact}"
+            );
+        }
+        // Never past its input: the clip's bound holds after it.
+        assert!(y <= x);
+    }
 
     /// A learner of the default design at 20 kHz with these learning
     /// parameters and no hum notch.

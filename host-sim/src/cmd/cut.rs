@@ -92,7 +92,7 @@ pub struct Args {
     #[arg(long)]
     pub budget: bool,
     /// The force model's sensitivity instead of one cut: the contour band
-    /// with k_t and k_e each scaled × 0.1 .. × 2 (`cut::sensitivity`).
+    /// with k_t and k_e each scaled × 0.25 .. × 4 (`cut::sensitivity`).
     #[arg(long, conflicts_with = "budget")]
     pub force_sensitivity: bool,
     /// Measure the hole zone: the surface across the bolt circle's ring on

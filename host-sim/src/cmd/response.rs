@@ -79,6 +79,19 @@ pub struct Args {
     /// peak; for the digital loop the margins) instead of the CSV on stdout.
     #[arg(long)]
     pub json: bool,
+    /// The process stiffness on the slide, lbf/in (digital loop only): the
+    /// engaged part as a spring, `F = −k·(z − z₀)` on the slide carriage,
+    /// updated at every loop tick as the cut's force is (0 = in air; the
+    /// force model's value at the scenario's depth of cut and feed:
+    /// `cut::stiffness`, ≈ 2200 lbf/in at the nominal k_e).
+    #[arg(long, default_value_t = 0.0)]
+    pub process_stiffness: f64,
+    /// Instead of one sweep: the margins over the process stiffness, from
+    /// in air to k_e × 5 of the scenario's force model (`cut::stiffness`),
+    /// with the learning's convergence factor at each (JSON rows; `--svg`
+    /// plots them against the stiffness, `--csv` writes the rows).
+    #[arg(long)]
+    pub stiffness_sweep: bool,
     /// Scenario (the digital loop's plant and `[servo]` design).
     #[command(flatten)]
     pub scenario: crate::scenario::ScenarioArg,
@@ -207,6 +220,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     let freqs = log_freqs(args.f_min, args.f_max, args.points);
+    anyhow::ensure!(
+        args.process_stiffness.is_finite() && args.process_stiffness >= 0.0,
+        "--process-stiffness {}: need a finite stiffness >= 0 lbf/in",
+        args.process_stiffness
+    );
+    anyhow::ensure!(
+        args.which == Loop::Digital || (args.process_stiffness == 0.0 && !args.stiffness_sweep),
+        "--process-stiffness and --stiffness-sweep apply to --loop digital only"
+    );
     if args.which == Loop::Digital {
         return run_digital(&args, &freqs);
     }
@@ -380,6 +402,21 @@ pub fn measure_digital(
     amplitude_in: f64,
     rigid: bool,
 ) -> LoopPoint {
+    measure_digital_on(sc, f_hz, amplitude_in, rigid, 0.0)
+}
+
+/// [`measure_digital`] with the tool engaged in a part of stiffness
+/// `stiffness_lbf_per_in`: from the injection's start the slide carriage
+/// carries `F = −k·(z − z₀)` (z₀ where it stood then), set before every
+/// loop tick as the cut sets its force (`cut::run`), so the spring is
+/// sampled as the board's cut samples it.
+pub fn measure_digital_on(
+    sc: &crate::scenario::Scenario,
+    f_hz: f64,
+    amplitude_in: f64,
+    rigid: bool,
+    stiffness_lbf_per_in: f64,
+) -> LoopPoint {
     use crate::fwrig::{firmware_with, FirmwareWorld};
     use crate::plant::GaugeParams;
     use crate::sched::Periodic;
@@ -394,8 +431,9 @@ pub fn measure_digital(
     let wr = std::f64::consts::TAU * f_hz;
     let t0 = 200_000_000u64;
     s.run_until(&mut w, t0);
-    // The injection is set just before each conversion (higher priority
-    // than the tick at the same instant).
+    let z0 = w.rig.slide.position_in();
+    // The injection (and the spring's force) is set just before each
+    // conversion (higher priority than the tick at the same instant).
     s.add(Periodic::new(
         "injection",
         255,
@@ -404,6 +442,10 @@ pub fn measure_digital(
         move |t, w: &mut FirmwareWorld| {
             let tt = (t - t0) as f64 * 1e-9;
             w.rig.gauge_injection_in = amplitude_in * (wr * tt).sin();
+            if stiffness_lbf_per_in != 0.0 {
+                let z = w.rig.slide.position_in();
+                w.rig.set_force_lbf(-stiffness_lbf_per_in * (z - z0));
+            }
         },
     ));
     let settle = (0.3f64).max(10.0 / f_hz);
@@ -592,11 +634,21 @@ pub fn sweep_digital(
     amplitude_in: f64,
     rigid: bool,
 ) -> (Vec<LoopPoint>, Margins) {
-    let pts: Vec<LoopPoint> = freqs
-        .iter()
-        .map(|&f| measure_digital(sc, f, amplitude_in, rigid))
-        .collect();
-    let m = margins_refined(&pts, &|f| measure_digital(sc, f, amplitude_in, rigid));
+    sweep_digital_on(sc, freqs, amplitude_in, rigid, 0.0)
+}
+
+/// [`sweep_digital`] with the tool engaged in a part of stiffness
+/// `stiffness_lbf_per_in` ([`measure_digital_on`]).
+pub fn sweep_digital_on(
+    sc: &crate::scenario::Scenario,
+    freqs: &[f64],
+    amplitude_in: f64,
+    rigid: bool,
+    stiffness_lbf_per_in: f64,
+) -> (Vec<LoopPoint>, Margins) {
+    let at = |f: f64| measure_digital_on(sc, f, amplitude_in, rigid, stiffness_lbf_per_in);
+    let pts: Vec<LoopPoint> = freqs.iter().map(|&f| at(f)).collect();
+    let m = margins_refined(&pts, &at);
     (pts, m)
 }
 
@@ -604,10 +656,181 @@ pub fn sweep_digital(
 /// inside the gauge's range and above its quantisation.
 pub const DIGITAL_AMPLITUDE_IN: f64 = 20e-6;
 
+/// One row of `response --loop digital --stiffness-sweep`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StiffnessRow {
+    /// The force model's k_e scale (0: in air).
+    pub ke_factor: f64,
+    pub stiffness_lbf_per_in: f64,
+    /// Measured through the firmware on the rig (`sweep_digital_on`).
+    pub margins: Margins,
+    /// The sampled-data model's largest |S| (`loopmodel`), dB.
+    pub model_peak_sensitivity_db: f64,
+    /// The learning's largest revolution-to-revolution factor over the
+    /// spindle harmonics at the scenario's speed (< 1: it converges), and
+    /// where, Hz (`loopmodel::LoopModel::learning_factor`).
+    pub learning_factor: f64,
+    pub learning_factor_hz: f64,
+}
+
+/// The k_e scales of the stiffness sweep: in air to k_e × 5.
+pub const STIFFNESS_SWEEP_KE: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0];
+
+/// The margins over the process stiffness of chapter 5's cut on `sc`.
+pub fn stiffness_sweep(
+    sc: &crate::scenario::Scenario,
+    freqs: &[f64],
+    amplitude_in: f64,
+) -> anyhow::Result<Vec<StiffnessRow>> {
+    let spec = crate::cut::CutSpec::chapter5(
+        sc.clone(),
+        crate::cut::Controller::Digital,
+        None,
+        None,
+        false,
+    )?;
+    let latency = sc.rig.dac_latency_ns as f64 * 1e-9;
+    let rpm = sc.file.spindle.rpm;
+    let mut rows = Vec::new();
+    for f in STIFFNESS_SWEEP_KE {
+        let mut c = sc.cutting.clone();
+        c.k_e_lbf_per_in *= f;
+        let k = if f == 0.0 {
+            0.0
+        } else {
+            crate::cut::sensitivity::stiffness_lbf_per_in(&c, spec.depth_in, spec.feed_per_rev_in)
+        };
+        let (_, margins) = sweep_digital_on(sc, freqs, amplitude_in, false, k);
+        let m = crate::loopmodel::LoopModel::new(
+            &sc.servo_design,
+            sc.file.motor.l_over_r_ms * 1e-3,
+            latency,
+            k,
+        );
+        let (g, gf) = m.learning_factor(rpm);
+        rows.push(StiffnessRow {
+            ke_factor: f,
+            stiffness_lbf_per_in: k,
+            margins,
+            model_peak_sensitivity_db: m.peak_sensitivity_db(1.0, 5000.0, 2000).0,
+            learning_factor: g,
+            learning_factor_hz: gf,
+        });
+    }
+    Ok(rows)
+}
+
+fn run_stiffness_sweep(
+    args: &Args,
+    sc: &crate::scenario::Scenario,
+    freqs: &[f64],
+    amp: f64,
+) -> anyhow::Result<()> {
+    let rows = stiffness_sweep(sc, freqs, amp)?;
+    let mut csv = String::from(
+        "ke_factor,stiffness_lbf_per_in,crossover_hz,phase_margin_deg,gain_margin_db,peak_sensitivity_db,model_peak_sensitivity_db,learning_factor,learning_factor_hz\n",
+    );
+    let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.3}"));
+    for r in &rows {
+        csv.push_str(&format!(
+            "{},{:.1},{},{},{},{:.3},{:.3},{:.4},{:.1}\n",
+            r.ke_factor,
+            r.stiffness_lbf_per_in,
+            o(r.margins.crossover_hz),
+            o(r.margins.phase_margin_deg),
+            o(r.margins.gain_margin_db),
+            r.margins.peak_sensitivity_db,
+            r.model_peak_sensitivity_db,
+            r.learning_factor,
+            r.learning_factor_hz
+        ));
+    }
+    if let Some(path) = &args.csv {
+        crate::outpath::replace(path, &csv)?;
+    }
+    if let Some(path) = &args.svg {
+        crate::outpath::replace_with(path, |tmp| plot_stiffness(tmp, &rows, &sc.file.name))?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "loop": "digital",
+                "scenario": sc.file.name,
+                "rows": rows,
+            }))?
+        );
+    } else if args.csv.is_none() {
+        std::io::stdout().write_all(csv.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn plot_stiffness(path: &Path, rows: &[StiffnessRow], scenario: &str) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    crate::plot::register_font();
+    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, bottom) = root.split_vertically(300);
+    let k1 = rows.last().map_or(1.0, |r| r.stiffness_lbf_per_in).max(1.0);
+    {
+        let mut ch = ChartBuilder::on(&top)
+            .caption(
+                format!("digital loop on {scenario}: peak |S| (dB) against the process stiffness"),
+                ("sans-serif", 18),
+            )
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..k1, 0.0..12.0)?;
+        ch.configure_mesh().x_desc("stiffness (lbf/in)").draw()?;
+        ch.draw_series(LineSeries::new(
+            rows.iter()
+                .map(|r| (r.stiffness_lbf_per_in, r.margins.peak_sensitivity_db)),
+            &BLUE,
+        ))?
+        .label("measured (firmware on the rig)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        ch.draw_series(LineSeries::new(
+            rows.iter()
+                .map(|r| (r.stiffness_lbf_per_in, r.model_peak_sensitivity_db)),
+            &RED,
+        ))?
+        .label("sampled-data model")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+        ch.configure_series_labels().border_style(BLACK).draw()?;
+    }
+    {
+        let mut ch = ChartBuilder::on(&bottom)
+            .caption(
+                "learning: largest factor per revolution (< 1 converges)",
+                ("sans-serif", 18),
+            )
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..k1, 0.5..1.1)?;
+        ch.configure_mesh().x_desc("stiffness (lbf/in)").draw()?;
+        ch.draw_series(LineSeries::new(
+            rows.iter()
+                .map(|r| (r.stiffness_lbf_per_in, r.learning_factor)),
+            &BLUE,
+        ))?;
+        ch.draw_series(LineSeries::new([(0.0, 1.0), (k1, 1.0)], &BLACK))?;
+    }
+    root.present()?;
+    Ok(())
+}
+
 fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
     let sc = args.scenario.load()?;
+    if args.stiffness_sweep {
+        let amp = args.amplitude.map_or(DIGITAL_AMPLITUDE_IN, |v| v * 0.001);
+        return run_stiffness_sweep(args, &sc, freqs, amp);
+    }
     let amp = args.amplitude.map_or(DIGITAL_AMPLITUDE_IN, |v| v * 0.001);
-    let (pts, m) = sweep_digital(&sc, freqs, amp, args.rigid);
+    let k = args.process_stiffness;
+    let (pts, m) = sweep_digital_on(&sc, freqs, amp, args.rigid, k);
     let mut csv =
         String::from("f_hz,s_mag_db,s_phase_deg,t_mag_db,t_phase_deg,l_mag_db,l_phase_deg\n");
     for p in &pts {
@@ -635,6 +858,7 @@ fn run_digital(args: &Args, freqs: &[f64]) -> anyhow::Result<()> {
             serde_json::to_string_pretty(&serde_json::json!({
                 "loop": "digital",
                 "scenario": sc.file.name,
+                "process_stiffness_lbf_per_in": k,
                 "points": pts.len(),
                 "margins": m,
             }))?

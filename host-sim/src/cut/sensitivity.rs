@@ -2,13 +2,28 @@
 //! force model's two constants scaled, one at a time. k_t (thrust per unit
 //! chip area) and k_e (the edge's rubbing force per unit contact length)
 //! rest on one datum (brief §2: the force measured at one depth and feed),
-//! so each is swept over × 0.1 .. × 2 with the other at its value; every run
-//! has the same seeds as the nominal one.
+//! so each is swept over × 0.25 .. × 4 with the other at its value; every
+//! run has the same seeds as the nominal one. k_e sets the engaged part's
+//! stiffness (`stiffness_lbf_per_in`), the loop's uncertain plant parameter
+//! (docs/TUNING.md, "The process spring").
 
 use super::{run_pass, CutSpec, Extras};
 
 /// The factors swept.
-pub const FACTORS: [f64; 5] = [0.1, 0.5, 1.0, 1.5, 2.0];
+pub const FACTORS: [f64; 7] = [0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0];
+
+/// The engaged part's stiffness against the tool, lbf/in: the slope of the
+/// force model's steady thrust at depth of cut `depth_in` and feed `feed_in`
+/// (`CuttingParams::thrust_lbf`), `k_t·f + k_e·√(r_t / (2d))`: 2185 lbf/in
+/// at chapter 5's 0.0003 in and 100 µin/rev with the nominal constants. The
+/// slope the loop meets as a spring (docs/TUNING.md).
+pub fn stiffness_lbf_per_in(
+    c: &crate::plant::cutting::CuttingParams,
+    depth_in: f64,
+    feed_in: f64,
+) -> f64 {
+    c.k_t_psi * feed_in + c.k_e_lbf_per_in * (c.tool_radius_in / (2.0 * depth_in)).sqrt()
+}
 
 /// One run of the sweep.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -22,6 +37,8 @@ pub struct Row {
     pub band_max_uin: f64,
     pub following_error_rms_uin: f64,
     pub mean_force_lbf: f64,
+    /// The engaged part's stiffness at this scale (`stiffness_lbf_per_in`).
+    pub stiffness_lbf_per_in: f64,
     pub faults: Vec<String>,
 }
 
@@ -55,6 +72,11 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Vec<Row>> 
                 band_max_uin: hi,
                 following_error_rms_uin: o.following_error_rms_uin,
                 mean_force_lbf: o.mean_force_lbf,
+                stiffness_lbf_per_in: stiffness_lbf_per_in(
+                    &s.scenario.cutting,
+                    s.depth_in,
+                    s.feed_per_rev_in,
+                ),
                 faults: o.faults,
             });
         }
@@ -77,15 +99,16 @@ pub fn table(spec: &CutSpec, rows: &[Row]) -> String {
     );
     let _ = writeln!(
         o,
-        "{:<10} {:>10} {:>20} {:>10} {:>12}  faults",
-        "constant", "value", "contour band, µin", "p-v µin", "FE RMS µin"
+        "{:<10} {:>12} {:>10} {:>20} {:>10} {:>12}  faults",
+        "constant", "value", "lbf/in", "contour band, µin", "p-v µin", "FE RMS µin"
     );
     for r in rows {
         let _ = writeln!(
             o,
-            "{:<10} {:>10} {:>20} {:>10.1} {:>12.1}  {}",
+            "{:<10} {:>12} {:>10.0} {:>20} {:>10.1} {:>12.1}  {}",
             format!("{} × {}", r.constant, r.factor),
-            format!("{:.4}", r.value),
+            format!("{:.1}", r.value),
+            r.stiffness_lbf_per_in,
             format!("{:.1} .. {:.1}", r.band_min_uin, r.band_max_uin),
             r.band_max_uin - r.band_min_uin,
             r.following_error_rms_uin,
