@@ -17,6 +17,7 @@ use crate::command::expansion::{rate_step, Expansion};
 use crate::command::{Coefficients, CommandGen};
 use crate::handoff::ahead::Ahead;
 use crate::handoff::Shared;
+use crate::servo::monitor::Monitor;
 use crate::servo::{Learner, ServoConfig};
 use crate::units::SpindleAngle;
 
@@ -30,6 +31,8 @@ pub struct LearnState {
     /// never the four it reads: `servo::repetitive`).
     ahead: AheadState,
     learner: Learner,
+    /// Contour monitoring on the same samples (`servo::monitor`).
+    monitor: Monitor,
     /// The ring's lost-sample count when last seen.
     lost_seen: u32,
 }
@@ -43,6 +46,7 @@ impl LearnState {
         Self {
             ahead: AheadState::new(gen, x_published),
             learner: Learner::new(cfg),
+            monitor: Monitor::new(cfg.monitor),
             lost_seen: 0,
         }
     }
@@ -62,10 +66,22 @@ impl LearnState {
         }
         while let Some(s) = sh.learn_queue().pop() {
             self.learner.apply(&s, sh.learned());
+            if let Some(f) = self.monitor.sample(&s) {
+                sh.raise_monitor(f);
+            }
         }
         // After the samples: the learned correction it expands is the
         // table the next tick would have read itself.
+        let x_seen = self.ahead.coeff_seen;
         self.ahead.run(sh);
+        if self.ahead.coeff_seen != x_seen {
+            self.monitor.new_x();
+        }
+    }
+
+    /// Contour monitoring's state.
+    pub fn monitor(&self) -> &Monitor {
+        &self.monitor
     }
 
     /// The evaluation ahead of the tick (the coefficients it holds).

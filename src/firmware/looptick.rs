@@ -9,7 +9,7 @@ use crate::command::expansion::Expansion;
 use crate::command::setpoint::{setpoint, SetpointState};
 use crate::command::{Coefficients, CommandGen};
 use crate::handoff::ahead::{Ahead, MAX_AGE};
-use crate::handoff::{Request, Shared, X_FAULTS};
+use crate::handoff::{Request, Shared, MONITOR_FAULTS, X_FAULTS};
 use crate::hw::{AmplifierDac, EncoderSample, GaugeAdc};
 use crate::safety::{Clearing, Device, Fault, Reaction};
 use crate::servo::{Freeze, Phase, Reference, Servo, ServoConfig, ServoInput, ServoOutput};
@@ -81,6 +81,11 @@ pub struct LoopState {
     pub(crate) fallback_seen: u32,
     pub(crate) index_seen: u32,
     pub(crate) x_faults_seen: u32,
+    /// Contour monitoring's word when last seen (`Shared::monitor_fault`).
+    pub(crate) monitor_seen: u32,
+    /// Where a latched fault's reaction takes the command, gauge codes:
+    /// null, or the retract (`Reaction::Retract`).
+    pub(crate) fault_goal: i32,
     /// The angle history of the setpoint's rates.
     pub(crate) sp: SetpointState,
     /// The table command was live (not null) on the last tick.
@@ -135,6 +140,8 @@ impl LoopState {
             fallback_seen: 0,
             index_seen: 0,
             x_faults_seen: 0,
+            monitor_seen: 0,
+            fault_goal: 0,
             sp: SetpointState::default(),
             command_live: false,
             last_coeff_x: None,
@@ -162,7 +169,14 @@ impl LoopState {
     pub fn trip(&mut self, fault: Fault) {
         match self.fault {
             Some(f) if f.reaction() >= fault.reaction() => {}
-            _ => self.fault = Some(fault),
+            _ => {
+                self.fault = Some(fault);
+                self.fault_goal = if fault.reaction() == Reaction::Retract {
+                    self.servo.config().monitor.retract_code
+                } else {
+                    0
+                };
+            }
         }
     }
 
@@ -185,6 +199,11 @@ impl LoopState {
                     self.trip(f);
                 }
             }
+        }
+        let m = sh.monitor_fault();
+        if m != self.monitor_seen {
+            self.monitor_seen = m;
+            self.monitor_latch(m);
         }
         match sh.take_index(&mut self.index_seen) {
             Ok(None) => {}
@@ -224,6 +243,17 @@ impl LoopState {
                 }
                 Ok(None) => {}
             }
+        }
+    }
+
+    /// Latches the contour-monitoring fault whose code `m` carries: rare,
+    /// so out of line.
+    #[cold]
+    #[inline(never)]
+    fn monitor_latch(&mut self, m: u32) {
+        let code = (m & 0xff) as usize;
+        if let Some(&f) = MONITOR_FAULTS.get(code.wrapping_sub(1)) {
+            self.trip(f);
         }
     }
 
@@ -368,8 +398,12 @@ impl LoopState {
         self.ff_q16 = slope;
         self.accel_q16 = accel;
         let reference = if self.fault.is_some() {
-            // RampToNull: the loop stays closed and ramps to null.
-            Reference::default()
+            // RampToNull: the loop stays closed and ramps to null;
+            // Retract: to the retract, out of the stock.
+            Reference {
+                code: self.fault_goal,
+                ..Reference::default()
+            }
         } else {
             // The target offset's own rate (a user signal, clean) joins the
             // table's analytic rate in the velocity feedforward when it is a

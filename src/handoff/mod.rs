@@ -84,6 +84,15 @@ pub(crate) fn x_fault_bit(f: Fault) -> u32 {
     }
 }
 
+/// The faults contour monitoring raises (`servo::monitor`), by their
+/// code in [`Shared::monitor_fault`]'s low byte (code k: entry k − 1).
+pub(crate) const MONITOR_FAULTS: [Fault; 4] = [
+    Fault::DepthGuard,
+    Fault::Oscillation,
+    Fault::GaugeFrozen,
+    Fault::XStalled,
+];
+
 pub(crate) const X_FAULTS: [(u32, Fault); 4] = [
     (XF_OUTSIDE, Fault::XOutsideTable),
     (XF_STORM, Fault::XGlitchStorm),
@@ -106,6 +115,10 @@ pub struct Shared {
     x_ignored: AtomicU32,
     /// Operator requests ([`Request`] bits), taken by the next loop tick.
     requests: AtomicU32,
+    /// Contour monitoring's last fault (learning handler → loop tick):
+    /// a count of raises above the fault's code (`MONITOR_FAULTS`), so
+    /// that the same fault raised again after a clear is seen again.
+    monitor: AtomicU32,
     /// The learned correction table (written by the learner).
     learned: LearnedTable,
     /// The tick's samples for the learner.
@@ -155,6 +168,7 @@ impl Shared {
             x_accepted: AtomicU32::new(0),
             x_ignored: AtomicU32::new(0),
             requests: AtomicU32::new(0),
+            monitor: AtomicU32::new(0),
             learned: LearnedTable::new(),
             learn: LearnQueue::new(),
             ahead: AheadHandoff::new(),
@@ -248,6 +262,23 @@ impl Shared {
     /// Sets the X handler's bit for `f`.
     pub(crate) fn raise(&self, f: Fault) {
         self.x_faults.fetch_or(x_fault_bit(f), Ordering::Relaxed);
+    }
+    /// Contour monitoring's word: raises so far (bits 8..) and the last
+    /// fault's code (bits 0..7); the loop tick latches it when it changes.
+    #[inline(always)]
+    pub(crate) fn monitor_fault(&self) -> u32 {
+        self.monitor.load(Ordering::Relaxed)
+    }
+    /// Raises a contour-monitoring fault (the learning handler, the only
+    /// writer: a load and a store).
+    pub(crate) fn raise_monitor(&self, f: Fault) {
+        let code = MONITOR_FAULTS
+            .iter()
+            .position(|&m| m == f)
+            .map_or(0, |k| k as u32 + 1);
+        let n = self.monitor.load(Ordering::Relaxed) >> 8;
+        self.monitor
+            .store(n.wrapping_add(1) << 8 | code, Ordering::Relaxed);
     }
     /// Counts an accepted legacy X event (the X handler, the only writer:
     /// a load and a store, no read-modify-write loop).

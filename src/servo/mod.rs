@@ -40,12 +40,13 @@ pub mod engage;
 pub mod filters;
 pub(crate) mod fixed;
 pub mod limits;
+pub mod monitor;
 pub mod observer;
 pub mod parameters;
 pub mod refusal;
 pub mod repetitive;
 
-pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};
+pub use design::{DesignError, MonitorConfig, ServoConfig, ServoDesign, SlideModel};
 pub use engage::Phase;
 pub use repetitive::{
     Correction, CorrectionAhead, Freeze, LearnRequests, LearnSample, LearnedTable, Learner,
@@ -418,7 +419,8 @@ impl Servo {
             input.angle,
             freeze,
             core::mem::take(&mut self.learn_req),
-        );
+        )
+        .with_gauge(input.gauge_code);
         let (fb_q8, ff_q8) = self.control(&est, reference, v_ref, a_ref);
         // The hum notch acts on the feedback only: what the loop corrects
         // from the gauge loses its 120 Hz, while the feedforward (the

@@ -98,6 +98,16 @@ macro_rules! servo_parameters {
                     "Duration of each half of the sign check's doublet, ms."),
                 (31, learning_clip_uin, f64, "uin", 300.0, 1.0, 10_000.0,
                     "Repetitive learning: the error it takes in is clipped to ± this, µin, so one revolution moves the learned correction by at most `learning_gain` × this (what a one-off transient can be replayed by); a periodic error beyond it is still learned, at that rate. Above the largest periodic error of the cut before it is learned (an interrupted cut's edges): docs/TUNING.md."),
+                (32, depth_guard_uin, f64, "uin", 150.0, 1.0, 10_000.0,
+                    "Contour monitoring: the tool below the command, toward the stock (opposite `retract_z_in`), by more than this for 3 ticks is `DepthGuard` (retract), µin. Half the chapter-5 depth of cut (300 µin): the other half is the retract's stopping distance (docs/SAFETY.md)."),
+                (33, oscillation_uin, f64, "uin RMS", 40.0, 0.1, 10_000.0,
+                    "Contour monitoring: the following error's RMS about its slow mean, over a 12.8 ms window (256 ticks at 20 kHz), above this is `Oscillation` (retract), µin RMS. Above the cut's own following error (legacy-hw 2.4 µin RMS, 13 µin peak) by the error budget's factor (docs/SAFETY.md)."),
+                (34, gauge_frozen_ms, f64, "ms", 5.0, 0.1, 1_000.0,
+                    "Contour monitoring: the gauge's code unchanged for this long while the loop is closed is `GaugeFrozen` (amplifier off), ms. A 20-bit reading with ≥ 0.2 µin RMS noise (10 codes) repeats a code on the next tick with probability < 3 %."),
+                (35, x_stall_revs, u32, "rev (0 = off)", 0, 0.0, 10_000.0,
+                    "Contour monitoring: revolutions with the table command live and no new X before `XStalled` (retract); 0 = off, the default: only the part program knows that X feeds (a dwell is legal). 20 for a pass that feeds ≥ 25 µin/rev: four half-mil X steps at the finishing feed of 100 µin/rev."),
+                (36, retract_z_in, f64, "in", 0.009, -0.010, 0.010,
+                    "Where the command goes on a `Retract` fault, in along +Z; its sign names the side away from the stock (chapter 5's stock lies toward −Z, `cut.part_side = −1`), which the depth guard watches the other way."),
             }
             slide {
                 (24, motor_kf_lbf_per_a, kf_lbf_per_a, f64, "lbf/A", 2.9, 0.1, 100.0,

@@ -136,7 +136,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return run_sweep(&spec, &name, n as usize, args.seed, args.x_in, args.json);
     }
     let cases: Vec<Case> = if args.fault.is_empty() {
-        Case::ALL.to_vec()
+        Case::ALL.iter().chain(&Case::PROCESS).copied().collect()
     } else {
         args.fault.clone()
     };

@@ -71,6 +71,10 @@ pub enum Case {
     StalledLoop,
     Panic,
     MalformedHostFrame,
+    EdgeForceX2,
+    EdgeForceX4,
+    GaugeFrozen,
+    XCountStopped,
 }
 
 impl Case {
@@ -95,6 +99,18 @@ impl Case {
         Case::MalformedHostFrame,
     ];
 
+    /// The process rows (contour monitoring, issue 30): the cut itself
+    /// changes under the loop, or its X or gauge stops following it. Apart
+    /// from [`Case::ALL`], whose rows are each a fault the firmware must
+    /// latch: a doubled edge force the loop rides out within the depth of
+    /// cut needs no fault (`host-sim/tests/faults_process.rs`).
+    pub const PROCESS: [Case; 4] = [
+        Case::EdgeForceX2,
+        Case::EdgeForceX4,
+        Case::GaugeFrozen,
+        Case::XCountStopped,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             Case::CorruptTable => "corrupt-table",
@@ -115,6 +131,10 @@ impl Case {
             Case::StalledLoop => "stalled-loop",
             Case::Panic => "panic",
             Case::MalformedHostFrame => "malformed-host-frame",
+            Case::EdgeForceX2 => "edge-force-x2",
+            Case::EdgeForceX4 => "edge-force-x4",
+            Case::GaugeFrozen => "gauge-frozen",
+            Case::XCountStopped => "x-count-stopped",
         }
     }
 
@@ -139,6 +159,10 @@ impl Case {
             Case::StalledLoop => "the loop-tick interrupt stops running (the board's IWDG is fed by it)",
             Case::Panic => "the firmware panics (board panic handler)",
             Case::MalformedHostFrame => "a flood of 235 malformed host-link frames (garbage, truncated, corrupt, unknown command, other version, undecodable, oversize) and 10 empty ones, 4 valid read-only requests among them, as fast as the RTT buffer takes them",
+            Case::EdgeForceX2 => "the edge force k_e doubles mid-cut (a worn edge, a ploughing chip): the process spring on the slide doubles",
+            Case::EdgeForceX4 => "the edge force k_e quadruples mid-cut (another material)",
+            Case::GaugeFrozen => "the gauge ADC's result freezes at its last, in-range code (a stuck converter)",
+            Case::XCountStopped => "the X count stops (a dead X encoder or half-mil line) while the X slide feeds on",
         }
     }
 
@@ -163,7 +187,13 @@ impl Case {
             Case::GaugeSaturation => f == Fault::GaugeRange,
             Case::AdcBusError => f == Fault::Bus(Device::GaugeAdc),
             Case::DacBusError => f == Fault::Bus(Device::AmplifierDac),
-            Case::FollowingError => f == Fault::FollowingError,
+            // The push stays under the following-error limit; its rebound
+            // into the stock is the depth guard's (or the ring the
+            // oscillation monitor's).
+            Case::FollowingError => matches!(
+                f,
+                Fault::FollowingError | Fault::DepthGuard | Fault::Oscillation
+            ),
             // A slide lost at ~4 in/s crosses the 0.006 in between the
             // following-error limit (0.004 in) and the gauge's range
             // (0.010 in) in ~1.5 ms, inside the monitor's 2 ms persistence:
@@ -175,6 +205,13 @@ impl Case {
             Case::StalledLoop => f == Fault::Watchdog,
             Case::Panic => f == Fault::Panic,
             Case::MalformedHostFrame => false,
+            // The loop rings against the doubled spring (or the tool is
+            // pulled into the stock first): either monitor, both retract.
+            Case::EdgeForceX2 | Case::EdgeForceX4 => {
+                matches!(f, Fault::Oscillation | Fault::DepthGuard)
+            }
+            Case::GaugeFrozen => f == Fault::GaugeFrozen,
+            Case::XCountStopped => f == Fault::XStalled,
         }
     }
 
@@ -213,6 +250,11 @@ impl Case {
             Case::SpindleSpeed => 2_500 * MS,
             // One revolution (200 ms) plus its tolerance.
             Case::IndexMissing => 600 * MS,
+            // x_stall_revs (20) revolutions at 300 rpm: 4 s, and the hold.
+            Case::XCountStopped => 4_600 * MS,
+            // Ten revolutions: a ring the doubled spring starts has grown
+            // (or died) well within them.
+            Case::EdgeForceX2 | Case::EdgeForceX4 => 2_000 * MS,
             _ => 400 * MS,
         }
     }
@@ -598,6 +640,17 @@ fn simulate(
         Case::AmplifierTrip => w.rig.amp.trip_now(),
         Case::StalledLoop => w.cpu = Cpu::LoopStalled,
         Case::Panic => board::panic(w),
+        Case::EdgeForceX2 | Case::EdgeForceX4 => {
+            let k = if case == Case::EdgeForceX2 { 2.0 } else { 4.0 };
+            let c = rig.cutter.clone();
+            burst.at(t_inj, move |_, _| {
+                c.borrow_mut().engagement_mut().scale_edge_force(k)
+            });
+        }
+        Case::GaugeFrozen => w.rig.gauge_frozen = true,
+        Case::XCountStopped => {
+            burst.at(t_inj, |_, w| w.hold_x());
+        }
         Case::MalformedHostFrame => {
             if let (Some(bytes), Some(l)) = (flood, host_link.clone()) {
                 burst.at(t_inj, move |_, _| l.borrow_mut().send(&bytes));
@@ -664,12 +717,19 @@ pub fn run_case_at(
         ..
     } = simulate(spec, case, seed_index, at, None)?;
     let reaction = latched.map(Fault::reaction);
+    let retract_in = spec.scenario.servo_design.retract_z_in;
     let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
     let safe = |x: &Sample| match reaction {
         Some(Reaction::RampToNull) => {
             x.amp_enabled && x.command_in == 0.0 && x.z_in.abs() <= NULL_HOLD_IN
         }
         Some(Reaction::DisableAmplifier) => !x.amp_enabled,
+        // Out of the stock at the retract, the loop closed.
+        Some(Reaction::Retract) => {
+            x.amp_enabled
+                && (x.command_in - retract_in).abs() * CODES_PER_IN <= 1.0
+                && x.err_in > 0.0
+        }
         None => false,
     };
     // The first sample from which the safe state holds to the end.
