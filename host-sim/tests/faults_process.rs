@@ -1,6 +1,7 @@
 //! The fault campaign's process rows (contour monitoring, issue 30) on
 //! both machines: the hard inclusion, the edge force doubled and
-//! quadrupled mid-cut, the gauge frozen and the X count stopped mid-cut.
+//! quadrupled mid-cut, the gauge frozen and the X count stopped mid-cut,
+//! the loop disarmed and engaged again onto the running cut.
 //! In each the tool stays within the depth of cut; each fault latched is
 //! the one its mechanism calls for, within the time the mechanism takes
 //! (docs/SAFETY.md, "Contour monitoring").
@@ -133,5 +134,23 @@ fn a_doubled_or_quadrupled_edge_force_keeps_the_tool_within_the_depth_of_cut() {
                 o.row.max_excursion_uin.unwrap()
             );
         }
+    }
+}
+
+/// The loop disarmed mid-cut and armed again onto the running cut (sign
+/// check, engagement, contour monitoring's settling revolutions, then
+/// eight revolutions judged): no fault latches, the loop is engaged at
+/// the end, and the tool never goes deeper than the depth of cut.
+#[test]
+fn engaging_onto_the_running_cut_latches_nothing_and_keeps_the_tool_within_the_depth_of_cut() {
+    for sc in SCENARIOS {
+        let (_, o) = run(sc, Case::EngageRunning);
+        assert_eq!(o.latched, None, "{sc}: {:?}", o.row);
+        assert_eq!(o.row.safe_state, Some(true), "{sc}: {:?}", o.row);
+        within_depth(sc, &o);
+        eprintln!(
+            "{sc} engage-running: {:.1} µin into the part",
+            o.row.max_excursion_uin.unwrap()
+        );
     }
 }

@@ -28,7 +28,10 @@
 //! oscillation, X) watch the engaged loop only: while it engages or
 //! disarms (the command a slew profile, not the surface) and while a
 //! fault is latched (its reaction runs) only the frozen gauge is still
-//! watched: the approach and the retract are driven on the gauge.
+//! watched: the approach and the retract are driven on the gauge. The
+//! depth and oscillation checks start [`SETTLE_REVS`] revolutions of
+//! live command after the engagement (docs/SAFETY.md, "Contour
+//! monitoring": the spindle angle's first index correction).
 
 use super::design::MonitorConfig;
 use super::repetitive::{Freeze, LearnSample};
@@ -37,6 +40,16 @@ use crate::safety::Fault;
 /// Ticks beyond the depth guard before it is a fault: a single sample of
 /// ADC noise cannot make it (the guard is ≥ 60 σ of the noisiest gauge).
 pub const DEPTH_GUARD_TICKS: u32 = 3;
+/// Revolutions of live command after the engagement before the depth
+/// and oscillation checks judge the error. Until the spindle angle has
+/// been corrected at an index pulse with a measured period, the command
+/// is the contour at an angle the tachometer integrated (1 % gain error,
+/// 2 % sag under the cut): at the first index after the command goes
+/// live the angle steps and the command with it, by the contour's slope
+/// times the step (406 µin of command − gauge for ~12 ms at X = 5 in on
+/// legacy-hw, the tool itself 114 µin into the part). That index falls
+/// within the first live revolution; its transient within the second.
+pub const SETTLE_REVS: u32 = 2;
 /// The oscillation window, ticks as a power of two (2⁸ = 12.8 ms at
 /// 20 kHz: three periods of the slowest loop ring, the 250 Hz observer's).
 pub const OSC_SHIFT: u32 = 8;
@@ -67,6 +80,11 @@ pub struct Monitor {
     last_phi: Option<u32>,
     /// Revolutions with the command live since the last new X.
     revs: u32,
+    /// The spindle angle of the last live sample (settling count).
+    live_phi: Option<u32>,
+    /// Revolutions with the command live since the engagement (up to
+    /// [`SETTLE_REVS`]).
+    live_revs: u32,
     /// The faults raised since the arming (a bit each: [`Self::once`]).
     raised: u8,
 }
@@ -84,6 +102,8 @@ impl Monitor {
             same: 0,
             last_phi: None,
             revs: 0,
+            live_phi: None,
+            live_revs: 0,
             raised: 0,
         }
     }
@@ -101,6 +121,8 @@ impl Monitor {
         self.seeded = false;
         self.last_phi = None;
         self.revs = 0;
+        self.live_phi = None;
+        self.live_revs = 0;
     }
 
     /// A new coefficient set (X moved) reached the handler.
@@ -128,10 +150,13 @@ impl Monitor {
             self.reset_contour();
             return self.once(frozen);
         }
+        let stalled = self.stalled(s);
+        if !self.settled(s) {
+            return self.once(frozen.or(stalled));
+        }
         let e_q8 = s.error_q8();
         let depth = self.depth(e_q8);
         let osc = self.oscillation(e_q8);
-        let stalled = self.stalled(s);
         self.once(frozen.or(depth).or(osc).or(stalled))
     }
 
@@ -215,21 +240,44 @@ impl Monitor {
                 return None;
             }
         };
-        if let Some(last) = self.last_phi {
-            // A forward step across 0: the angle fell by more than half a
-            // turn.
-            if phi < last && last - phi > 1 << 31 {
-                self.revs = self.revs.saturating_add(1);
-            }
+        if self.last_phi.is_some_and(|last| wrapped(last, phi)) {
+            self.revs = self.revs.saturating_add(1);
         }
         self.last_phi = Some(phi);
         (self.revs >= self.cfg.x_stall_revs).then_some(Fault::XStalled)
+    }
+
+    /// Counts live revolutions since the engagement; whether
+    /// [`SETTLE_REVS`] have passed. A sample that is not live (a frozen
+    /// learning, a null command) only breaks the count's angle chain.
+    #[inline(always)]
+    fn settled(&mut self, s: &LearnSample) -> bool {
+        if self.live_revs >= SETTLE_REVS {
+            return true;
+        }
+        match (s.freeze(), s.angle()) {
+            (None, Some((p, _))) => {
+                if self.live_phi.is_some_and(|last| wrapped(last, p.0)) {
+                    self.live_revs += 1;
+                }
+                self.live_phi = Some(p.0);
+            }
+            _ => self.live_phi = None,
+        }
+        self.live_revs >= SETTLE_REVS
     }
 
     /// Revolutions counted since the last new X (for status and tests).
     pub fn revs_since_x(&self) -> u32 {
         self.revs
     }
+}
+
+/// A forward step of the spindle angle across 0: it fell by more than
+/// half a turn.
+#[inline(always)]
+fn wrapped(last: u32, phi: u32) -> bool {
+    phi < last && last - phi > 1 << 31
 }
 
 #[cfg(test)]

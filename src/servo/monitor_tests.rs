@@ -29,6 +29,55 @@ fn live(error_q8: i32, gauge: i32, phi: u32) -> LearnSample {
     .with_gauge(gauge)
 }
 
+/// Feeds `m` the live revolutions after the engagement that the depth and
+/// oscillation checks wait for: a quarter turn a sample, no error, the
+/// gauge moving.
+fn settle(m: &mut Monitor) {
+    let mut gauge = 1_000_000;
+    for _ in 0..SETTLE_REVS {
+        for phi in [0, 1 << 30, 2 << 30, 3 << 30] {
+            gauge += 3;
+            assert_eq!(m.sample(&live(0, gauge, phi)), None, "settling");
+        }
+    }
+    gauge += 3;
+    assert_eq!(m.sample(&live(0, gauge, 0)), None, "settling");
+}
+
+/// A monitor past its settling revolutions.
+fn settled(c: MonitorConfig) -> Monitor {
+    let mut m = Monitor::new(c);
+    settle(&mut m);
+    m
+}
+
+/// Until [`SETTLE_REVS`] live revolutions have passed since the
+/// engagement (the spindle angle's first index correction), an error deep
+/// toward the stock or ringing raises nothing; one revolution fewer is
+/// still settling, and once settled three deep ticks latch the guard.
+#[test]
+fn the_depth_and_ring_checks_wait_for_the_settling_revolutions() {
+    let c = cfg();
+    let g = c.depth_guard_q8 + 1;
+    let mut m = Monitor::new(c);
+    let mut k = 0;
+    // SETTLE_REVS turns of samples (SETTLE_REVS − 1 wraps), deep and
+    // ringing (±10 guards) at every sample.
+    for rev in 0..SETTLE_REVS {
+        for q in 0..(4 << OSC_SHIFT) {
+            let phi = (q as u32) << (32 - 2 - OSC_SHIFT);
+            let e = if q % 2 == 0 { 10 * g } else { -10 * g };
+            k += 1;
+            assert_eq!(m.sample(&live(e, k, phi)), None, "rev {rev}, sample {q}");
+        }
+    }
+    // The wrap that completes the last settling revolution: from it on
+    // the depth is judged.
+    assert_eq!(m.sample(&live(g, k + 1, 0)), None);
+    assert_eq!(m.sample(&live(g, k + 2, 0)), None);
+    assert_eq!(m.sample(&live(g, k + 3, 0)), Some(Fault::DepthGuard));
+}
+
 /// The brief's limits in the monitor's units, from the parameter
 /// defaults by hand: 150 µin Q8, (40 µin)² in codes², 5 ms at 20 kHz.
 #[test]
@@ -50,7 +99,7 @@ fn the_defaults_convert_to_codes_and_ticks() {
 #[test]
 fn the_depth_guard_needs_three_ticks_beyond_it_toward_the_stock() {
     let c = cfg();
-    let mut m = Monitor::new(c);
+    let mut m = settled(c);
     let g = c.depth_guard_q8;
     let mut gauge = 0;
     let mut next = |m: &mut Monitor, e: i32| {
@@ -68,7 +117,7 @@ fn the_depth_guard_needs_three_ticks_beyond_it_toward_the_stock() {
     assert_eq!(next(&mut m, g + 1), Some(Fault::DepthGuard));
     // Raised once.
     assert_eq!(next(&mut m, g + 1), None);
-    let mut m = Monitor::new(c);
+    let mut m = settled(c);
     for k in 0..50 {
         assert_eq!(m.sample(&live(-10 * g, k, 0)), None, "out of the stock");
     }
@@ -81,11 +130,11 @@ fn a_retract_toward_minus_z_turns_the_guard_around() {
     let mut c = cfg();
     c.retract_code = -c.retract_code;
     let g = c.depth_guard_q8;
-    let mut m = Monitor::new(c);
+    let mut m = settled(c);
     for k in 0..10 {
         assert_eq!(m.sample(&live(10 * g, k, 0)), None);
     }
-    let mut m = Monitor::new(c);
+    let mut m = settled(c);
     assert_eq!(m.sample(&live(-g - 1, 1, 0)), None);
     assert_eq!(m.sample(&live(-g - 1, 2, 0)), None);
     assert_eq!(m.sample(&live(-g - 1, 3, 0)), Some(Fault::DepthGuard));
@@ -100,7 +149,7 @@ fn oscillation_trips_above_its_rms_and_not_below_nor_on_an_offset() {
     let c = cfg();
     let limit_uin = 40.0;
     let run = |amp_uin: f64, offset_uin: f64, ticks: u32| {
-        let mut m = Monitor::new(c);
+        let mut m = settled(c);
         for k in 0..ticks {
             // 400 Hz at 20 kHz: a loop ring.
             let e =
@@ -121,7 +170,7 @@ fn oscillation_trips_above_its_rms_and_not_below_nor_on_an_offset() {
         None
     );
     assert_eq!(run(0.0, 3.0 * limit_uin, 40 << OSC_SHIFT), None);
-    let mut m = Monitor::new(c);
+    let mut m = settled(c);
     for k in 0..40 << OSC_SHIFT {
         let e = if k < 1000 { 0.0 } else { 3.0 * limit_uin };
         assert_eq!(
@@ -207,7 +256,7 @@ fn x_stalls_after_its_revolutions_of_live_command_without_a_new_x() {
 fn a_latched_fault_rests_the_contour_checks_but_not_the_frozen_gauge() {
     let c = cfg();
     let g = c.depth_guard_q8 + 1;
-    let mut m = Monitor::new(c);
+    let mut m = settled(c);
     let deep = |m: &mut Monitor, k: i32| m.sample(&live(g, k, 0));
     assert_eq!(deep(&mut m, 1), None);
     assert_eq!(deep(&mut m, 2), None);
@@ -230,6 +279,7 @@ fn a_latched_fault_rests_the_contour_checks_but_not_the_frozen_gauge() {
         m.sample(&LearnSample::new(g, None, None, arm).with_gauge(8)),
         None
     );
+    settle(&mut m);
     assert_eq!(deep(&mut m, 9), None);
     assert_eq!(deep(&mut m, 10), Some(Fault::DepthGuard));
 }
@@ -252,6 +302,7 @@ fn the_contour_checks_wait_for_the_engagement_but_the_frozen_gauge_does_not() {
         let e = if k % 2 == 0 { 10 * g } else { -10 * g };
         assert_eq!(m.sample(&engaging(e, k)), None, "engaging, tick {k}");
     }
+    settle(&mut m);
     assert_eq!(m.sample(&live(g, 1, 0)), None);
     assert_eq!(m.sample(&live(g, 2, 0)), None);
     assert_eq!(m.sample(&live(g, 3, 0)), Some(Fault::DepthGuard));
