@@ -279,9 +279,11 @@ fn a_latched_fault_rests_the_contour_checks_but_not_the_frozen_gauge() {
         m.sample(&LearnSample::new(g, None, None, arm).with_gauge(8)),
         None
     );
+    // Armed again: the settling revolutions, then three deep ticks.
     settle(&mut m);
     assert_eq!(deep(&mut m, 9), None);
-    assert_eq!(deep(&mut m, 10), Some(Fault::DepthGuard));
+    assert_eq!(deep(&mut m, 10), None);
+    assert_eq!(deep(&mut m, 11), Some(Fault::DepthGuard));
 }
 
 /// While the loop engages (or disarms) the command is a slew profile, not
