@@ -1,7 +1,7 @@
 //! The Cortex-M7's system control space (ARMv7-M ARM, B3): NVIC (enables,
 //! pending, active, 8-bit priority fields of which the H743 implements the
 //! top 4), SCB (CPUID, ICSR, VTOR, AIRCR, SCR, CCR with the cache enables,
-//! SHPR, CPACR), the cache maintenance operations, the FPU's FPCCR, and
+//! SHPR, SHCSR, CFSR, CPACR), the cache maintenance operations, the FPU's FPCCR, and
 //! SysTick. Exception entry and return themselves are `cpu.rs`'s.
 
 use crate::Violation;
@@ -21,6 +21,12 @@ pub struct Scs {
     pub cpacr: u32,
     pub ccr: u32,
     pub scr: u32,
+    /// SHCSR: the fault handlers' enables and pended bits, as written.
+    pub shcsr: u32,
+    /// CFSR: write 1 to clear. The model raises no fault status (an
+    /// access it cannot serve stops the run instead), so it reads 0
+    /// unless a status bit is set here.
+    pub cfsr: u32,
     pub aircr_prigroup: u32,
     pub fpccr: u32,
     /// The data cache was invalidated (all sets and ways) since reset.
@@ -49,6 +55,8 @@ impl Scs {
             cpacr: 0,
             ccr: 0x0000_0200, // STKALIGN
             scr: 0,
+            shcsr: 0,
+            cfsr: 0,
             aircr_prigroup: 0,
             fpccr: 0xC000_0000, // ASPEN | LSPEN
             dcache_invalidated: false,
@@ -101,6 +109,8 @@ impl Scs {
                 let i = (off - 0xED18) as usize;
                 (0..size).fold(0, |v, k| v | (u32::from(self.shpr[i + k]) << (8 * k)))
             }
+            0xED24 => self.shcsr,
+            0xED28 => self.cfsr,
             0xED78 => 0x0900_0003, // CLIDR: I and D caches at level 1
             0xED7C => 0x8303_C003, // CTR
             0xED80 => {
@@ -186,6 +196,8 @@ impl Scs {
                     self.shpr[i + k] = (v >> (8 * k)) as u8;
                 }
             }
+            0xED24 => self.shcsr = v,
+            0xED28 => self.cfsr &= !v,
             0xED84 => self.csselr = v,
             0xED88 => self.cpacr = v,
             0xEF34 => self.fpccr = v,
