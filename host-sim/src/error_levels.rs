@@ -68,12 +68,38 @@ pub struct ErrorLevels {
     /// Broadband cutting-force fluctuation (chip formation), lbf RMS,
     /// white over the loop tick's band, on the tool and on the part.
     pub cut_force_noise_lbf: f64,
+    /// The 1983 command path's first-order lag ahead of the position
+    /// loop's summing junction (the generator's output stage, outside the
+    /// loop Figure 4-33 measured), µs: the 1983 loop follows the command
+    /// lagged by `atan(ωτ)` (`analog1983::lag`).
+    pub cmd_lag_us: f64,
+    /// The cutting force's surface-speed dependence (chapter 5: "the
+    /// relative velocity between tool and part ... decreases with radius
+    /// and permits less time for relief of tool cutting forces"): the
+    /// force is `(V_ref/V)^n` times the force model's, `V` the surface
+    /// speed at the tool, `n` this exponent and `V_ref` the speed the
+    /// force constants hold at, ft/min (`cut::errors`).
+    pub force_speed_exponent: f64,
+    pub force_speed_ref_ft_per_min: f64,
 }
 
 impl ErrorLevels {
     /// Range checks naming the field.
     pub fn validate(&self) -> anyhow::Result<()> {
-        let checks: [(&str, f64, f64, f64); 27] = [
+        let checks: [(&str, f64, f64, f64); 30] = [
+            ("errors.cmd_lag_us", self.cmd_lag_us, 0.0, 100_000.0),
+            (
+                "errors.force_speed_exponent",
+                self.force_speed_exponent,
+                0.0,
+                2.0,
+            ),
+            (
+                "errors.force_speed_ref_ft_per_min",
+                self.force_speed_ref_ft_per_min,
+                0.0,
+                1e5,
+            ),
             (
                 "errors.face_tilt_uin_per_in",
                 self.face_tilt_uin_per_in,
@@ -231,6 +257,12 @@ impl ErrorLevels {
             anyhow::bail!(
                 "errors.gen_tach_rate_error/gen_reset_hold_us/gen_multiplier_offset_mv are set but \
                  errors.gen_calibrated_rpm is not: the 1983 command generator needs the speed it was trimmed at"
+            );
+        }
+        if self.force_speed_exponent > 0.0 && self.force_speed_ref_ft_per_min <= 0.0 {
+            anyhow::bail!(
+                "errors.force_speed_exponent > 0 needs errors.force_speed_ref_ft_per_min > 0 \
+                 (the surface speed the force constants hold at)"
             );
         }
         if self.part_thickness_in > 0.0 {

@@ -72,3 +72,44 @@ fn the_seeds_three_loops_place_the_2_per_rev_error_within_3_degrees_and_a_gain_e
         );
     }
 }
+
+/// A lag `L = 1/(1 + jωτ)` on the command path ahead of the loop (the
+/// scenario's `cmd_lag_us`, `analog1983::lag`) makes the part's 2/rev error
+/// `(1 − T·L)·Z₂`: its angle adds in quadrature to the command, the same
+/// direction as the loop's own error, so it grows the error and turns it
+/// by less than its own angle. These are the growth factors docs/CUT.md quotes against the
+/// simulated part.
+#[test]
+fn a_command_lag_grows_the_2_per_rev_error_and_turns_it_by_less_than_its_own_angle() {
+    let w = 2.0 * TAU * 360.0 / 60.0;
+    let one = Complex::new(1.0, 0.0);
+    let ko = PositionLoop1983::default().ko;
+    for (name, t) in [("eq 4-47", eq4_47(ko, w)), ("eq 4-49", eq4_49(w))] {
+        let e0 = one - t;
+        let mut last_growth = 1.0;
+        for tau in [100e-6, 330e-6, 1000e-6] {
+            let l = one / Complex::new(1.0, w * tau);
+            let e = one - t * l;
+            let growth = e.norm() / e0.norm();
+            let turn = (e.arg() - e0.arg()).to_degrees();
+            // First order in ωτ: |1 − T + jωτT| ≈ |1 − T| + ωτ|T| when both are near 90°.
+            let estimate = 1.0 + w * tau * t.norm() / e0.norm();
+            eprintln!(
+                "{name}, τ {:.0} µs: the 2/rev error × {growth:.3} (first-order estimate {estimate:.3}), turned {turn:.2}°",
+                tau * 1e6
+            );
+            assert!(growth > last_growth, "{name} τ {tau}: {growth}");
+            assert!(
+                (growth - estimate).abs() < 0.05 * estimate,
+                "{growth} vs {estimate}"
+            );
+            // The lag's own angle ωτ is 4.3° at 1 ms: the error turns by a
+            // fraction of it.
+            assert!(
+                turn.abs() < (w * tau).atan().to_degrees(),
+                "{name} τ {tau}: turned {turn}°"
+            );
+            last_growth = growth;
+        }
+    }
+}

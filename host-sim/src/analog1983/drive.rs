@@ -26,6 +26,9 @@ pub struct AnalogDrive {
     /// The command generator's output (V = mil) when it is not the
     /// firmware's command (`cut::command1983`: the 1983 generator).
     pub command_v: Option<std::rc::Rc<std::cell::Cell<f64>>>,
+    /// The command path's lag ahead of the summing junction
+    /// (`[errors] cmd_lag_us`, [`super::lag`]); `None`: none.
+    pub reference_lag: Option<super::lag::FirstOrderLag>,
     /// Hand-overs to the co-simulation so far.
     pub nonlinear_spells: u64,
 }
@@ -53,6 +56,7 @@ impl AnalogDrive {
             reference_v: 0.0,
             reference_sign: 1.0,
             command_v: None,
+            reference_lag: None,
             nonlinear_spells: 0,
         }
     }
@@ -64,20 +68,24 @@ impl AnalogDrive {
 
     /// Advances the rig and the loop to `t_ns`.
     pub fn advance(&mut self, rig: &mut crate::plant::Rig, t_ns: u64) {
+        let reference = match self.reference_lag.as_mut() {
+            Some(l) => l.at(t_ns, self.reference_v),
+            None => self.reference_v,
+        };
         if self.in_exact {
             let Some(ex) = self.exact.as_mut() else {
                 return;
             };
             if t_ns > rig.t_ns {
-                ex.step(t_ns - rig.t_ns, self.reference_v, rig.f_ext);
+                ex.step(t_ns - rig.t_ns, reference, rig.f_ext);
                 rig.slide.x = ex.plant_x();
                 rig.t_ns = t_ns;
                 rig.steps += 1;
-                rig.v_in = ex.amp_input_v(self.reference_v);
+                rig.v_in = ex.amp_input_v(reference);
                 // The firmware's DAC is not connected; enable edges still
                 // reach the amplifier.
                 rig.take_changes_to(t_ns);
-                if !ex.linear(rig, self.reference_v) || rig.gauge_injection_in != 0.0 {
+                if !ex.linear(rig, reference) || rig.gauge_injection_in != 0.0 {
                     // Hand over: the rig carries the plant, the controller
                     // its state, the gauge the noise.
                     self.ctrl.x.copy_from_slice(ex.controller_x());
@@ -93,7 +101,7 @@ impl AnalogDrive {
         }
         while self.next_substep_ns < t_ns {
             rig.advance_to(self.next_substep_ns);
-            self.ctrl.reference_v = self.reference_v;
+            self.ctrl.reference_v = reference;
             self.ctrl.tick(rig);
             self.next_substep_ns += self.ctrl.substep_ns;
         }

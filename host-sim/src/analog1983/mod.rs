@@ -28,11 +28,13 @@
 //! [`exact`]: exact closed-loop steps while it is linear; [`drive`]: the
 //! two handed over as the loop leaves and re-enters the linear range), and
 //! the 1983 command generator's analog half ([`generator`]: the
-//! tachometer-driven sine oscillator reset at the index, the multipliers).
+//! tachometer-driven sine oscillator reset at the index, the multipliers;
+//! [`lag`]: a first-order lag on the command path into the loop).
 
 pub mod drive;
 pub mod emulation;
 pub mod generator;
+pub mod lag;
 pub mod exact;
 pub mod transfer;
 

@@ -31,10 +31,16 @@ pub enum Source {
     FaceTilt,
     /// The overhang's first mode under the cutting force (`ringing`).
     PartRinging,
+    /// A first-order lag on the 1983 loop's command path
+    /// (`analog1983::lag`): the 1983 loop only.
+    CommandLag,
+    /// The cutting force rising as the surface speed falls toward the
+    /// centre (chapter 5's explanation of the centre bias).
+    SurfaceSpeedForce,
 }
 
 impl Source {
-    pub const ALL: [Source; 11] = [
+    pub const ALL: [Source; 13] = [
         Source::GaugeScale,
         Source::GaugeNonlinearity,
         Source::GaugeDrift,
@@ -46,6 +52,8 @@ impl Source {
         Source::CommandGenerator,
         Source::FaceTilt,
         Source::PartRinging,
+        Source::CommandLag,
+        Source::SurfaceSpeedForce,
     ];
     pub fn name(self) -> &'static str {
         match self {
@@ -60,6 +68,8 @@ impl Source {
             Source::CommandGenerator => "1983 command generator",
             Source::FaceTilt => "face tilt",
             Source::PartRinging => "part ringing",
+            Source::CommandLag => "1983 command lag",
+            Source::SurfaceSpeedForce => "surface-speed force",
         }
     }
     /// Whether `levels` give this source a non-zero level.
@@ -76,12 +86,15 @@ impl Source {
             Source::CommandGenerator => l.gen_calibrated_rpm > 0.0,
             Source::FaceTilt => l.face_tilt_uin_per_in != 0.0,
             Source::PartRinging => l.part_thickness_in > 0.0,
+            Source::CommandLag => l.cmd_lag_us > 0.0,
+            Source::SurfaceSpeedForce => l.force_speed_exponent > 0.0,
         }
     }
     /// Whether the source exists with `controller` (the digital firmware
-    /// has no analog command generator).
+    /// has no analog command generator and no analog command path).
     pub fn applies(self, controller: crate::fwrig::Controller) -> bool {
-        self != Source::CommandGenerator || controller == crate::fwrig::Controller::LegacyAnalog
+        !matches!(self, Source::CommandGenerator | Source::CommandLag)
+            || controller == crate::fwrig::Controller::LegacyAnalog
     }
     /// `levels` with only this source kept.
     pub fn alone(self, l: &ErrorLevels) -> ErrorLevels {
@@ -123,6 +136,11 @@ impl Source {
                 o.part_mode_zeta = l.part_mode_zeta;
                 o.cut_force_noise_lbf = l.cut_force_noise_lbf;
             }
+            Source::CommandLag => o.cmd_lag_us = l.cmd_lag_us,
+            Source::SurfaceSpeedForce => {
+                o.force_speed_exponent = l.force_speed_exponent;
+                o.force_speed_ref_ft_per_min = l.force_speed_ref_ft_per_min;
+            }
         }
         o
     }
@@ -145,6 +163,8 @@ impl Source {
         o.face_tilt_uin_per_in *= k;
         // The ringing scales with the force that drives it.
         o.cut_force_noise_lbf *= k;
+        o.cmd_lag_us *= k;
+        o.force_speed_exponent *= k;
         o
     }
     /// The level as the scenario states it, with its unit.
@@ -182,6 +202,11 @@ impl Source {
                 ),
                 None => "rigid".to_string(),
             },
+            Source::CommandLag => format!("τ = {} µs, first order", l.cmd_lag_us),
+            Source::SurfaceSpeedForce => format!(
+                "(V_ref/V)^{}, V_ref = {} ft/min",
+                l.force_speed_exponent, l.force_speed_ref_ft_per_min
+            ),
         }
     }
 }
@@ -250,6 +275,8 @@ pub struct ErrorState {
     /// (positive, inward): the pass time at radius x is `(x_s − x)/v`.
     x_pass_start: f64,
     v_in_per_s: f64,
+    /// The pass's spindle speed, rpm (the surface speed's).
+    rpm: f64,
     /// Asynchronous axial motion (Ornstein–Uhlenbeck), in, and its stream.
     ou: f64,
     last_t: Option<f64>,
@@ -291,6 +318,7 @@ impl ErrorState {
             levels,
             x_pass_start,
             v_in_per_s: feed_per_rev_in * rpm / 60.0,
+            rpm,
             ou: 0.0,
             last_t: None,
             rng: rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x5EED_E770),
@@ -360,6 +388,20 @@ impl ErrorState {
         }
         self.ring_t = Some(t_s);
         self.ring_force = r.mode.shape(self.gain * x) * f_lbf;
+    }
+
+    /// The cutting force's factor at tool-centre radius `x`: `(V_ref/V)^n`,
+    /// `V = 2π r N` the surface speed at the contact radius `r` at the
+    /// pass's speed `N`; below 1 % of `V_ref` (the last hundredth of the
+    /// radius) it is held at that speed's factor.
+    pub fn force_speed_factor(&self, x: f64) -> f64 {
+        let l = &self.levels;
+        if l.force_speed_exponent == 0.0 {
+            return 1.0;
+        }
+        let v_ft_per_min = TAU * self.gain * x * self.rpm / 12.0;
+        let v_ref = l.force_speed_ref_ft_per_min;
+        (v_ref / v_ft_per_min.max(0.01 * v_ref)).powf(l.force_speed_exponent)
     }
 
     /// Hours since the pass started when the tool is at radius `x`.
@@ -488,6 +530,36 @@ mod tests {
             1,
         );
         assert!((s.x_part(5.0) - 4.998).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_force_factor_is_the_surface_speed_ratio_to_the_power_n() {
+        // V_ref at 7.25 in and 300 rpm: 2π·7.25·300/12 ft/min.
+        let v_ref = TAU * 7.25 * 300.0 / 12.0;
+        let at = |n: f64, rpm: f64, x: f64| {
+            ErrorState::new(
+                ErrorLevels {
+                    force_speed_exponent: n,
+                    force_speed_ref_ft_per_min: v_ref,
+                    ..ErrorLevels::default()
+                },
+                7.25,
+                7.25,
+                1e-4,
+                rpm,
+                1,
+            )
+            .force_speed_factor(x)
+        };
+        assert!((at(0.5, 300.0, 7.25) - 1.0).abs() < 1e-12);
+        // X = 1 in: V is 7.25 times lower, the force 7.25^n higher.
+        assert!((at(0.5, 300.0, 1.0) - 7.25f64.sqrt()).abs() < 1e-12);
+        assert!((at(0.1, 300.0, 1.0) - 7.25f64.powf(0.1)).abs() < 1e-12);
+        // 360 rpm: (300/360)^n everywhere.
+        assert!((at(1.0, 360.0, 7.25) - 300.0 / 360.0).abs() < 1e-12);
+        // Held below 1 % of V_ref (0.0725 in at 300 rpm).
+        assert!((at(1.0, 300.0, 0.01) - 100.0).abs() < 1e-9);
+        assert_eq!(at(0.0, 300.0, 1.0), 1.0);
     }
 
     #[test]

@@ -540,6 +540,11 @@ pub fn build_stretch(
     spec.controller.attach(&mut w, &mut s);
     if let Some(a) = w.analog.as_mut() {
         a.reference_sign = spec.command_sign.factor();
+        if let Some(l) = spec.applied_levels().filter(|l| l.cmd_lag_us > 0.0) {
+            a.reference_lag = Some(crate::analog1983::lag::FirstOrderLag::new(
+                l.cmd_lag_us * 1e-6,
+            ));
+        }
         if let Some(lv) = generator {
             let out = Rc::new(std::cell::Cell::new(0.0));
             a.command_v = Some(out.clone());

@@ -170,7 +170,10 @@ impl TickHook for Cutter {
             self.settle_s = f64::INFINITY;
         }
         self.last_error_in = e;
-        let c = self.eng.step(x, phi, e);
+        let mut c = self.eng.step(x, phi, e);
+        if let Some(er) = self.errors.as_ref() {
+            c.force_lbf *= er.force_speed_factor(x);
+        }
         // The chip's broadband force acts on the tool and on the part; the
         // part's overhang mode takes the whole force at the tool's radius.
         let noise = match self.errors.as_mut() {
