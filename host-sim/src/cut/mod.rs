@@ -229,6 +229,16 @@ impl CutSpec {
         }
     }
 
+    /// The CMM that measures this cut (`--measure cmm`): chapter 5's,
+    /// levelled on the part's face when the error sources are applied.
+    pub fn cmm_levels(&self) -> cmm::CmmLevels {
+        let face = match self.errors {
+            errors::Selection::All => cmm::FaceLevelling::of(&self.error_levels),
+            errors::Selection::None => cmm::FaceLevelling::default(),
+        };
+        cmm::CmmLevels::renault().levelled_on(face)
+    }
+
     /// Radii the CMM measures (tool centre for a part, surface else), in.
     pub fn cmm_x(&self) -> Vec<f64> {
         self.part
@@ -783,13 +793,7 @@ pub fn run_pass(
                 );
             }
             let (surf, _) = spec.surface()?;
-            cmm::read(
-                &grid,
-                &surf,
-                gain,
-                &cmm::CmmLevels::renault(),
-                spec.scenario.rig.seed,
-            )
+            cmm::read(&grid, &surf, gain, &spec.cmm_levels(), spec.scenario.rig.seed)
         }
     };
     let nf = n.max(1) as f64;
