@@ -214,7 +214,9 @@ fn a_face_tilt_delta_leaves_the_part_and_reads_delta_x_sin_phi_minus_phi0() {
         let got = r1.err_uin[i][j].unwrap() - r0.err_uin[i][j].unwrap();
         worst = worst.max((got - expect).abs());
     }
-    eprintln!("face tilt {delta} µin/in at X = {x} in: reading deviation {worst:.3} µin, bound {step:.3}");
+    eprintln!(
+        "face tilt {delta} µin/in at X = {x} in: reading deviation {worst:.3} µin, bound {step:.3}"
+    );
     assert!(
         worst <= step + 1e-9,
         "reading's deviation from δ·X·sin(φ − φ0): {worst:.3} µin > one step {step:.3}"

@@ -104,8 +104,10 @@ pub struct CutSpec {
     pub error_levels: errors::ErrorLevels,
     /// The command generator's sign (`sign`).
     pub command_sign: sign::CommandSign,
-    /// How the grid is measured (`cmm`).
+    /// How the grid is measured (`cmm`), and how many CMM readings of
+    /// the part are averaged (`cmm::read_averaged`; 1: one reading).
     pub measure: cmm::Measure,
+    pub cmm_readings: u32,
     /// A rectangular grid instead of the polar one (`cut --part --grid`).
     pub grid: Option<std::sync::Arc<rectgrid::RectGrid>>,
     /// Also measure the hole zone (`holezone`: bands across the bolt
@@ -183,6 +185,7 @@ impl CutSpec {
             error_levels,
             command_sign: sign::CommandSign::Normal,
             measure: cmm::Measure::Exact,
+            cmm_readings: 1,
             grid: None,
             hole_zone: false,
             table_image: None,
@@ -793,7 +796,14 @@ pub fn run_pass(
                 );
             }
             let (surf, _) = spec.surface()?;
-            cmm::read(&grid, &surf, gain, &spec.cmm_levels(), spec.scenario.rig.seed)
+            cmm::read_averaged(
+                &grid,
+                &surf,
+                gain,
+                &spec.cmm_levels(),
+                spec.scenario.rig.seed,
+                spec.cmm_readings,
+            )
         }
     };
     let nf = n.max(1) as f64;
