@@ -214,6 +214,25 @@ pub const MAX_READINGS: u32 = 400;
 mod tests {
     use super::*;
 
+    /// The default part's surface and a 36 × 7 grid of distinct values,
+    /// `k·step − offset` µin at the k-th point.
+    fn surface_and_grid(step: f64, offset: f64) -> (Surface, CmmGrid) {
+        let t = zslide::table::CoeffTable::parse(zslide::DEFAULT_TABLE).unwrap();
+        let surf = Surface::from_table_geometry(&t.header().geometry).unwrap();
+        let grid = CmmGrid {
+            err_uin: (0..36)
+                .map(|i| {
+                    (0..7)
+                        .map(|j| Some(f64::from(i * 7 + j) * step - offset))
+                        .collect()
+                })
+                .collect(),
+            in_hole: vec![vec![false; 7]; 36],
+            finish_by_x_uin: vec![None; 7],
+        };
+        (surf, grid)
+    }
+
     #[test]
     fn the_cmm_reads_in_whole_micrometres_within_half_a_step() {
         let step = 1e-6 / 0.0254;
@@ -231,19 +250,7 @@ mod tests {
 
     #[test]
     fn a_perfect_cmm_reads_the_grid_to_its_resolution_only() {
-        let t = zslide::table::CoeffTable::parse(zslide::DEFAULT_TABLE).unwrap();
-        let surf = Surface::from_table_geometry(&t.header().geometry).unwrap();
-        let grid = CmmGrid {
-            err_uin: (0..36)
-                .map(|i| {
-                    (0..7)
-                        .map(|j| Some(f64::from(i * 7 + j) * 3.1 - 300.0))
-                        .collect()
-                })
-                .collect(),
-            in_hole: vec![vec![false; 7]; 36],
-            finish_by_x_uin: vec![None; 7],
-        };
+        let (surf, grid) = surface_and_grid(3.1, 300.0);
         let lv = CmmLevels {
             repeatability_in: 0.0,
             tilt_in_per_in: 0.0,
@@ -269,15 +276,7 @@ mod tests {
     /// grid holds and whatever the seed.
     #[test]
     fn a_face_tilt_delta_reads_delta_x_sin_phi_minus_phi0() {
-        let t = zslide::table::CoeffTable::parse(zslide::DEFAULT_TABLE).unwrap();
-        let surf = Surface::from_table_geometry(&t.header().geometry).unwrap();
-        let grid = CmmGrid {
-            err_uin: (0..36)
-                .map(|i| (0..7).map(|j| Some(f64::from(i * 5 - j * 11))).collect())
-                .collect(),
-            in_hole: vec![vec![false; 7]; 36],
-            finish_by_x_uin: vec![None; 7],
-        };
+        let (surf, grid) = surface_and_grid(2.3, 200.0);
         let (delta, phi0) = (100.0, 30.0f64);
         let face = FaceLevelling {
             tilt_in_per_in: delta * 1e-6,
@@ -313,19 +312,7 @@ mod tests {
     /// `read` itself.
     #[test]
     fn the_mean_of_n_readings_has_the_noise_of_one_over_root_n() {
-        let t = zslide::table::CoeffTable::parse(zslide::DEFAULT_TABLE).unwrap();
-        let surf = Surface::from_table_geometry(&t.header().geometry).unwrap();
-        let grid = CmmGrid {
-            err_uin: (0..36)
-                .map(|i| {
-                    (0..7)
-                        .map(|j| Some(f64::from(i * 7 + j) * 3.71 - 400.0))
-                        .collect()
-                })
-                .collect(),
-            in_hole: vec![vec![false; 7]; 36],
-            finish_by_x_uin: vec![None; 7],
-        };
+        let (surf, grid) = surface_and_grid(3.71, 400.0);
         let lv = CmmLevels {
             tilt_in_per_in: 0.0,
             angle_datum_deg: 0.0,
