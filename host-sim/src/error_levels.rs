@@ -48,9 +48,11 @@ pub struct ErrorLevels {
     pub gen_tach_rate_error: f64,
     pub gen_reset_hold_us: f64,
     pub gen_multiplier_offset_mv: f64,
-    /// Tilt of the contour against the face the CMM levels on, µin per in
-    /// of radius, and the part-frame angle φ0 (degrees) where it crosses
-    /// zero rising: the part's grid gains `δ·X·sin(φ − φ0)` (`cut::errors`).
+    /// Tilt the part's face gives the CMM's levelling (the face not flat
+    /// under the three probe points), µin per in of radius, and the
+    /// part-frame angle φ0 (degrees) where it crosses zero rising: the
+    /// CMM's reading gains `δ·X·sin(φ − φ0)`, the part does not
+    /// (`cut::cmm`).
     pub face_tilt_uin_per_in: f64,
     pub face_tilt_phase_deg: f64,
     /// The part as a plate clamped on the faceplate (`cut::ringing`):

@@ -45,7 +45,8 @@ pub struct Args {
     pub noise_uin: Option<f64>,
     /// Take the fitted tilt off the part too. By default it is fitted but
     /// left on: a CMM aligned to the part's face leaves a tilt of its own
-    /// (`cut::cmm`: 3 µin per in, a new direction each measurement), which
+    /// (`cut::cmm`: 3 µin per in, a new direction each measurement, and
+    /// the face's own levelling error, the scenario's face tilt), which
     /// one measurement cannot tell from the part's.
     #[arg(long)]
     pub keep_tilt: bool,
@@ -70,7 +71,8 @@ pub struct Report {
     pub largest_hole_in: f64,
     pub fit: fit::ErrorFit,
     /// The fitted tilt's height at the fit's radius, µin, and the most
-    /// the CMM's alignment leaves there (its residual tilt × the radius).
+    /// the set-up leaves there ((the CMM's alignment residual + the
+    /// scenario's face tilt) × the radius).
     pub tilt_edge_uin: f64,
     pub setup_tilt_edge_uin: f64,
     /// Whether the tilt is in the correction (`--keep-tilt`).
@@ -153,8 +155,12 @@ pub fn make(args: &Args) -> anyhow::Result<(Vec<u8>, Record, Report)> {
             .filter(|&j| j <= fit.coefficients_uin.len())
             .collect();
     }
-    let setup_tilt_edge_uin =
-        crate::cut::cmm::CmmLevels::renault().tilt_in_per_in * fit.radius_in * 1e6;
+    // The most the set-up tilts the reading: the CMM's alignment residual
+    // and the levelling on the part's face (the scenario's face tilt).
+    let face_tilt_uin_per_in = args.scenario.load()?.file.errors.face_tilt_uin_per_in.abs();
+    let setup_tilt_edge_uin = (crate::cut::cmm::CmmLevels::renault().tilt_in_per_in * 1e6
+        + face_tilt_uin_per_in)
+        * fit.radius_in;
     steps.push(Step {
         measurement: args.measured.display().to_string(),
         sha256: m.sha256.clone(),
@@ -273,7 +279,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         r.largest_hole_in
     );
     println!(
-        "tilt: {:.1} µin at {} in ({}); the CMM's alignment alone leaves up to {:.1} µin there{}",
+        "tilt: {:.1} µin at {} in ({}); the set-up (the CMM's alignment, the face's levelling) leaves up to {:.1} µin there{}",
         r.tilt_edge_uin,
         f.radius_in,
         if r.tilt_compensated {

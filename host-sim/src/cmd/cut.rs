@@ -86,6 +86,11 @@ pub struct Args {
     /// residuals; `cut::cmm`).
     #[arg(long, value_enum, default_value_t = crate::cut::cmm::Measure::Exact)]
     pub measure: crate::cut::cmm::Measure,
+    /// With `--measure cmm`: average this many readings of the part, each
+    /// with the CMM's own noise (the mean's noise is one reading's over
+    /// √N; `cut::cmm::read_averaged`).
+    #[arg(long, default_value_t = 1)]
+    pub cmm_readings: u32,
     /// The error budget instead of one cut: the loop alone, each source of
     /// the scenario's `[errors]` alone, all together, and the tolerance per
     /// source the goal needs (`cut::budget`).
@@ -158,8 +163,10 @@ pub struct Summary {
     /// Error sources applied (`none`, `all`) and the command's sign.
     pub errors: crate::cut::errors::Selection,
     pub command_sign: crate::cut::sign::CommandSign,
-    /// How `cmm_grid_uin` was measured (`exact`, `cmm`).
+    /// How `cmm_grid_uin` was measured (`exact`, `cmm`), and how many
+    /// CMM readings it is the mean of (1 for `exact`).
     pub measure: crate::cut::cmm::Measure,
+    pub cmm_readings: u32,
     /// The rectangular grid (`--grid`), row by row: `{kind, nx, ny,
     /// points: [{x_in, y_in, radius_in, phi_deg, error_uin, absent}]}`;
     /// the polar fields above are then empty.
@@ -229,6 +236,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         errors: spec.errors,
         command_sign: spec.command_sign,
         measure: spec.measure,
+        cmm_readings: spec.cmm_readings,
         grid: o.rect.clone(),
         hole_zone: o.zone.as_ref().map(|z| z.summary()),
         hole_zone_measured: spec.hole_zone,
@@ -280,6 +288,18 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     }
     spec.command_sign = args.command_sign;
     spec.measure = args.measure;
+    anyhow::ensure!(
+        (1..=crate::cut::cmm::MAX_READINGS).contains(&args.cmm_readings),
+        "--cmm-readings {}: must be 1 ..= {}",
+        args.cmm_readings,
+        crate::cut::cmm::MAX_READINGS
+    );
+    anyhow::ensure!(
+        args.cmm_readings == 1 || args.measure == crate::cut::cmm::Measure::Cmm,
+        "--cmm-readings {}: averages CMM readings, it needs --measure cmm (the exact grid has no noise to average)",
+        args.cmm_readings
+    );
+    spec.cmm_readings = args.cmm_readings;
     anyhow::ensure!(
         args.ke_scale.is_finite() && args.ke_scale > 0.0 && args.ke_scale <= 10.0,
         "--ke-scale {}: must be in (0, 10]",
@@ -648,7 +668,11 @@ fn print_summary(s: &Summary, o: &CutOutcome) {
         "errors             {} (beyond the loop); command sign {}; measured {}",
         s.errors.name(),
         s.command_sign.name(),
-        s.measure.name()
+        if s.cmm_readings > 1 {
+            format!("{} (mean of {} readings)", s.measure.name(), s.cmm_readings)
+        } else {
+            s.measure.name().to_string()
+        }
     );
     println!(
         "faults             {}",

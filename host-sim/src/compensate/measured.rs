@@ -204,8 +204,22 @@ fn parse_json(text: &str) -> Result<Parsed, String> {
             ))
         }
     }
+    // A mean of n readings (`cut --cmm-readings`; absent in older files:
+    // one) has one reading's noise over √n.
+    let readings = match v.get("cmm_readings") {
+        None => 1,
+        Some(n) => match n.as_u64() {
+            Some(n @ 1..) if n <= u64::from(crate::cut::cmm::MAX_READINGS) => n,
+            _ => {
+                return Err(format!(
+                    "cmm_readings = {n}: a count of readings 1 ..= {} expected",
+                    crate::cut::cmm::MAX_READINGS
+                ))
+            }
+        },
+    };
     let stated_noise_uin = match field(&v, "measure")?.as_str() {
-        Some("cmm") => Some(cmm_noise_uin()),
+        Some("cmm") => Some(cmm_noise_uin() / (readings as f64).sqrt()),
         Some("exact") => Some(EXACT_NOISE_UIN),
         other => {
             return Err(format!(

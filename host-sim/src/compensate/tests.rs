@@ -180,6 +180,18 @@ fn every_malformed_measurement_is_refused_with_its_line() {
     let m = parse(json("normal", "cmm", "[[1.0, null], [2.0, 3.0]]").as_bytes()).unwrap();
     assert_eq!((m.points.len(), m.absent), (3, 1));
     assert!((m.stated_noise_uin.unwrap() - super::measured::cmm_noise_uin()).abs() < 1e-12);
+    // The mean of 16 readings states a quarter of one reading's noise.
+    let mean_of = |n: &str| {
+        json("normal", "cmm", "[[1.0, null], [2.0, 3.0]]").replacen(
+            '{',
+            &format!("{{\"cmm_readings\": {n}, "),
+            1,
+        )
+    };
+    let m = parse(mean_of("16").as_bytes()).unwrap();
+    assert!((m.stated_noise_uin.unwrap() - super::measured::cmm_noise_uin() / 4.0).abs() < 1e-12);
+    refused(&mean_of("0"), "cmm_readings = 0");
+    refused(&mean_of("2.5"), "cmm_readings = 2.5");
     refused(
         &json("reversed", "cmm", "[[1.0, 2.0], [2.0, 3.0]]"),
         "command_sign",

@@ -2,8 +2,11 @@
 //! source beyond the loop (the loop's own part), then with each source of
 //! the scenario's `[errors]` alone, then with all of them; every run has
 //! the same seeds, so a source's contribution is its grid minus the
-//! loop's, point by point. The measurement is a row of its own: the CMM's
-//! reading of the loop's part minus the part.
+//! loop's, point by point. The measurement is two rows of its own: the
+//! face tilt (the CMM's levelling on the part's face, `cmm`: it is in the
+//! reading, not in the part, so its row is what it adds to the reading of
+//! the loop's part) and the CMM's reading of the loop's part minus the
+//! part.
 //!
 //! Per row: the contribution's band (min..max over the 252 points, µin)
 //! and its RMS; the root-sum-square of the rows against the contribution
@@ -49,8 +52,9 @@ pub struct Budget {
     pub loop_band_uin: (f64, f64),
     pub loop_rms_uin: f64,
     pub rows: Vec<Row>,
-    /// All sources together (the measurement excluded): contribution band
-    /// and RMS, and the root-sum-square of the rows' RMS.
+    /// All sources together (the measurement and the face tilt, its
+    /// levelling, excluded): contribution band and RMS, and the
+    /// root-sum-square of the rows' RMS.
     pub all_band_uin: (f64, f64),
     pub all_rms_uin: f64,
     pub rss_rms_uin: f64,
@@ -126,9 +130,19 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Budget> {
         None => None,
     };
     let mut rows = Vec::new();
+    let (surf, _) = spec.surface()?;
+    let gain = surf.contact_gain();
+    let seed = spec.scenario.rig.seed;
     for s in &sources {
         progress(s.name());
-        let g = pass(Some(s.alone(&levels)))?;
+        let g = match s {
+            // The levelling is in the reading: the part is the loop's.
+            Source::FaceTilt => {
+                let face = cmm::FaceLevelling::of(&levels);
+                cmm::read(&base, &surf, gain, &CmmLevels::face_only(face), seed)
+            }
+            _ => pass(Some(s.alone(&levels)))?,
+        };
         let (lo, hi, rms, peak) = contribution(&g, &base);
         rows.push(Row {
             source: s.name().to_string(),
@@ -140,10 +154,8 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Budget> {
             tolerance_factor: tol(peak),
         });
     }
-    let (surf, _) = spec.surface()?;
-    let gain = surf.contact_gain();
     let lv = CmmLevels::renault();
-    let read = cmm::read(&base, &surf, gain, &lv, spec.scenario.rig.seed);
+    let read = cmm::read(&base, &surf, gain, &lv, seed);
     let (lo, hi, rms, peak) = contribution(&read, &base);
     rows.push(Row {
         source: "measurement (CMM)".to_string(),
@@ -161,14 +173,20 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Budget> {
         tolerance_factor: tol(peak),
     });
     progress("all sources");
-    let all = pass(Some(levels))?;
+    let all = pass(Some(levels.clone()))?;
     let (alo, ahi, arms, _) = contribution(&all, &base);
     let rss = rows
         .iter()
         .map(|r| r.rms_uin * r.rms_uin)
         .sum::<f64>()
         .sqrt();
-    let total = cmm::read(&all, &surf, gain, &lv, spec.scenario.rig.seed);
+    let total = cmm::read(
+        &all,
+        &surf,
+        gain,
+        &lv.levelled_on(cmm::FaceLevelling::of(&levels)),
+        seed,
+    );
     let tv: Vec<f64> = values(&total).into_iter().flatten().collect();
     let (tlo, thi, _, _) = stats(&tv);
     Ok(Budget {

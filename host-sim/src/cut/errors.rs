@@ -27,7 +27,8 @@ pub enum Source {
     /// The 1983 command generator (tach rate, index reset, amplitude
     /// trimmed at one speed; `analog1983::generator`): the 1983 loop only.
     CommandGenerator,
-    /// The contour tilted against the face the CMM levels on.
+    /// The face the CMM levels on, not flat under its three probe
+    /// points: a tilt of the reading, not of the part (`cmm`).
     FaceTilt,
     /// The overhang's first mode under the cutting force (`ringing`).
     PartRinging,
@@ -66,7 +67,7 @@ impl Source {
             Source::ToolWear => "tool wear",
             Source::Thermal => "thermal drift",
             Source::CommandGenerator => "1983 command generator",
-            Source::FaceTilt => "face tilt",
+            Source::FaceTilt => "face tilt (CMM levelling)",
             Source::PartRinging => "part ringing",
             Source::CommandLag => "1983 command lag",
             Source::SurfaceSpeedForce => "surface-speed force",
@@ -332,7 +333,7 @@ impl ErrorState {
     }
 
     /// The part being cut: the X zero then also moves the axial slide's
-    /// path, and the tilt and the ringing act at the contact radius.
+    /// path, and the ringing acts at the contact radius.
     pub fn with_part(mut self, surf: crate::surface::Surface) -> Self {
         self.gain = surf.contact_gain();
         self.part = Some(surf);
@@ -457,15 +458,9 @@ impl ErrorState {
             };
         }
         self.last_t = Some(t_s);
-        // The tilt, in the part frame: δ·X·sin(φ − φ0) at the contact
-        // radius X, whatever the command.
-        let tilt = l.face_tilt_uin_per_in
-            * 1e-6
-            * self.gain
-            * x
-            * (TAU * phi_p - l.face_tilt_phase_deg.to_radians()).sin();
+        // The face tilt is not cut: it is the CMM's levelling (`cmm`).
         let ring = self.ringing.as_ref().map_or(0.0, |r| r.at(self.gain * x));
-        self.wear.recession_in() + thermal - sync - self.ou + tilt + ring + self.axial_x_zero_in(x)
+        self.wear.recession_in() + thermal - sync - self.ou + ring + self.axial_x_zero_in(x)
     }
 
     /// The force the amplifier's input hum puts on the slide, lbf, at

@@ -104,8 +104,10 @@ pub struct CutSpec {
     pub error_levels: errors::ErrorLevels,
     /// The command generator's sign (`sign`).
     pub command_sign: sign::CommandSign,
-    /// How the grid is measured (`cmm`).
+    /// How the grid is measured (`cmm`), and how many CMM readings of
+    /// the part are averaged (`cmm::read_averaged`; 1: one reading).
     pub measure: cmm::Measure,
+    pub cmm_readings: u32,
     /// A rectangular grid instead of the polar one (`cut --part --grid`).
     pub grid: Option<std::sync::Arc<rectgrid::RectGrid>>,
     /// Also measure the hole zone (`holezone`: bands across the bolt
@@ -183,6 +185,7 @@ impl CutSpec {
             error_levels,
             command_sign: sign::CommandSign::Normal,
             measure: cmm::Measure::Exact,
+            cmm_readings: 1,
             grid: None,
             hole_zone: false,
             table_image: None,
@@ -227,6 +230,16 @@ impl CutSpec {
             (None, Some(t)) => t,
             (None, None) => zslide::DEFAULT_TABLE,
         }
+    }
+
+    /// The CMM that measures this cut (`--measure cmm`): chapter 5's,
+    /// levelled on the part's face when the error sources are applied.
+    pub fn cmm_levels(&self) -> cmm::CmmLevels {
+        let face = match self.errors {
+            errors::Selection::All => cmm::FaceLevelling::of(&self.error_levels),
+            errors::Selection::None => cmm::FaceLevelling::default(),
+        };
+        cmm::CmmLevels::renault().levelled_on(face)
     }
 
     /// Radii the CMM measures (tool centre for a part, surface else), in.
@@ -788,12 +801,13 @@ pub fn run_pass(
                 );
             }
             let (surf, _) = spec.surface()?;
-            cmm::read(
+            cmm::read_averaged(
                 &grid,
                 &surf,
                 gain,
-                &cmm::CmmLevels::renault(),
+                &spec.cmm_levels(),
                 spec.scenario.rig.seed,
+                spec.cmm_readings,
             )
         }
     };
