@@ -261,7 +261,10 @@ pub(crate) fn ramp_dip_in(
     let j = latch.saturating_sub(1);
     let h = 1.0 / f64::from(spec.scenario.servo_design.rate_hz);
     let exact = |x: &host_sim::faults::Sample| x.z_in - x.err_in;
-    let dist = trace[latch].command_in.abs().min(trace[j].reference_in.abs());
+    let dist = trace[latch]
+        .command_in
+        .abs()
+        .min(trace[j].reference_in.abs());
     let after = &trace[j..];
     let n: Vec<f64> = trace[j.saturating_sub(2)..].iter().map(exact).collect();
     let off = n.len() - after.len();
