@@ -259,6 +259,30 @@ impl LoopModel {
         self.solve(&self.a_cl, &b, f_hz)
     }
 
+    /// The slide's departure (in, after each tick) from the path it was on
+    /// when, from rest, the reference leaves that path by `[position (in),
+    /// velocity (in/s), acceleration (in/s²)]` at tick k: the rates are
+    /// what the feedforward is given, which need not be the position's
+    /// differences (a slew profile that restarts from rest drops the
+    /// command's velocity without an acceleration to match). By
+    /// superposition on the linear loop this is what the loop passes of a
+    /// change of reference, whatever its own error on the path was; the
+    /// part's spring (`stiffness_lbf_per_in`) is in the plant, so the
+    /// cutting force released as the tool leaves its depth is in it.
+    pub fn reference_departure_in(&self, dr: &[[f64; 3]]) -> Vec<f64> {
+        let cy = self.c_y[0];
+        let mut x = DVector::zeros(N);
+        dr.iter()
+            .map(|&[r, v, a]| {
+                x = &self.a_cl * &x
+                    + &self.b_r[0] * (cy * r)
+                    + &self.b_r[1] * (cy * v * self.h)
+                    + &self.b_r[2] * (cy * a * self.h * self.h);
+                x[0]
+            })
+            .collect()
+    }
+
     /// The learning's largest revolution-to-revolution factor over the
     /// harmonics below the table's Nyquist at `rpm`, and where (Hz).
     pub fn learning_factor(&self, rpm: f64) -> (f64, f64) {

@@ -279,3 +279,22 @@ impl Default for Shared {
         Self::new()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each X fault has its own single bit, and `x_fault_bit` names it: a
+    /// word holding two faults at once says both.
+    #[test]
+    fn each_x_fault_has_its_own_bit() {
+        let mut seen = 0u32;
+        for (bit, f) in X_FAULTS {
+            assert_eq!(bit.count_ones(), 1, "{f:?}");
+            assert_eq!(seen & bit, 0, "{f:?} shares a bit");
+            assert_eq!(x_fault_bit(f), bit, "{f:?}");
+            seen |= bit;
+        }
+        assert_eq!(seen, 0b1111);
+    }
+}

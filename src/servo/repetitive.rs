@@ -962,6 +962,63 @@ mod tests {
         );
     }
 
+    /// Leaving a bin smooths the bin `lead` behind it with the 3-tap kernel
+    /// d = (t[k−1] − 2t[k] + t[k+1]) >> q, then the bin before that a
+    /// second time. An impulse of 2²⁰ in bin 100, lead 3, q = 2: leaving bin
+    /// 104 gives bin 101 2²⁰/4 = 2¹⁸, then bin 100 2²⁰ + (−2²¹ + 2¹⁸)/4 =
+    /// 2¹⁹ + 2¹⁶ (worked by hand from the kernel).
+    #[test]
+    fn leaving_a_bin_smooths_the_bin_lead_behind_and_its_predecessor() {
+        let mut r = learner(20_000, 3, 2);
+        let t = LearnedTable::new();
+        t.set(100, 1 << 20);
+        r.apply(&sample(104 << 24, 1 << 20, 0, None), &t);
+        r.apply(&sample(105 << 24, 1 << 20, 0, None), &t);
+        let snap = t.snapshot();
+        assert_eq!(snap[101], 1 << 18);
+        assert_eq!(snap[100], (1 << 19) + (1 << 16));
+        assert_eq!(snap[99], 0);
+        assert_eq!(snap.iter().filter(|&&v| v != 0).count(), 2);
+    }
+
+    /// One sample adds κ·e·Δφ/bin (κ = 20 000/2¹⁶, e = 2¹⁸ Q8, Δφ = 2²⁰ of a
+    /// 2²⁴ bin: 5000 Q8) to the bin `lead` behind its angle and the next,
+    /// shared by where in its bin the angle lies: a quarter of the way in,
+    /// 3/4 (3750) to the first and 1/4 (1250) to the second.
+    #[test]
+    fn a_sample_is_shared_between_two_bins_by_its_place_in_its_bin() {
+        // The error as it comes (no time low-pass): one sample's share.
+        let mut cfg = ServoConfig::at_rate(20_000).unwrap();
+        cfg.learning_gain_q16 = 20_000;
+        cfg.learning_lead_bins = 3;
+        cfg.learning_q_shift = 2;
+        cfg.hum_notch = None;
+        cfg.learning_lowpass_q16 = 0;
+        let mut r = Learner::new(&cfg);
+        let t = LearnedTable::new();
+        r.apply(&sample((104 << 24) + (1 << 22), 1 << 20, 1 << 18, None), &t);
+        let snap = t.snapshot();
+        assert_eq!((snap[101], snap[102]), (3750, 1250));
+        assert_eq!(snap.iter().filter(|&&v| v != 0).count(), 2);
+    }
+
+    /// The fastest spindle the learning follows is a quarter bin per tick,
+    /// 1171.875 rpm at 20 kHz (a turn is 2³² counts): a step of exactly
+    /// that is motion and is learned; one count more is a jump.
+    #[test]
+    fn a_quarter_bin_step_is_learned_and_one_count_more_is_a_jump() {
+        let quarter_bin = (1171.875 / 60.0 / 20_000.0 * 2f64.powi(32)) as i32;
+        let mut r = learner(20_000, 3, 2);
+        let t = LearnedTable::new();
+        r.apply(&sample(1 << 24, quarter_bin, 1 << 20, None), &t);
+        assert_eq!(r.frozen(), None);
+        assert!(t.peak_code() > 0);
+        let t = LearnedTable::new();
+        r.apply(&sample(1 << 25, quarter_bin + 1, 1 << 20, None), &t);
+        assert_eq!(r.frozen(), Some(Freeze::SpindleJump));
+        assert_eq!(t.peak_code(), 0);
+    }
+
     #[test]
     fn backward_or_huge_angle_steps_freeze_the_learning() {
         let mut r = learner(20_000, 0, 8);

@@ -26,6 +26,10 @@ pub struct Module {
     /// The core's test targets that judge a mutant (cargo's `--lib`,
     /// `--tests`).
     pub tests: &'static [&'static str],
+    /// With `--own-tests`: only the tests whose names contain one of these
+    /// (libtest's filters) judge a mutant: the module's own tests, so a
+    /// survivor says what the module's own tests miss.
+    pub own: &'static [&'static str],
     pub what: &'static str,
 }
 
@@ -36,6 +40,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/safety.rs"],
         re: None,
         tests: &["--lib"],
+        own: &["safety::"],
         what: "faults, their reactions and severity order",
     },
     Module {
@@ -49,6 +54,7 @@ pub const MODULES: [Module; 12] = [
         ),
         // `tests/fault_clear.rs` and `tests/fault_latch.rs` drive the tick.
         tests: &["--lib", "--tests"],
+        own: &["firmware::", "fault"],
         what: "the loop tick's fault reactions: latch, clamp, clear, arm",
     },
     Module {
@@ -56,6 +62,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/servo/limits.rs", "**/servo/limits/*.rs"],
         re: Some("FollowingError|CurrentLimit"),
         tests: &["--lib"],
+        own: &["servo::limits"],
         what: "the following-error and current-limit monitors",
     },
     Module {
@@ -63,6 +70,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/table.rs", "**/table/*.rs"],
         re: Some("parse|crc32|node_x|x_null"),
         tests: &["--lib"],
+        own: &["table::"],
         what: "the coefficient table's parser",
     },
     Module {
@@ -70,6 +78,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/params.rs", "**/params/*.rs"],
         re: Some("load_region|at_boot|check|limits|[ :]set "),
         tests: &["--lib"],
+        own: &["params::"],
         what: "the servo parameter block: parse, limits, design",
     },
     Module {
@@ -78,6 +87,7 @@ pub const MODULES: [Module; 12] = [
         re: None,
         // `tests/servo_gains.rs` holds the gains to the brief's design.
         tests: &["--lib", "--tests"],
+        own: &["servo::design", "gain"],
         what: "the servo design: gains, observer poles, limits in codes",
     },
     Module {
@@ -85,6 +95,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/servo/observer.rs"],
         re: None,
         tests: &["--lib"],
+        own: &["servo::observer"],
         what: "the force/velocity observer",
     },
     Module {
@@ -92,6 +103,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/servo/repetitive.rs", "**/firmware/learning.rs"],
         re: None,
         tests: &["--lib"],
+        own: &["servo::repetitive", "learning"],
         what: "the learned correction and its clip",
     },
     Module {
@@ -99,6 +111,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/xpos/mod.rs", "**/xpos/*.rs"],
         re: None,
         tests: &["--lib"],
+        own: &["xpos::"],
         what: "the X position: BCD decode, debounce, glitch storm",
     },
     Module {
@@ -106,6 +119,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/spindle/encoder.rs", "**/spindle/tach.rs", "**/spindle/mod.rs"],
         re: None,
         tests: &["--lib"],
+        own: &["spindle::"],
         what: "the spindle angle, index and speed checks",
     },
     Module {
@@ -113,6 +127,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/store/mod.rs", "**/store/boot.rs", "**/store/ram.rs", "**/store/ecc.rs"],
         re: None,
         tests: &["--lib"],
+        own: &["store::"],
         what: "the parameter store, its boot order, unreadable words and the power-cut flash model",
     },
     Module {
@@ -120,6 +135,7 @@ pub const MODULES: [Module; 12] = [
         files: &["**/handoff/*.rs"],
         re: None,
         tests: &["--lib"],
+        own: &["handoff::", "preemption_tests"],
         what: "the lock-free hand-off between the handlers",
     },
 ];
@@ -143,6 +159,12 @@ pub struct Args {
     /// not in a tree being edited.
     #[arg(long)]
     pub in_place: bool,
+    /// Judge each mutant by the module's own tests only (its `own` name
+    /// filters, passed to the test binaries): a test run of a fraction of
+    /// a second instead of the whole library's 5 s, and a survivor names
+    /// what the module's own tests miss.
+    #[arg(long)]
+    pub own_tests: bool,
     /// List the mutants, run nothing.
     #[arg(long)]
     pub list: bool,
@@ -208,6 +230,10 @@ pub fn command(m: &Module, args: &Args, out: &std::path::Path) -> Command {
     }
     if args.list {
         cmd.arg("--list");
+    }
+    if args.own_tests {
+        // After `--` to cargo test, after the second to the test binaries.
+        cmd.args(["--", "--"]).args(m.own);
     }
     cmd
 }

@@ -193,3 +193,118 @@ pub(crate) fn return_overshoot_in(spec: &host_sim::cut::CutSpec, offset_in: f64)
     let zeta = spec.scenario.servo_design.damping;
     offset_in * (-zeta * std::f64::consts::PI / (1.0 - zeta * zeta).sqrt()).exp()
 }
+
+/// The slew profile from rest toward a goal `dist_in` away, after `t_s`:
+/// `[distance (in), velocity (in/s), acceleration (in/s²)]`: accelerate at
+/// a to v, cruise, brake at a, arrive at rest (`SlewProfile`'s trapezoid,
+/// or its triangle where dist < v²/a).
+pub(crate) fn slew_from_rest(spec: &host_sim::cut::CutSpec, dist_in: f64, t_s: f64) -> [f64; 3] {
+    let d = &spec.scenario.servo_design;
+    let (v, a) = (d.slew_in_per_s, d.slew_accel_in_per_s2);
+    let t1 = (v / a).min((dist_in / a).sqrt());
+    let vp = a * t1;
+    let cruise = (dist_in - a * t1 * t1) / vp;
+    let end = 2.0 * t1 + cruise;
+    match t_s {
+        t if t <= 0.0 => [0.0; 3],
+        t if t <= t1 => [a * t * t / 2.0, a * t, a],
+        t if t <= t1 + cruise => [a * t1 * t1 / 2.0 + vp * (t - t1), vp, 0.0],
+        t if t < end => [dist_in - a * (end - t) * (end - t) / 2.0, a * (end - t), -a],
+        _ => [dist_in, 0.0, 0.0],
+    }
+}
+
+/// The loop of the scenario's design on the cut's spring
+/// (`host_sim::loopmodel`: the sampled f64 design, not the firmware's code).
+pub(crate) fn loop_model(spec: &host_sim::cut::CutSpec) -> host_sim::loopmodel::LoopModel {
+    let sc = &spec.scenario;
+    host_sim::loopmodel::LoopModel::new(
+        &sc.servo_design,
+        sc.file.motor.l_over_r_ms * 1e-3,
+        sc.rig.dac_latency_ns as f64 * 1e-9,
+        PART_STIFFNESS_LBF_PER_IN,
+    )
+}
+
+/// What the ramp to null adds to the tool's depth below the exact command,
+/// beyond the cut's own following error, in: `(the ramp's dip, the held
+/// correction's)` at the tick where their sum is largest (from the latch
+/// on; none where it is never positive).
+///
+/// The loop is linear (`loop_model`), so the tool's path after the latch is
+/// the path the cut would have taken (its own error against the exact
+/// command: the revolution before's) plus the loop's response to the
+/// reference's departure from the path it was on, δr = r_cut − r, with
+/// the feedforward's rates departing likewise. At the latch the learned
+/// correction joins the command and the slew profile restarts the command
+/// from rest toward null (`Servo::update`): the reference rises by the
+/// profile ρ(t) from where it was, its feedforward velocity ρ̇ (from 0: the
+/// path's velocity is dropped, with no acceleration to match) and
+/// acceleration ρ̈, while the cut's would have moved with the exact command
+/// n(t) and its rates, and the correction c(t). So
+/// δr = (n(t) − n(t₀)) − ρ(t) + (c(t) − c(t₀)), δv = ṅ − ρ̇, δa = n̈ − ρ̈:
+/// n is the part's geometry (the exact command under the tool, read from
+/// the trace, its rates by differences), ρ the profile's closed form
+/// ([`slew_from_rest`]) started a tick late (its first step may fall in the
+/// latching tick or the next); the loop's response to them is the dip. The
+/// correction's change is not known after the latch; it moves at most at
+/// its largest rate ċ over the trace before the injection (the table's
+/// correction near this angle, before the fault disturbed its angle or X), so its departure's steps are each at most ċ·h and the loop
+/// passes at most ċ·h·Σ|s_i| of it (s the model's response to a step with
+/// its rates).
+pub(crate) fn ramp_dip_in(
+    spec: &host_sim::cut::CutSpec,
+    trace: &[host_sim::faults::Sample],
+    t_inj: u64,
+    latch: usize,
+) -> (f64, f64) {
+    let j = latch.saturating_sub(1);
+    let h = 1.0 / f64::from(spec.scenario.servo_design.rate_hz);
+    let exact = |x: &host_sim::faults::Sample| x.z_in - x.err_in;
+    let dist = trace[latch]
+        .command_in
+        .abs()
+        .min(trace[j].reference_in.abs());
+    let after = &trace[j..];
+    let n: Vec<f64> = trace[j.saturating_sub(2)..].iter().map(exact).collect();
+    let off = n.len() - after.len();
+    let dr: Vec<[f64; 3]> = after
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let t = (x.t_ns - trace[j].t_ns) as f64 * 1e-9;
+            let [p, v, a] = slew_from_rest(spec, dist, t - h);
+            let k = i + off;
+            let n_v = (n[k] - n[k - 1]) / h;
+            let n_a = (n[k] - 2.0 * n[k - 1] + n[k - 2]) / (h * h);
+            [n[k] - n[off] - p, n_v - v, n_a - a]
+        })
+        .collect();
+    let model = loop_model(spec);
+    let dip = model.reference_departure_in(&dr);
+    let c_rate = trace[..latch]
+        .iter()
+        .take_while(|x| x.t_ns < t_inj)
+        .collect::<Vec<_>>()
+        .windows(2)
+        .map(|p| {
+            let c = |x: &host_sim::faults::Sample| x.reference_in - x.command_in;
+            (c(p[1]) - c(p[0])).abs() / ((p[1].t_ns - p[0].t_ns) as f64 * 1e-9)
+        })
+        .fold(0.0f64, f64::max);
+    // Σ|s_i| up to each tick, of a unit (1 µin) step with its rates.
+    let mut unit = vec![[1e-6, 0.0, 0.0]; after.len()];
+    unit[0] = [1e-6, 1e-6 / h, 1e-6 / (h * h)];
+    if unit.len() > 1 {
+        unit[1][2] = -1e-6 / (h * h);
+    }
+    let step = model.reference_departure_in(&unit);
+    let mut sum = 0.0;
+    dip.iter()
+        .zip(&step)
+        .map(|(&y, s)| {
+            sum += (s / 1e-6).abs();
+            (y, c_rate * h * sum)
+        })
+        .fold((0.0, 0.0), |m, p| if p.0 + p.1 > m.0 + m.1 { p } else { m })
+}

@@ -210,12 +210,7 @@ pub(crate) fn check_row(
             // Z ≤ 0 toward 0): the tool departs from the exact command by
             // no more than the cut's own following error, measured over
             // the revolution before the injection on the same seeds, plus
-            // the learned correction the latch takes out of the loop (it
-            // joins the command, so the loop's error is again the
-            // unlearned one until the command has left: at most the
-            // correction's size more). At
-            // boot there is no cut before: the slide is held at null, above
-            // the part, never into it.
+            // what the loop passes of the ramp (below).
             // At boot (a refused table, no cut before): the slide is held
             // at null once armed; before that the arm's sign-check doublet
             // drives it open loop, at most 2·z(T) (a double integrator
@@ -223,55 +218,19 @@ pub(crate) fn check_row(
             // only shortens it). So the tool is at most that below null,
             // and null is at most the exact surface's largest height
             // above Z = 0 over the run above the part.
-            let correction_uin = o
-                .trace
-                .iter()
-                .take_while(|x| !x.fault)
-                .map(|x| (x.reference_in - x.command_in).abs() * 1e6)
-                .fold(0.0f64, f64::max);
-            // And the slew profile's catch-up: the ramp to null starts the
-            // command from rest (the x-glitch-storm trace: the command's
-            // step falls from 6.3 to 0.17 µin a 100 µs in the tick that
-            // latched), while the exact surface under the tool goes on
-            // moving at its rate v_s; where it rises (+Z, out of the
-            // stock) the held command falls below it until the ramp's
-            // velocity, growing at a, reaches v_s: by at most
-            // ∫(v_s − a·t) dt over v_s/a = v_s²/(2a). v_s: the exact
-            // surface's fastest rise from the latch over the longest the
-            // ramp can take to reach any rate, v/a (not over the whole
-            // run: the surface's rate where the fault struck is what the
-            // held command lags).
-            let d = &spec.scenario.servo_design;
-            let a = d.slew_accel_in_per_s2;
-            let window_ns = ((d.slew_in_per_s / a + 2.0 / f64::from(d.rate_hz)) * 1e9) as u64;
-            let exact = |x: &host_sim::faults::Sample| x.z_in - x.err_in;
-            let near: Vec<_> = o
-                .trace
-                .iter()
-                .filter(|x| x.t_ns + 1 >= from.t_ns && x.t_ns <= from.t_ns + window_ns)
-                .collect();
-            let v_s = near
-                .windows(2)
-                .map(|w| (exact(w[1]) - exact(w[0])) / ((w[1].t_ns - w[0].t_ns) as f64 * 1e-9))
-                .fold(0.0f64, f64::max);
-            // The gap itself, from the surface's actual path: how far it
-            // rose above where it was at the latch, less how far the ramp
-            // from rest (a·t²/2, then v) has come by then.
-            let v = d.slew_in_per_s;
-            let ramp_in = |t_s: f64| {
-                if t_s < v / a {
-                    a * t_s * t_s / 2.0
-                } else {
-                    v * v / (2.0 * a) + v * (t_s - v / a)
-                }
+            // The ramp to null: what the loop passes of the reference's
+            // departure from the path the cut was on (the profile from rest
+            // against the exact command's own motion, and the learned
+            // correction held where it was): `ramp_dip_in`. At boot (a
+            // refused table) the loop never followed the part: the
+            // doublet's bound below holds the slide instead.
+            let (dip_in, held_in) = if matches!(expected(case).detect, Detect::Boot) {
+                (0.0, 0.0)
+            } else {
+                ramp_dip_in(spec, &o.trace, t_inj, k)
             };
-            let gap_in = near
-                .iter()
-                .map(|x| {
-                    exact(x) - exact(from) - ramp_in((x.t_ns as f64 - from.t_ns as f64) * 1e-9)
-                })
-                .fold(0.0f64, f64::max);
-            let catch_up_uin = gap_in.min(v_s * v_s / (2.0 * a)) * 1e6;
+            let (dip_uin, held_uin) = (dip_in * 1e6, held_in * 1e6);
+            let exact = |x: &host_sim::faults::Sample| x.z_in - x.err_in;
             // The push row: the push holds the tool out of the part; the
             // loop's return from its offset passes the command by its
             // overshoot, toward the part.
@@ -311,8 +270,8 @@ pub(crate) fn check_row(
             } else {
                 0.0
             };
-            let own = correction_uin
-                + catch_up_uin
+            let own = dip_uin
+                + held_uin
                 + overshoot_uin
                 + r.excursion_before_uin
                     .map(|b| b.max(coast_uin))
@@ -336,13 +295,13 @@ pub(crate) fn check_row(
                 .unwrap();
             assert!(
                 e <= own,
-                "{}: {e} µin into the part, beyond the cut's own following error, the correction taken out and the ramp's catch-up ({own} µin: {correction_uin} of correction, {catch_up_uin} of catch-up at {v_s} in/s); deepest at {worst:?}",
+                "{}: {e} µin into the part, beyond the cut's own following error and what the loop passes of the ramp ({own} µin: {dip_uin} of the ramp's dip, {held_uin} of the held correction); deepest at {worst:?}",
                 r.fault
             );
             format!(
-                "{}: {e:.1} ≤ {own:.1} µin (own FE {:.1}, correction {correction_uin:.1}, catch-up {catch_up_uin:.1} at {v_s:.5} in/s, overshoot {overshoot_uin:.1}), null {:.1} ≤ {allowed_ms:.1} ms after the latch",
+                "{}: {e:.1} ≤ {own:.1} µin (own FE {:.1}, the ramp's dip {dip_uin:.1}, held correction {held_uin:.1}, overshoot {overshoot_uin:.1}), null {:.1} ≤ {allowed_ms:.1} ms after the latch",
                 r.fault,
-                own - correction_uin - catch_up_uin - overshoot_uin,
+                own - dip_uin - held_uin - overshoot_uin,
                 t_safe_ms - ms(from.t_ns)
             )
         }
