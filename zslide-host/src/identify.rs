@@ -877,7 +877,7 @@ pub fn tune(link: &mut Link, a: &TuneArgs, out: &mut dyn Write) -> Result<ServoD
             say_to(
                 out,
                 &format!(
-                    "  at {k:>6.0} lbf/in: crossover {} Hz, phase margin {} deg, gain margin {} dB",
+                    "  at {k:>6.0} lbf/in: crossover (Hz) {}, phase margin (deg) {}, gain margin (dB) {}",
                     host_sim::cmd::response::fmt_opt(m.crossover_hz, 1),
                     host_sim::cmd::response::fmt_opt(m.phase_margin_deg, 1),
                     host_sim::cmd::response::fmt_opt(m.gain_margin_db, 1)

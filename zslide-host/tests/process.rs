@@ -125,3 +125,90 @@ fn the_process_stiffness_of_the_nominal_edge_is_the_force_models_slope() {
 fn the_process_stiffness_of_a_thrice_blunt_edge_is_the_force_models_slope() {
     check(3.0);
 }
+
+/// `tune --process`: the nominal design on the nominal plant passes in
+/// air; a part of 50 000 lbf/in (k_e × 23 of the test cut: a nearly rigid
+/// contact) leaves it less than the minimum margins, by the sampled-data
+/// model of the design (`host_sim::loopmodel`, which the code under test
+/// does not use), so `tune` refuses and sets nothing; a part of the
+/// nominal cut's stiffness passes.
+#[test]
+fn tune_refuses_a_design_whose_margins_at_the_measured_stiffness_are_below_the_minimums() {
+    use zslide_host::predict::{MIN_GAIN_MARGIN_DB, MIN_PHASE_MARGIN_DEG};
+    use zslide_host::process::{process_text, Process};
+    let sc = host_sim::scenario::load("legacy-hw").unwrap();
+    let stiff = 50_000.0;
+    // The least gain margin of the model's loop at that stiffness (−|L|
+    // in dB wherever ∠L crosses −180°) and the least phase margin
+    // (180° + ∠L wherever |L| crosses 1), between 2 Hz and 2 kHz.
+    let model = host_sim::loopmodel::LoopModel::new(
+        &sc.servo_design,
+        sc.file.motor.l_over_r_ms * 1e-3,
+        sc.rig.dac_latency_ns as f64 * 1e-9,
+        stiff,
+    );
+    let fs: Vec<f64> = (0..4000)
+        .map(|i| 2.0 * 1000f64.powf(f64::from(i) / 3999.0))
+        .collect();
+    let least_gm = fs
+        .windows(2)
+        .filter_map(|w| {
+            let (a, b) = (model.loop_gain(w[0]), model.loop_gain(w[1]));
+            (a.re < 0.0 && b.re < 0.0 && (a.im > 0.0) != (b.im > 0.0))
+                .then(|| -20.0 * b.norm().log10())
+        })
+        .fold(f64::INFINITY, f64::min);
+    let least_pm = fs
+        .windows(2)
+        .filter_map(|w| {
+            let (a, b) = (model.loop_gain(w[0]), model.loop_gain(w[1]));
+            ((a.norm() >= 1.0) != (b.norm() >= 1.0)).then(|| 180.0 - b.arg().to_degrees().abs())
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        least_gm < MIN_GAIN_MARGIN_DB || least_pm < MIN_PHASE_MARGIN_DEG,
+        "the model's margins at {stiff} lbf/in: {least_pm:.1} deg, {least_gm:.1} dB"
+    );
+
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/zslide-host-test");
+    std::fs::create_dir_all(&dir).unwrap();
+    let plant = air_plant(&dir);
+    let file = |name: &str, k: f64| {
+        let path = dir.join(name);
+        let p = Process {
+            stiffness_lbf_per_in: k,
+            stiffness_sigma: 0.01 * k,
+            damping_lbf_s_per_in: 0.0,
+            damping_sigma: 0.02,
+            chi2: 1.0,
+        };
+        std::fs::write(&path, process_text(&p, &plant)).unwrap();
+        path
+    };
+    let rigid = file("process-rigid.process", stiff);
+    let nominal = file("process-nominal.process", 2185.0);
+    let m = Machine::start("process-tune", Setup::new(sc));
+    let mut link = Link::new(&m.addr, Duration::from_secs(10));
+    let before = zslide_host::identify::design_on(link.client().unwrap()).unwrap();
+    let e = run_line(
+        &mut link,
+        &format!("tune {} --process {}", plant.display(), rigid.display()),
+    )
+    .unwrap_err();
+    assert!(
+        e.contains("in the cut") && e.contains("margin") && e.contains("nothing set"),
+        "{e}"
+    );
+    let after = zslide_host::identify::design_on(link.client().unwrap()).unwrap();
+    assert_eq!(format!("{before:?}"), format!("{after:?}"));
+    let ok = run_line(
+        &mut link,
+        &format!(
+            "tune {} --process {} --dry-run",
+            plant.display(),
+            nominal.display()
+        ),
+    )
+    .unwrap();
+    assert_eq!(ok.matches("lbf/in: crossover").count(), 3, "{ok}");
+}
