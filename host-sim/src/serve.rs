@@ -15,6 +15,7 @@
 //! waits until the first closes. The machine keeps running between
 //! connections.
 
+use crate::cut::test_cut::{TestCut, TestCutHook};
 use crate::fwrig::link::{ParamsFlash, ParamsStore, PARAMS_REGION_BYTES};
 use crate::fwrig::{machine_with_table, FirmwareWorld};
 use crate::machine::xslide::FeedSegment;
@@ -146,6 +147,9 @@ pub struct Setup {
     /// `host-sim serve` (the board's flash across power cycles): read at
     /// the start, rewritten whole after every flash operation.
     pub params_file: Option<PathBuf>,
+    /// The tool engaged in a light test cut at the null position
+    /// (`cut::test_cut`), in the scenario's force model (its `cutting`).
+    pub cut: Option<TestCut>,
 }
 
 impl Setup {
@@ -166,6 +170,7 @@ impl Setup {
             speed: 1.0,
             params_flash: Arc::new(Mutex::new(ParamsFlash::new())),
             params_file: None,
+            cut: None,
         }
     }
 
@@ -197,6 +202,9 @@ impl Setup {
     pub fn check(&self) -> anyhow::Result<()> {
         if !(self.speed > 0.0 && self.speed <= 100.0) {
             bail!("--speed {}: must be in (0, 100]", self.speed);
+        }
+        if let Some(c) = &self.cut {
+            c.check()?;
         }
         Ok(())
     }
@@ -240,6 +248,14 @@ impl Setup {
             machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, cfg, self.table);
         if let ParamSource::Refused(e) = source {
             w.fw.trip(Fault::Parameters(e));
+        }
+        if let Some(cut) = self.cut {
+            w.hooks.push(Box::new(TestCutHook::new(
+                cut,
+                sc.cutting.clone(),
+                sc.file.errors.cut_force_noise_lbf,
+                sc.rig.seed,
+            )));
         }
         let link = crate::fwrig::link::attach(&mut w, &mut s, sc.loop_hz, design, source)?;
         link.borrow_mut().set_store(store);

@@ -78,8 +78,24 @@ impl Known {
 
     /// The model's response at `f_hz`, gauge codes per DAC code.
     pub fn response(&self, p: &Plant, f_hz: f64) -> Complex<f64> {
+        self.response_engaged(p, 0.0, 0.0, f_hz)
+    }
+
+    /// [`Known::response`] with the tool engaged in a part: a spring of
+    /// `k_lbf_per_in` and a damper of `c_lbf_s_per_in` between the slide's
+    /// carriage (where the tool rides and the motor's force acts) and the
+    /// frame.
+    pub fn response_engaged(
+        &self,
+        p: &Plant,
+        k_lbf_per_in: f64,
+        c_lbf_s_per_in: f64,
+        f_hz: f64,
+    ) -> Complex<f64> {
         let slide = self.slide_with(p);
-        let (a, b) = slide.continuous(false);
+        let (mut a, b) = slide.continuous(false);
+        a[st::V][st::Z] -= k_lbf_per_in / slide.mass_lbf_s2_per_in;
+        a[st::V][st::V] -= c_lbf_s_per_in / slide.mass_lbf_s2_per_in;
         let a = Matrix5::from_fn(|r, c| Complex::new(a[r][c], 0.0));
         let b = Vector5::from_fn(|r, _| Complex::new(b[r][0], 0.0));
         let t = 1.0 / self.loop_hz;

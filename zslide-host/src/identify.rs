@@ -30,6 +30,7 @@ use zslide::servo::ServoDesign;
 
 use crate::client::{get, set, unexpected, Client, Link};
 use crate::fit::{self, Known, Plant, Point};
+use crate::process::{self, Process};
 use crate::report::say_to;
 use crate::Result;
 
@@ -58,6 +59,21 @@ pub struct IdentifyArgs {
     /// No plot images (the CSV and the fit only).
     #[arg(long)]
     pub no_plot: bool,
+    /// Measure the process instead, during a light test cut at null: the
+    /// slide's response with the part engaged against the in-air fit
+    /// AIR.plant (an earlier `identify`'s), the part's stiffness and
+    /// damping from their difference. Writes STEM.csv and STEM.process
+    /// (for `zslide tune --process`).
+    #[arg(long, value_name = "AIR.plant", requires = "cut_depth")]
+    pub in_cut: Option<PathBuf>,
+    /// The test cut's depth of cut, µin: the excitation moves the tool by
+    /// well under it (the in-air model's response aimed at an eighth).
+    #[arg(long, value_name = "UIN", requires = "in_cut")]
+    pub cut_depth: Option<f64>,
+    /// Capture windows averaged per frequency in the cut (its motion is
+    /// a few µin against the gauge's noise and the chip's force noise).
+    #[arg(long, value_name = "N", default_value_t = 16)]
+    pub cut_repeats: u32,
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -68,10 +84,19 @@ pub struct TuneArgs {
     /// with the fit, the plant the prediction runs on.
     #[arg(long, default_value = "legacy-hw")]
     pub scenario: String,
+    /// The process `zslide identify --in-cut` measured (STEM.process):
+    /// the design is also refused when its predicted margins at that
+    /// stiffness, or at its two-sigma bounds, fall below the minimums.
+    #[arg(long, value_name = "STEM.process")]
+    pub process: Option<PathBuf>,
     /// Only print what would be set.
     #[arg(long)]
     pub dry_run: bool,
 }
+
+/// Excitations started at one frequency before `identify` gives up on a
+/// link too slow to fit its windows in one.
+const MAX_STARTS: u32 = 4;
 
 /// Capture window: the firmware's ring.
 const WINDOW: usize = zslide::link::CAPTURE;
@@ -147,13 +172,58 @@ pub fn bins(loop_hz: f64, start: &Plant) -> Vec<usize> {
     ks
 }
 
-fn excite(c: &mut Client, step: u32, amplitude: u32, ticks: u32) -> Result<()> {
+/// The in-cut measurement's bins: the window's first ten (19.5 .. 195 Hz
+/// at 20 kHz), without the hum's: where the part's spring is a large
+/// share of the slide's impedance (above, the mass hides it).
+pub fn cut_bins(loop_hz: f64) -> Vec<usize> {
+    let df = loop_hz / WINDOW as f64;
+    let hum = (120.0 / df).round() as usize;
+    (1..=10usize).filter(|k| k.abs_diff(hum) > 1).collect()
+}
+
+/// One frequency of a measurement: the bin, the sine's amplitude (DAC
+/// codes) and the windows averaged.
+#[derive(Clone, Copy, Debug)]
+pub struct Plan {
+    pub k: usize,
+    pub amplitude: u32,
+    pub repeats: u32,
+}
+
+/// The in-air plan: each bin's amplitude aims the model's response at
+/// `target_uin`, capped by the firmware's bound.
+fn plan(
+    ks: &[usize],
+    loop_hz: f64,
+    known: &Known,
+    p: &Plant,
+    target_uin: f64,
+    repeats: impl Fn(f64) -> u32,
+) -> Vec<Plan> {
+    let codes_per_uin = known.gauge_v_per_in * DAC_CODES_PER_V * 1e-6;
+    ks.iter()
+        .map(|&k| {
+            let f_hz = k as f64 * loop_hz / WINDOW as f64;
+            let h_nom = known.response(p, f_hz).norm();
+            let max = zslide::firmware::excite::max_amplitude_codes(f_hz);
+            Plan {
+                k,
+                amplitude: ((target_uin * codes_per_uin / h_nom) as u32).clamp(1, max),
+                repeats: repeats(f_hz).max(2),
+            }
+        })
+        .collect()
+}
+
+/// Starts (or, with `ticks` 0, stops) the sine; returns the loop tick of
+/// its phase 0.
+fn excite(c: &mut Client, step: u32, amplitude: u32, ticks: u32) -> Result<u32> {
     match c.call(&Request::Excite {
         step,
         amplitude,
         ticks,
     })? {
-        Reply::Exciting { .. } => Ok(()),
+        Reply::Exciting { tick, .. } => Ok(tick),
         r => Err(unexpected(&r)),
     }
 }
@@ -171,7 +241,8 @@ fn wait_ticks(c: &mut Client, ticks: u32) -> Result<()> {
     }
 }
 
-fn window(c: &mut Client) -> Result<Vec<Sample>> {
+/// One capture window: its samples and the loop tick of its first.
+fn window(c: &mut Client) -> Result<(Vec<Sample>, u32)> {
     match c.call(&Request::CaptureStart {
         samples: WINDOW as u16,
         pre: 0,
@@ -189,20 +260,15 @@ fn window(c: &mut Client) -> Result<Vec<Sample>> {
                     info.recorded
                 ));
             }
-            return c.capture_read(info.recorded);
+            return Ok((c.capture_read(info.recorded)?, info.trigger_tick));
         }
         std::thread::sleep(Duration::from_millis(2));
     }
 }
 
-/// Measures the response at the bins of [`bins`].
-pub fn measure(
-    c: &mut Client,
-    a: &IdentifyArgs,
-    known: &Known,
-    start: &Plant,
-    out: &mut dyn Write,
-) -> Result<Vec<Measured>> {
+/// Checks that the machine is engaged at null with the model's loop
+/// rate; returns the rate.
+fn check_machine(c: &mut Client, known: &Known) -> Result<f64> {
     let st = c.status()?;
     if st.state.phase != LoopPhase::Engaged || st.state.fault.is_some() || !st.state.null_command {
         return Err(
@@ -218,40 +284,86 @@ pub fn measure(
             known.loop_hz
         ));
     }
-    let codes_per_uin = known.gauge_v_per_in * DAC_CODES_PER_V * 1e-6;
-    let settle = (a.settle_ms * 1e-3 * loop_hz) as u32;
+    Ok(loop_hz)
+}
+
+/// Measures the response at the bins of `plan`.
+pub fn measure(
+    c: &mut Client,
+    plan: &[Plan],
+    loop_hz: f64,
+    settle_ms: f64,
+    out: &mut dyn Write,
+) -> Result<Vec<Measured>> {
+    let settle = (settle_ms * 1e-3 * loop_hz) as u32;
     let mut res = Vec::new();
-    for k in bins(loop_hz, start) {
+    for &Plan {
+        k,
+        amplitude,
+        repeats,
+    } in plan
+    {
         let f_hz = k as f64 * loop_hz / WINDOW as f64;
         let step = (k as u64 * (1u64 << 32) / WINDOW as u64) as u32;
-        let h_nom = known.response(start, f_hz).norm();
-        let max = zslide::firmware::excite::max_amplitude_codes(f_hz);
-        let amplitude = ((a.target_uin * codes_per_uin / h_nom) as u32).clamp(1, max);
-        let repeats = if f_hz >= 0.85 * start.mode_zero_hz {
-            a.mode_repeats
-        } else {
-            a.repeats
-        }
-        .max(2);
         // Long enough for the settling and the windows with their reads
         // (a read takes about a window's ticks more on a simulated link).
         let ticks = ((settle + 12 * WINDOW as u32 * repeats) as f64)
             .min(zslide::firmware::excite::EXCITE_MAX_S * loop_hz) as u32;
-        excite(c, step, amplitude, ticks)?;
-        wait_ticks(c, settle)?;
-        let (mut suy, mut suu, mut syy) = (Complex::new(0.0, 0.0), 0.0, 0.0);
-        let mut hs = Vec::new();
-        for _ in 0..repeats {
-            let w = window(c)?;
-            let u = bin(w.iter().map(|s| f64::from(s.output)), k);
-            let y = bin(w.iter().map(|s| f64::from(s.position)), k);
+        // Each window's DFT bins turned back by the sine's phase at its
+        // first tick (the excitation's start and the capture's trigger are
+        // loop ticks the firmware reports): the windows then average
+        // coherently, u and y alike, so the noise the loop feeds back from
+        // y into u averages out of the ratio instead of biasing it. A
+        // window that did not lie wholly within the settled sine (a host
+        // slow against the machine) is not used; the sine is started again.
+        let mut uy: Vec<(Complex<f64>, Complex<f64>)> = Vec::new();
+        let mut starts = 0;
+        'sine: while uy.len() < repeats as usize {
+            starts += 1;
+            if starts > MAX_STARTS {
+                excite(c, 0, 0, 0)?;
+                return Err(format!(
+                    "{f_hz:.1} Hz: {starts} excitations of {ticks} ticks each ended before \
+                     {repeats} capture windows fitted in them: the link is too slow against \
+                     the machine's loop"
+                ));
+            }
+            let start = excite(c, step, amplitude, ticks)?;
+            wait_ticks(c, settle)?;
+            while uy.len() < repeats as usize {
+                let (w, at) = window(c)?;
+                let since = at.wrapping_sub(start);
+                if since < settle {
+                    continue;
+                }
+                if u64::from(since) + WINDOW as u64 > u64::from(ticks) {
+                    continue 'sine;
+                }
+                let turns =
+                    ((u64::from(step) * u64::from(since)) & 0xFFFF_FFFF) as f64 / 4_294_967_296.0;
+                let back = Complex::from_polar(1.0, -std::f64::consts::TAU * turns);
+                let u = bin(w.iter().map(|s| f64::from(s.output)), k);
+                let y = bin(w.iter().map(|s| f64::from(s.position)), k);
+                uy.push((u * back, y * back));
+            }
+        }
+        excite(c, 0, 0, 0)?;
+        let (mut su, mut sy, mut suy, mut suu, mut syy) = (
+            Complex::new(0.0, 0.0),
+            Complex::new(0.0, 0.0),
+            Complex::new(0.0, 0.0),
+            0.0,
+            0.0,
+        );
+        for &(u, y) in &uy {
+            su += u;
+            sy += y;
             suy += u.conj() * y;
             suu += u.norm_sqr();
             syy += y.norm_sqr();
-            hs.push(y / u);
         }
-        excite(c, 0, 0, 0)?;
-        let h = suy / suu;
+        let hs: Vec<Complex<f64>> = uy.iter().map(|&(u, y)| y / u).collect();
+        let h = sy / su;
         let coherence = suy.norm_sqr() / (suu * syy);
         let n = hs.len() as f64;
         let spread = (hs.iter().map(|x| (x / h - 1.0).norm_sqr()).sum::<f64>() / (n - 1.0)).sqrt();
@@ -292,9 +404,8 @@ pub fn plant_text(p: &Plant, scenario: &str) -> String {
     )
 }
 
-/// Reads [`plant_text`]'s file; every field is required, nothing else is
-/// accepted.
-pub fn read_plant(path: &Path) -> Result<Plant> {
+/// A `name = value` file's fields (`#` comments and blank lines skipped).
+pub fn read_fields(path: &Path) -> Result<std::collections::BTreeMap<String, f64>> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let mut v = std::collections::BTreeMap::new();
@@ -312,6 +423,13 @@ pub fn read_plant(path: &Path) -> Result<Plant> {
             .map_err(|e| format!("{}:{}: {}: {e}", path.display(), i + 1, x.trim()))?;
         v.insert(k.trim().to_string(), x);
     }
+    Ok(v)
+}
+
+/// Reads [`plant_text`]'s file; every field is required, nothing else is
+/// accepted.
+pub fn read_plant(path: &Path) -> Result<Plant> {
+    let mut v = read_fields(path)?;
     let mut take = |k: &str| {
         v.remove(k)
             .ok_or_else(|| format!("{}: no {k}", path.display()))
@@ -462,8 +580,108 @@ pub fn write_plots(stem: &Path, ms: &[Measured], known: &Known, p: &Plant) -> Re
     Ok(())
 }
 
-/// `zslide identify`: measure, fit, write; returns the fit.
-pub fn identify(link: &mut Link, a: &IdentifyArgs, out: &mut dyn Write) -> Result<fit::Fit> {
+/// What `zslide identify` measured: the plant in air, or the process.
+pub enum Identified {
+    Air(fit::Fit),
+    Process(Process),
+}
+
+/// `zslide identify`: measure, fit, write.
+pub fn identify(link: &mut Link, a: &IdentifyArgs, out: &mut dyn Write) -> Result<Identified> {
+    match &a.in_cut {
+        Some(air) => in_cut(link, a, air, out).map(Identified::Process),
+        None => in_air(link, a, out).map(Identified::Air),
+    }
+}
+
+/// The in-cut measurement (`--in-cut`): the response at [`cut_bins`],
+/// the process from it against the in-air fit (`crate::process`).
+fn in_cut(
+    link: &mut Link,
+    a: &IdentifyArgs,
+    air_path: &Path,
+    out: &mut dyn Write,
+) -> Result<Process> {
+    let (known, _) = known_from_scenario(&a.scenario)?;
+    let air = read_plant(air_path)?;
+    let depth_uin = a.cut_depth.ok_or("--in-cut needs --cut-depth")?;
+    if !(depth_uin.is_finite() && depth_uin > 0.0) {
+        return Err(format!(
+            "--cut-depth {depth_uin}: need a depth of cut > 0 uin"
+        ));
+    }
+    let stem = a.out.clone();
+    let csv = stem.with_extension("csv");
+    let file = stem.with_extension("process");
+    for p in [&csv, &file] {
+        host_sim::outpath::check_file("--out", p).map_err(|e| format!("{e:#}"))?;
+    }
+    let c = link.client()?;
+    let loop_hz = check_machine(c, &known)?;
+    // An eighth of the depth in the in-air model: the part's spring only
+    // lowers the response below its own frequency and raises it at most
+    // by its damping's resonance (×1.7 at legacy-hw's air film and
+    // 2200 lbf/in), and the closed loop moves the slide less than the
+    // open plant: the tool stays in the stock, where the force model is
+    // smooth (its curvature biases the slope by (3/32)(a/d)², 0.4 % at
+    // a quarter of the depth).
+    let ks = cut_bins(loop_hz);
+    let pl = plan(&ks, loop_hz, &known, &air, depth_uin / 8.0, |_| {
+        a.cut_repeats
+    });
+    let ms = measure(c, &pl, loop_hz, a.settle_ms, out)?;
+    let pts: Vec<process::PointEstimate> = ms
+        .iter()
+        .map(|m| process::at_point(&known, &air, m))
+        .collect::<Result<_>>()?;
+    let p = process::combine(&pts)?;
+    let mut text = String::from(
+        "f_hz,mag_db,phase_deg,coherence,rel_sigma,excitation_v,air_mag_db,stiffness_lbf_per_in,\
+         stiffness_sigma,damping_lbf_s_per_in,damping_sigma\n",
+    );
+    for (m, e) in ms.iter().zip(&pts) {
+        let h0 = known.response(&air, m.f_hz);
+        text += &format!(
+            "{:.3},{:.4},{:.3},{:.5},{:.5},{:.4},{:.4},{:.1},{:.1},{:.4},{:.4}\n",
+            m.f_hz,
+            20.0 * m.h.norm().log10(),
+            m.h.arg().to_degrees(),
+            m.coherence,
+            m.rel_sigma,
+            m.amplitude_v,
+            20.0 * h0.norm().log10(),
+            e.k,
+            e.cov[(0, 0)].sqrt(),
+            e.c,
+            e.cov[(1, 1)].sqrt()
+        );
+    }
+    crate::write_file(&csv, text)?;
+    crate::write_file(&file, process::process_text(&p, air_path))?;
+    for line in [
+        format!(
+            "process ({} frequencies against {}, chi2 per degree of freedom {:.2}):",
+            pts.len(),
+            air_path.display(),
+            p.chi2
+        ),
+        format!(
+            "  stiffness  {:.0} lbf/in  ± {:.0} (1 sigma)",
+            p.stiffness_lbf_per_in, p.stiffness_sigma
+        ),
+        format!(
+            "  damping    {:.3} lbf s/in  ± {:.3} (1 sigma)",
+            p.damping_lbf_s_per_in, p.damping_sigma
+        ),
+        format!("wrote {}, {}", csv.display(), file.display()),
+    ] {
+        say_to(out, &line)?;
+    }
+    Ok(p)
+}
+
+/// The in-air measurement and fit.
+fn in_air(link: &mut Link, a: &IdentifyArgs, out: &mut dyn Write) -> Result<fit::Fit> {
     let (known, start) = known_from_scenario(&a.scenario)?;
     let stem = a.out.clone();
     let csv = stem.with_extension("csv");
@@ -473,7 +691,22 @@ pub fn identify(link: &mut Link, a: &IdentifyArgs, out: &mut dyn Write) -> Resul
         host_sim::outpath::check_file("--out", p).map_err(|e| format!("{e:#}"))?;
     }
     let c = link.client()?;
-    let ms = measure(c, a, &known, &start, out)?;
+    let loop_hz = check_machine(c, &known)?;
+    let pl = plan(
+        &bins(loop_hz, &start),
+        loop_hz,
+        &known,
+        &start,
+        a.target_uin,
+        |f_hz| {
+            if f_hz >= 0.85 * start.mode_zero_hz {
+                a.mode_repeats
+            } else {
+                a.repeats
+            }
+        },
+    );
+    let ms = measure(c, &pl, loop_hz, a.settle_ms, out)?;
     let pts: Vec<Point> = ms
         .iter()
         .map(|m| Point {
@@ -567,6 +800,11 @@ pub fn design_on(c: &mut Client) -> Result<ServoDesign> {
 /// each set), set on the machine while disarmed.
 pub fn tune(link: &mut Link, a: &TuneArgs, out: &mut dyn Write) -> Result<ServoDesign> {
     let plant = read_plant(&a.plant)?;
+    let in_cut = a
+        .process
+        .as_deref()
+        .map(process::read_process)
+        .transpose()?;
     let c = link.client()?;
     let mut d = design_on(c)?;
     let before = d;
@@ -623,6 +861,38 @@ pub fn tune(link: &mut Link, a: &TuneArgs, out: &mut dyn Write) -> Result<ServoD
             a.plant.display()
         )
     })?;
+    if let (Some(path), Some(pr)) = (&a.process, in_cut) {
+        say_to(
+            out,
+            &format!(
+                "predicted in the cut ({}: {:.0} ± {:.0} lbf/in; the tuned design at it and at \
+                 its two-sigma bounds):",
+                path.display(),
+                pr.stiffness_lbf_per_in,
+                pr.stiffness_sigma
+            ),
+        )?;
+        for k in process::stiffnesses_checked(&pr) {
+            let m = crate::predict::margins_in_cut(&data_sheet, &plant, &d, k)?;
+            say_to(
+                out,
+                &format!(
+                    "  at {k:>6.0} lbf/in: crossover (Hz) {}, phase margin (deg) {}, gain margin (dB) {}",
+                    host_sim::cmd::response::fmt_opt(m.crossover_hz, 1),
+                    host_sim::cmd::response::fmt_opt(m.phase_margin_deg, 1),
+                    host_sim::cmd::response::fmt_opt(m.gain_margin_db, 1)
+                ),
+            )?;
+            crate::predict::check_margins(&m).map_err(|e| {
+                format!(
+                    "the design from {} is refused in the cut of {}: at {k:.0} lbf/in the {e} \
+                     (nothing set)",
+                    a.plant.display(),
+                    path.display()
+                )
+            })?;
+        }
+    }
     if a.dry_run {
         return Ok(d);
     }

@@ -13,6 +13,7 @@ pub mod flash;
 pub mod identify;
 pub mod interrupt;
 pub mod predict;
+pub mod process;
 #[cfg(feature = "probe")]
 pub mod probe;
 pub mod regions;

@@ -7,7 +7,7 @@
 //! as the fit: it says nothing of what the fit cannot see (friction, the
 //! cut's forces).
 
-use host_sim::cmd::response::{fmt_opt as opt, sweep_digital, Margins, DIGITAL_AMPLITUDE_IN};
+use host_sim::cmd::response::{fmt_opt as opt, sweep_digital_on, Margins, DIGITAL_AMPLITUDE_IN};
 use host_sim::fwrig::Controller;
 use host_sim::scenario::Scenario;
 use host_sim::track::{run as track, TrackSpec};
@@ -121,8 +121,27 @@ pub fn sweep_for(design: &ServoDesign) -> Vec<f64> {
 
 /// The digital loop's margins for `design` on the fitted plant.
 pub fn margins(data_sheet: &Scenario, p: &Plant, design: &ServoDesign) -> Result<Margins> {
+    margins_in_cut(data_sheet, p, design, 0.0)
+}
+
+/// [`margins`] with the tool engaged in a part of stiffness
+/// `stiffness_lbf_per_in` (0: in air), as `host-sim response --loop
+/// digital --process-stiffness` measures them.
+pub fn margins_in_cut(
+    data_sheet: &Scenario,
+    p: &Plant,
+    design: &ServoDesign,
+    stiffness_lbf_per_in: f64,
+) -> Result<Margins> {
     let sc = fitted_machine(data_sheet, p, design)?;
-    Ok(sweep_digital(&sc, &sweep_for(design), DIGITAL_AMPLITUDE_IN, false).1)
+    Ok(sweep_digital_on(
+        &sc,
+        &sweep_for(design),
+        DIGITAL_AMPLITUDE_IN,
+        false,
+        stiffness_lbf_per_in,
+    )
+    .1)
 }
 
 /// The figures of `design` on the fitted plant.

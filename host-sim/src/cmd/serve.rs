@@ -49,6 +49,23 @@ pub struct Args {
     /// Without it the flash starts erased and is lost at exit.
     #[arg(long, value_name = "FILE")]
     pub params_flash: Option<PathBuf>,
+    /// The tool in a light test cut of this depth at the null position,
+    /// µin (`zslide identify --in-cut` measures the process on it):
+    /// the scenario's force model on solid stock (`cut::test_cut`).
+    #[arg(long, value_name = "UIN")]
+    pub cut_depth: Option<f64>,
+    /// The test cut's feed per spindle revolution, µin.
+    #[arg(
+        long,
+        value_name = "UIN",
+        default_value_t = 100.0,
+        requires = "cut_depth"
+    )]
+    pub cut_feed: f64,
+    /// Scale the force model's edge constant k_e by this factor (as
+    /// `cut --ke-scale`): a blunter or sharper tool, another material.
+    #[arg(long, value_name = "X", default_value_t = 1.0, requires = "cut_depth")]
+    pub ke_scale: f64,
 }
 
 pub fn setup(a: &Args) -> anyhow::Result<Setup> {
@@ -83,6 +100,18 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
         s.rpm = r;
     }
     s.speed = a.speed;
+    if let Some(d) = a.cut_depth {
+        anyhow::ensure!(
+            a.ke_scale.is_finite() && a.ke_scale > 0.0 && a.ke_scale <= 10.0,
+            "--ke-scale {}: must be in (0, 10]",
+            a.ke_scale
+        );
+        s.scenario.cutting.k_e_lbf_per_in *= a.ke_scale;
+        s.cut = Some(crate::cut::test_cut::TestCut {
+            depth_in: d * 1e-6,
+            feed_per_rev_in: a.cut_feed * 1e-6,
+        });
+    }
     s.check()?;
     Ok(s)
 }
@@ -90,9 +119,22 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let s = setup(&a)?;
     let l = Listener::bind(&a.listen)?;
+    let cut = s.cut.map_or(String::new(), |c| {
+        format!(
+            ", the tool in a test cut {:.0} uin deep at {:.0} uin/rev (k_e {} lbf/in: {:.0} lbf/in)",
+            c.depth_in * 1e6,
+            c.feed_per_rev_in * 1e6,
+            s.scenario.cutting.k_e_lbf_per_in,
+            crate::cut::sensitivity::stiffness_lbf_per_in(
+                &s.scenario.cutting,
+                c.depth_in,
+                c.feed_per_rev_in
+            )
+        )
+    });
     eprintln!(
-        "{}: the simulated machine ({}, X {} in, {} rpm), disarmed, on {}; in another shell:\n  \
-         zslide --connect {} link status",
+        "{}: the simulated machine ({}, X {} in, {} rpm{cut}), disarmed, on {}; in another \
+         shell:\n  zslide --connect {} link status",
         s.scenario.file.name,
         s.scenario.file.description,
         s.x_in,

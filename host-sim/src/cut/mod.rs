@@ -39,6 +39,7 @@ pub mod ringing;
 pub mod run;
 pub mod sensitivity;
 pub mod sign;
+pub mod test_cut;
 
 use crate::cut::part::{CmmGrid, PassLog, CMM_X_IN};
 use crate::cut::run::{Cutter, StretchLog};
