@@ -29,7 +29,9 @@ use zslide::servo::design::DAC_CODES_PER_V;
 use zslide::servo::ServoDesign;
 
 use crate::client::{get, set, unexpected, Client, Link};
+use crate::fields::read_fields;
 use crate::fit::{self, Known, Plant, Point};
+pub use crate::measured::Measured;
 use crate::process::{self, Process};
 use crate::report::say_to;
 use crate::Result;
@@ -100,18 +102,6 @@ const MAX_STARTS: u32 = 4;
 
 /// Capture window: the firmware's ring.
 const WINDOW: usize = zslide::link::CAPTURE;
-
-/// One measured frequency.
-#[derive(Clone, Copy, Debug)]
-pub struct Measured {
-    pub f_hz: f64,
-    pub h: Complex<f64>,
-    /// H1 coherence over the windows (1: no noise).
-    pub coherence: f64,
-    /// Relative standard deviation of `h` (the windows' spread / √n).
-    pub rel_sigma: f64,
-    pub amplitude_v: f64,
-}
 
 /// The DFT bin `k` of `x` over the window (amplitude-scaled).
 fn bin(x: impl Iterator<Item = f64>, k: usize) -> Complex<f64> {
@@ -402,28 +392,6 @@ pub fn plant_text(p: &Plant, scenario: &str) -> String {
          mode_zeta = {}\ndelay_s = {}\n",
         p.amp_gain, p.mass_lbf_s2_per_in, p.mode_pole_hz, p.mode_zero_hz, p.mode_zeta, p.delay_s
     )
-}
-
-/// A `name = value` file's fields (`#` comments and blank lines skipped).
-pub fn read_fields(path: &Path) -> Result<std::collections::BTreeMap<String, f64>> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    let mut v = std::collections::BTreeMap::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let (k, x) = line
-            .split_once('=')
-            .ok_or_else(|| format!("{}:{}: expected NAME = VALUE", path.display(), i + 1))?;
-        let x: f64 = x
-            .trim()
-            .parse()
-            .map_err(|e| format!("{}:{}: {}: {e}", path.display(), i + 1, x.trim()))?;
-        v.insert(k.trim().to_string(), x);
-    }
-    Ok(v)
 }
 
 /// Reads [`plant_text`]'s file; every field is required, nothing else is

@@ -8,10 +8,12 @@ pub mod cli;
 pub mod client;
 #[cfg(feature = "defmt-log")]
 pub mod defmt_log;
+pub mod fields;
 pub mod fit;
 pub mod flash;
 pub mod identify;
 pub mod interrupt;
+pub mod measured;
 pub mod predict;
 pub mod process;
 #[cfg(feature = "probe")]

@@ -19,7 +19,7 @@ use std::path::Path;
 use nalgebra::{Complex, Matrix2, Vector2};
 
 use crate::fit::{Known, Plant};
-use crate::identify::Measured;
+use crate::measured::Measured;
 use crate::Result;
 
 /// The process as measured.
@@ -153,7 +153,7 @@ pub fn process_text(p: &Process, air: &Path) -> String {
 /// is accepted, and the stiffness must be a spring (finite, its sigma
 /// positive).
 pub fn read_process(path: &Path) -> Result<Process> {
-    let mut v = crate::identify::read_fields(path)?;
+    let mut v = crate::fields::read_fields(path)?;
     let mut take = |k: &str| {
         v.remove(k)
             .ok_or_else(|| format!("{}: no {k}", path.display()))
