@@ -323,12 +323,14 @@ impl Edges {
             let done = *c;
             self.crossing = None;
             if done.pre_n >= MIN_WINDOW_SAMPLES && done.in_n >= MIN_WINDOW_SAMPLES {
-                let pre = done.pre_sum / i64::from(done.pre_n);
-                let inside = done.in_sum / i64::from(done.in_n);
-                let step = inside - pre;
+                // Checked divisions and max/min, not `clamp`: no panic
+                // path in the handler (`cargo xtask no-panic`).
+                let pre = done.pre_sum.checked_div(i64::from(done.pre_n)).unwrap_or(0);
+                let inside = done.in_sum.checked_div(i64::from(done.in_n)).unwrap_or(0);
+                let step = inside.saturating_sub(pre);
                 let a = i64::from(self.amplitude_q8);
                 let m = i64::from(AMPLITUDE_MAX_Q8);
-                self.amplitude_q8 = (a + (step - a) / 2).clamp(-m, m) as i32;
+                self.amplitude_q8 = (a + (step - a) / 2).max(-m).min(m) as i32;
                 self.learned = self.learned.saturating_add(1);
             }
         }
