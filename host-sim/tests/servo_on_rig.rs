@@ -95,6 +95,7 @@ fn run(design: ServoDesign, rig_cfg: RigConfig, r: Run) -> Result {
                 freeze: r.freeze,
                 amplifier_tripped: rig.amp.tripped(),
                 correction_ahead: None,
+                edge_q8: None,
             },
             &learned,
         );

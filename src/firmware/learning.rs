@@ -17,7 +17,9 @@ use crate::command::expansion::{rate_step, Expansion};
 use crate::command::{Coefficients, CommandGen};
 use crate::handoff::ahead::Ahead;
 use crate::handoff::Shared;
+use crate::servo::edges::Edges;
 use crate::servo::{Learner, ServoConfig};
+use crate::table::interrupt::Interruptions;
 use crate::units::SpindleAngle;
 
 /// State of the learning handler.
@@ -32,6 +34,12 @@ pub struct LearnState {
     learner: Learner,
     /// The ring's lost-sample count when last seen.
     lost_seen: u32,
+}
+
+/// Whether a sample may teach the hole edges' step: the loop closed on a
+/// live command, nothing freezing the learning.
+fn edge_learning(s: &crate::servo::LearnSample) -> bool {
+    s.freeze().is_none() && s.angle().is_some()
 }
 
 impl LearnState {
@@ -62,6 +70,11 @@ impl LearnState {
         }
         while let Some(s) = sh.learn_queue().pop() {
             self.learner.apply(&s, sh.learned());
+            if let Some((phi, _)) = s.angle() {
+                self.ahead
+                    .edges
+                    .learn(phi, s.disturbance_q8(), edge_learning(&s));
+            }
         }
         // After the samples: the learned correction it expands is the
         // table the next tick would have read itself.
@@ -76,6 +89,11 @@ impl LearnState {
     /// The learning's state (why it is frozen, revolutions learned).
     pub fn learner(&self) -> &Learner {
         &self.learner
+    }
+
+    /// The part's interruptions (a checked block: `Firmware::set_interruptions`).
+    pub(crate) fn set_interruptions(&mut self, holes: Interruptions) {
+        self.ahead.edges = Edges::new(holes);
     }
 }
 
@@ -92,6 +110,10 @@ pub struct AheadState {
     request_seen: u32,
     /// Expansions published (the hand-off's generation).
     published: u32,
+    /// The hole edges' anticipation (`crate::servo::edges`): its profile
+    /// follows the coefficients' X, its expectation goes with the command
+    /// ahead.
+    edges: Edges,
 }
 
 impl AheadState {
@@ -103,6 +125,7 @@ impl AheadState {
             coeff_seen: 0,
             request_seen: 0,
             published: 0,
+            edges: Edges::new(Interruptions::NONE),
         }
     }
 
@@ -116,15 +139,18 @@ impl AheadState {
             // one, on the NUCLEO) is taken again: the next read finds the
             // newer set complete unless X events come microseconds apart.
             for _ in 0..3 {
-                if sh
+                if let Ok(x) = sh
                     .coefficients()
                     .take(&mut self.coeff_seen, &mut self.coeffs)
-                    .is_ok()
                 {
+                    if let Some(x) = x {
+                        self.edges.set_x(x);
+                    }
                     break;
                 }
             }
         }
+        self.edges.refresh_step();
         let Some((tick, phi, dphi, alpha_q4)) = sh.ahead().request() else {
             return;
         };
@@ -146,6 +172,9 @@ impl AheadState {
             _ => None,
         };
         let correction = sh.learned().ahead(at, dphi);
+        let edge_q8 = self
+            .edges
+            .expected_q8(SpindleAngle(at.0.wrapping_add((dphi / 2) as u32)));
         self.published = self.published.wrapping_add(1);
         sh.ahead().publish(
             self.published,
@@ -153,6 +182,7 @@ impl AheadState {
                 tick: tick.wrapping_add(1),
                 expansion,
                 correction,
+                edge_q8,
             },
         );
     }
@@ -160,5 +190,10 @@ impl AheadState {
     /// The coefficients this handler evaluates (the last set taken).
     pub fn coefficients(&self) -> &Coefficients {
         &self.coeffs
+    }
+
+    /// The hole edges' anticipation (its learned step).
+    pub fn edges(&self) -> &Edges {
+        &self.edges
     }
 }

@@ -429,6 +429,7 @@ impl LoopState {
                 },
                 amplifier_tripped: input.amplifier_fault,
                 correction_ahead: fresh.map(|a| a.correction),
+                edge_q8: fresh.map(|a| a.edge_q8),
             },
             sh.learned(),
         );

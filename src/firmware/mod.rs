@@ -139,6 +139,25 @@ impl Firmware {
         })
     }
 
+    /// The part's interruptions (`crate::table::interrupt`'s checked
+    /// block) for the hole edges' anticipation (`crate::servo::edges`): a
+    /// block the parser refuses is refused here in its words and changes
+    /// nothing; an empty block is a whole face (the firmware then runs as
+    /// without one, bit for bit). Before the first tick.
+    pub fn set_interruptions(
+        &mut self,
+        block: &[u8],
+    ) -> Result<(), crate::table::interrupt::InterruptError> {
+        let holes = crate::table::interrupt::Interruptions::parse(block)?;
+        self.learn.set_interruptions(holes);
+        Ok(())
+    }
+
+    /// The hole edges' anticipation (its learned step).
+    pub fn edges(&self) -> &crate::servo::edges::Edges {
+        self.learn.ahead().edges()
+    }
+
     /// The handlers' parts, for boards that give each interrupt its own and
     /// share a `static` [`Shared`] (this bundle's own is dropped: nothing has
     /// been published into it that the parts would need, as long as no entry

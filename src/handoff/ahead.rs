@@ -50,14 +50,19 @@ pub struct Ahead {
     /// The learned correction at the same φ₀ (whether or not the command
     /// is null: the loop decides whether it applies).
     pub correction: CorrectionAhead,
+    /// The hole edges' expected disturbance at the tick's angle (a half
+    /// tick on: the middle of the interval its DAC code holds), DAC codes
+    /// Q8 (`crate::servo::edges`; 0 without interruptions).
+    pub edge_q8: i32,
 }
 
 /// Words of one published expansion: tick, φ₀, Z, p1, p2, the
 /// acceleration, null flag, and the correction's position, bin slope,
-/// slope, slope change and acceleration. (The X and the generation of the
+/// slope, slope change and acceleration, and the hole edges' expected
+/// disturbance. (The X and the generation of the
 /// coefficients it was made from were published too until nothing read
 /// them: two loads a tick.)
-const WORDS: usize = 12;
+const WORDS: usize = 13;
 
 /// The hand-off of [`crate::handoff::Shared`] between the tick (angle
 /// requests in, expansions out) and `crate::firmware::learning::AheadState`:
@@ -117,6 +122,7 @@ impl AheadHandoff {
             c.slope2_q8 as u32,
             c.slope2_per_bin_q8 as u32,
             c.accel_q16 as u32,
+            a.edge_q8 as u32,
         ];
         for (w, v) in slot.iter().zip(words) {
             w.store(v, Ordering::Relaxed);
@@ -156,6 +162,7 @@ impl AheadHandoff {
                 slope2_per_bin_q8: w[10] as i32,
                 accel_q16: w[11] as i32,
             },
+            edge_q8: w[12] as i32,
         })
     }
 }

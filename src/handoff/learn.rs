@@ -1,6 +1,7 @@
 //! The learning samples' hand-off (loop tick → learner): a
 //! single-producer single-consumer ring (see the module docs, `super`).
 
+use crate::servo::repetitive::SAMPLE_WORDS;
 use crate::servo::LearnSample;
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -10,7 +11,7 @@ pub const LEARN_QUEUE: usize = 8;
 
 /// The learning samples in flight (see the module docs).
 pub(crate) struct LearnQueue {
-    slots: [[AtomicU32; 4]; LEARN_QUEUE],
+    slots: [[AtomicU32; SAMPLE_WORDS]; LEARN_QUEUE],
     /// Samples written (the tick's), and read (the learner's).
     head: AtomicU32,
     tail: AtomicU32,
@@ -21,7 +22,7 @@ pub(crate) struct LearnQueue {
 impl LearnQueue {
     pub(crate) const fn new() -> Self {
         Self {
-            slots: [const { [const { AtomicU32::new(0) }; 4] }; LEARN_QUEUE],
+            slots: [const { [const { AtomicU32::new(0) }; SAMPLE_WORDS] }; LEARN_QUEUE],
             head: AtomicU32::new(0),
             tail: AtomicU32::new(0),
             lost: AtomicU32::new(0),

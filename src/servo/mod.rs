@@ -36,6 +36,7 @@
 //! quietest gauge's noise (0.2 µin RMS, `modern-hw`).
 
 pub mod design;
+pub mod edges;
 pub mod engage;
 pub mod filters;
 pub(crate) mod fixed;
@@ -89,6 +90,10 @@ pub struct ServoInput {
     /// (`crate::handoff::ahead`), stepped to it when the correction applies;
     /// `None` (or too far from the angle): read from the table here.
     pub correction_ahead: Option<CorrectionAhead>,
+    /// The change of the input disturbance the cut makes at this tick's
+    /// angle (the hole edges, [`edges`]), DAC codes Q8, expected below the
+    /// tick; `None` (no fresh expansion): the last one holds.
+    pub edge_q8: Option<i32>,
 }
 
 /// What the servo decided.
@@ -167,6 +172,9 @@ pub struct Servo {
     /// A quarter of the slew rate, Q16 codes per tick: a goal velocity
     /// jump beyond it is a jump, not motion.
     slew_quarter: u32,
+    /// The hole edges' expected disturbance already in the observer's d̂,
+    /// DAC codes Q8.
+    edge_q8: i32,
 }
 
 impl Servo {
@@ -204,6 +212,7 @@ impl Servo {
             current_limited: false,
             last_sign_check: None,
             slew_quarter: (cfg.slew_q16.clamp(0, 1 << 32) / 4) as u32,
+            edge_q8: 0,
             cfg,
         }
     }
@@ -301,7 +310,16 @@ impl Servo {
             }
         }
 
-        let est = self.observer.update(self.output_q8, measured);
+        let mut est = self.observer.update(self.output_q8, measured);
+        if let Some(e) = input.edge_q8 {
+            // The step the cut makes now, into the observer's disturbance
+            // before the control law reads it (`edges`).
+            let delta = e.saturating_sub(self.edge_q8);
+            self.edge_q8 = e;
+            if delta != 0 {
+                est = self.observer.shift_disturbance(delta);
+            }
+        }
 
         // The command: ramp at the slew limit toward the goal; on the goal,
         // follow the command path's analytic rates.
@@ -418,18 +436,23 @@ impl Servo {
             input.angle,
             freeze,
             core::mem::take(&mut self.learn_req),
-        );
+        )
+        .with_disturbance(est.d_q8);
         let (fb_q8, ff_q8) = self.control(&est, reference, v_ref, a_ref);
         // The hum notch acts on the feedback only: what the loop corrects
         // from the gauge loses its 120 Hz, while the feedforward (the
         // commanded motion) passes undistorted. A notch on the measurement
         // itself would distort the measured command (4° at 10 Hz for Q = 2:
         // hundreds of µin of tracking error on a 0.004 in command).
+        // The hole edges' step sits in d̂ (and so in the feedback) but is
+        // not measured hum: it passes the notch by, which would otherwise
+        // ring at 120 Hz for its Q/(π·120 Hz) ≈ 50 ms after every edge.
+        let fb_q8 = fb_q8.saturating_add(self.edge_q8);
         let fb_q8 = match &mut self.hum {
             Some(n) => n.process(fb_q8),
             None => fb_q8,
         };
-        let u_q8 = fb_q8.saturating_add(ff_q8);
+        let u_q8 = fb_q8.saturating_add(ff_q8).saturating_sub(self.edge_q8);
         // Output: current limit on the estimate, mode notch, DAC range.
         let u_code = round_q8(u_q8);
         let (u_code, limited, i_fault) = self.current.apply(u_code, est.v_q16);

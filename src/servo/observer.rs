@@ -143,6 +143,16 @@ impl Observer {
         self.x
     }
 
+    /// Moves the disturbance state by a change known to happen now (the
+    /// hole edges' feedforward, `super::edges`): the model then predicts
+    /// it, so it raises no innovation, and the control law's −d̂ cancels
+    /// it at once.
+    #[inline(always)]
+    pub fn shift_disturbance(&mut self, delta_q8: i32) -> Estimate {
+        self.x.d_q8 = ssat::<29>(self.x.d_q8.saturating_add(delta_q8));
+        self.x
+    }
+
     /// Whether the fast gains are in use.
     pub fn fast(&self) -> bool {
         self.fast_left > 0

@@ -156,15 +156,20 @@ impl Freeze {
 /// What one loop tick hands the learner: the command's error as the gauge
 /// measures it (codes Q8, before the hum notch: that is the learner's),
 /// where and how fast the spindle was, why the learning must not run now,
-/// and the tick's requests (forget the table, hold the learning frozen).
+/// and the tick's requests (forget the table, hold the learning frozen);
+/// and the observer's disturbance estimate, for the hole edges' learning
+/// (`super::edges`).
 ///
-/// Packed in four words, the form the hand-off ring carries (so the loop
+/// Packed in five words, the form the hand-off ring carries (so the loop
 /// tick builds it with a few bit operations): `[error, angle, angle step,
-/// flags]`, flags = freeze code (bits 0..2, [`Freeze::code`]), angle known
+/// flags, disturbance]`, flags = freeze code (bits 0..2, [`Freeze::code`]), angle known
 /// (3), clear (4), hold reason code (5..7), hold ticks (8..31, at most
 /// 2²⁴ − 1: 14 minutes at 20 kHz).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LearnSample(pub(crate) [u32; 4]);
+pub struct LearnSample(pub(crate) [u32; SAMPLE_WORDS]);
+
+/// Words of a [`LearnSample`].
+pub const SAMPLE_WORDS: usize = 5;
 
 const S_ANGLE: u32 = 1 << 3;
 const S_CLEAR: u32 = 1 << 4;
@@ -189,7 +194,18 @@ impl LearnSample {
             phi,
             dphi as u32,
             Freeze::code(freeze) | a | requests.0,
+            0,
         ])
+    }
+    /// The sample with the observer's disturbance estimate `d̂` (DAC codes
+    /// Q8) of its tick.
+    pub fn with_disturbance(mut self, d_q8: i32) -> Self {
+        self.0[4] = d_q8 as u32;
+        self
+    }
+    /// The observer's disturbance estimate of the tick, DAC codes Q8.
+    pub fn disturbance_q8(&self) -> i32 {
+        self.0[4] as i32
     }
     /// Command − gauge, codes Q8.
     pub fn error_q8(&self) -> i32 {

@@ -103,18 +103,28 @@ pub struct Args {
     /// Measure the hole zone: the surface across the bolt circle's ring on
     /// a dense grid, by distance from the hole edges (`cut::holezone`;
     /// its own band runs, about five times the CMM bands' machine time).
-    #[arg(long, value_enum, default_value_t = HoleZoneArg::On)]
-    pub hole_zone: HoleZoneArg,
+    #[arg(long, value_enum, default_value_t = OnOff::On)]
+    pub hole_zone: OnOff,
     /// Scale the force model's edge constant k_e by this factor (the
     /// process stiffness the loop does not know exactly; `--force-sensitivity`
     /// sweeps it for the CMM band alone).
     #[arg(long, default_value_t = 1.0)]
     pub ke_scale: f64,
+    /// The digital firmware anticipates the open holes' edges: it gets the
+    /// part's interruption block (`zslide::servo::edges`); `off`: no block,
+    /// the firmware as without one (the hole zone's "before").
+    #[arg(long, value_enum, default_value_t = OnOff::On)]
+    pub anticipate: OnOff,
+    /// Turn every hole in the firmware's interruption block by this many
+    /// degrees (not in the part): a part program with the holes in the
+    /// wrong place.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub block_angle_error_deg: f64,
 }
 
-/// Whether `cut` measures the hole zone.
+/// A switch of `cut` (`--hole-zone`, `--anticipate`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum HoleZoneArg {
+pub enum OnOff {
     On,
     Off,
 }
@@ -309,7 +319,14 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     check_depth(&spec, args.depth_in)?;
     // The budget and the sweep compare the CMM grid run by run; the zone
     // is the single cut's.
-    spec.hole_zone = args.hole_zone == HoleZoneArg::On && !args.budget && !args.force_sensitivity;
+    spec.hole_zone = args.hole_zone == OnOff::On && !args.budget && !args.force_sensitivity;
+    spec.anticipate = args.anticipate == OnOff::On;
+    anyhow::ensure!(
+        args.block_angle_error_deg.is_finite() && args.block_angle_error_deg.abs() <= 360.0,
+        "--block-angle-error-deg {}: must be within ±360",
+        args.block_angle_error_deg
+    );
+    spec.block_angle_error_deg = args.block_angle_error_deg;
     Ok(spec)
 }
 

@@ -162,7 +162,7 @@ fn cut_args(a: &Args) -> anyhow::Result<cut::Args> {
         .map_err(|e| anyhow!("the cut options after --: {e}"))?
         .args;
     c.measure = crate::cut::cmm::Measure::Cmm;
-    c.hole_zone = cut::HoleZoneArg::Off;
+    c.hole_zone = cut::OnOff::Off;
     Ok(c)
 }
 
@@ -384,7 +384,7 @@ mod tests {
         assert!(e.contains("the cut options after --"), "{e}");
         let c = cut_args(&args(&["--scenario", "modern-hw", "--errors", "all"])).unwrap();
         assert_eq!(c.measure, crate::cut::cmm::Measure::Cmm);
-        assert_eq!(c.hole_zone, cut::HoleZoneArg::Off);
+        assert_eq!(c.hole_zone, cut::OnOff::Off);
         assert_eq!(c.scenario.scenario, "modern-hw");
     }
 }

@@ -117,6 +117,14 @@ pub struct CutSpec {
     /// The default part cut with this table instead of the default one
     /// (`cut --table` without `--part`).
     pub table_image: Option<&'static [u8]>,
+    /// The digital firmware gets the open holes as its interruption block
+    /// and anticipates their edges (`zslide::servo::edges`); `false`: no
+    /// block, the firmware as without one.
+    pub anticipate: bool,
+    /// Added to every hole's angle in the block the firmware gets (not to
+    /// the part the tool cuts), degrees: a part program that has the holes
+    /// wrong.
+    pub block_angle_error_deg: f64,
     /// A compensated table's axial slide program against the nominal's
     /// (`crate::part::axial::AxialProgram`): added to the tool's height.
     pub axial: Option<std::sync::Arc<crate::part::axial::AxialProgram>>,
@@ -191,6 +199,8 @@ impl CutSpec {
             hole_zone: false,
             table_image: None,
             axial: None,
+            anticipate: true,
+            block_angle_error_deg: 0.0,
         })
     }
 
@@ -551,6 +561,15 @@ pub fn build_stretch(
         _ => table,
     };
     let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
+    if spec.anticipate && spec.controller == Controller::Digital {
+        // The part program's interruption block, through the firmware's
+        // own parser (filled holes: an empty block).
+        let mut holes = cutting.bolt_holes.clone();
+        holes.phase_deg += spec.block_angle_error_deg;
+        let block = interruptions::block_of(&holes)?;
+        w.fw.set_interruptions(&block)
+            .map_err(|e| anyhow::anyhow!("the firmware refused the interruption block: {e}"))?;
+    }
     spec.controller.attach(&mut w, &mut s);
     if let Some(a) = w.analog.as_mut() {
         a.reference_sign = spec.command_sign.factor();

@@ -1,0 +1,138 @@
+//! The edges' profile against the closed-form geometry of a hole crossing
+//! a circle, and the step's learning against a simulated observer.
+
+use super::*;
+use crate::table::interrupt::Hole;
+
+const RC_UIN: u32 = 3_500_000;
+const DIA_UIN: u32 = 750_000;
+
+fn one_hole(angle_deg: f64) -> Interruptions {
+    let hole = Hole {
+        centre_radius_uin: RC_UIN,
+        angle: SpindleAngle::from_degrees(angle_deg),
+        diameter_uin: DIA_UIN,
+    };
+    let mut b = [0u8; 64];
+    let n = Interruptions::encode(&[hole], &mut b).unwrap_or(0);
+    Interruptions::parse(&b[..n]).unwrap_or_default()
+}
+
+fn ready(angle_deg: f64, x_in: f64) -> Edges {
+    let mut e = Edges::new(one_hole(angle_deg));
+    e.set_x(XInches::from_f64(x_in));
+    e.refresh_step();
+    e
+}
+
+/// Half-width (degrees) of the hole at radius r (inches): the law of
+/// cosines on the triangle axis, hole centre, rim point.
+fn half_width_deg(r: f64) -> f64 {
+    let (rc, rho) = (f64::from(RC_UIN) * 1e-6, f64::from(DIA_UIN) * 0.5e-6);
+    ((r * r + rc * rc - rho * rho) / (2.0 * r * rc))
+        .acos()
+        .to_degrees()
+}
+
+/// The versine of the half-width is the closed form's to 1e-8 (absolute,
+/// of a versine ~6e-3) at radii across the hole, and 0 off its annulus.
+#[test]
+fn the_half_width_versine_is_the_law_of_cosines() {
+    for r_in in [3.13, 3.2, 3.4, 3.5, 3.6, 3.8, 3.87] {
+        let v =
+            f64::from(versine_at((r_in * 1e6) as i64, i64::from(RC_UIN), 375_000)) / 2f64.powi(31);
+        let want = 1.0 - half_width_deg(r_in).to_radians().cos();
+        assert!((v - want).abs() < 1e-8, "r {r_in}: {v} vs {want}");
+    }
+    assert_eq!(versine_at(3_000_000, i64::from(RC_UIN), 375_000), 0);
+    assert_eq!(versine_at(4_000_000, i64::from(RC_UIN), 375_000), 0);
+}
+
+/// On the bolt circle the whole chord is over the hole within the half-
+/// width of its inner end and none of it beyond the outer end's: the
+/// expected step is the amplitude inside, zero outside, and the switch
+/// angles are the closed form's (to 0.01°).
+#[test]
+fn the_step_is_expected_between_the_chord_ends_half_widths() {
+    let x = 3.3;
+    let mut e = ready(40.0, x);
+    e.amplitude_q8 = 1 << 20;
+    let inner = half_width_deg(x - CONTACT_INSIDE_UIN as f64 * 1e-6);
+    let outer = half_width_deg(x + CONTACT_OUTSIDE_UIN as f64 * 1e-6);
+    let (lo, hi) = (inner.min(outer), inner.max(outer));
+    for sign in [-1.0, 1.0] {
+        let at = |deg: f64| e.expected_q8(SpindleAngle::from_degrees(40.0 + sign * deg));
+        assert_eq!(at(0.0), 1 << 20);
+        assert_eq!(at(lo - 0.01), 1 << 20, "inside {lo}");
+        assert_eq!(at(hi + 0.01), 0, "outside {hi}");
+        let mid = at(0.5 * (lo + hi));
+        assert!(mid > 0 && mid < 1 << 20, "between: {mid}");
+    }
+    // Far from the hole, and off its annulus, nothing.
+    assert_eq!(e.expected_q8(SpindleAngle::from_degrees(200.0)), 0);
+    let off = ready(40.0, 3.0);
+    assert_eq!(off.expected_q8(SpindleAngle::from_degrees(40.0)), 0);
+}
+
+/// Where the chord lies half on the annulus (X inside the hole's inner
+/// rim by half the chord), at most half of it is ever over the hole.
+#[test]
+fn a_chord_half_over_the_annulus_expects_half_the_step() {
+    let rim = f64::from(RC_UIN - DIA_UIN / 2) * 1e-6;
+    let half = (CONTACT_INSIDE_UIN + CONTACT_OUTSIDE_UIN) as f64 * 0.5e-6;
+    let x = rim + half - CONTACT_OUTSIDE_UIN as f64 * 1e-6;
+    let mut e = ready(10.0, x);
+    e.amplitude_q8 = 1 << 20;
+    let c = e.expected_q8(SpindleAngle::from_degrees(10.0));
+    assert!((c - (1 << 19)).abs() < (1 << 20) / 50, "{c}");
+}
+
+/// The observer's disturbance as a first-order lag toward the true step
+/// (time constant 12 ticks, the slow observer's 250 Hz, or 200 ticks)
+/// from where the feedforward put it: the
+/// amplitude converges to the true step for a fast and a slow observer,
+/// from zero and from twice it.
+#[test]
+fn the_learned_amplitude_converges_to_the_true_step_whatever_the_observer_speed() {
+    let true_step = 3_000 * 256;
+    let base = -50_000 * 256;
+    for (lag, start) in [(0.08, 0), (0.005, 0), (0.08, 2 * true_step)] {
+        let mut e = ready(40.0, 3.5);
+        e.amplitude_q8 = start;
+        // The true force's shape: the same geometry at a unit amplitude.
+        let mut shape = ready(40.0, 3.5);
+        shape.amplitude_q8 = 1 << 16;
+        // 0.09° a tick (300 rpm at 20 kHz).
+        let step = SpindleAngle::from_degrees(0.09).0;
+        let mut phi = SpindleAngle::from_degrees(0.0);
+        let mut d = f64::from(base);
+        let mut ff_last = 0;
+        for _ in 0..(4000 * 60) {
+            let ff = e.expected_q8(phi);
+            d += f64::from(ff - ff_last);
+            ff_last = ff;
+            let frac = f64::from(shape.expected_q8(phi)) / 65_536.0;
+            let target = f64::from(base) + f64::from(true_step) * frac;
+            d += lag * (target - d);
+            e.learn(phi, d as i32, true);
+            phi = SpindleAngle(phi.0.wrapping_add(step));
+        }
+        let a = e.amplitude_q8();
+        assert!(e.crossings_learned() > 20);
+        assert!(
+            (a - true_step).abs() < true_step / 50,
+            "lag {lag}, from {start}: {a} vs {true_step}"
+        );
+    }
+}
+
+/// No holes: nothing is ever expected or learned.
+#[test]
+fn no_interruptions_expect_nothing() {
+    let mut e = Edges::new(Interruptions::NONE);
+    e.set_x(XInches::from_f64(3.5));
+    e.refresh_step();
+    e.learn(SpindleAngle(0), 1000, true);
+    assert_eq!(e.expected_q8(SpindleAngle(0)), 0);
+    assert_eq!(e.amplitude_q8(), 0);
+}
