@@ -494,7 +494,7 @@ mod tests {
         let (d, cfg, src) = load_region(&img, &brief()).unwrap();
         assert_eq!(d.following_error_in, 0.002);
         assert_eq!(d.hum_notch_q, 0.0);
-        assert!(cfg.hum_notch.is_none());
+        assert!(cfg.hum_canceller.is_none());
         assert!(matches!(src, ParamSource::Block { entries: 2, .. }));
         // Erased flash after the block changes nothing.
         let mut region = img.clone();

@@ -10,8 +10,9 @@
 //! board's DAC latency τ (the previous output holds for τ into each period),
 //! the current estimator of `servo::observer` with its gains by pole
 //! placement (the same formula as the firmware's design, re-derived here on
-//! the sampled matrices), the state feedback, the hum notch on the feedback
-//! and the mode notch on the output (RBJ biquads). With the loop broken at
+//! the sampled matrices), the state feedback, the hum canceller on the
+//! feedback (as its equivalent notch, from its continuous prototype: not
+//! the firmware's z-domain design) and the mode notch on the output. With the loop broken at
 //! the gauge reading, `L(e^{jωh})` gives the margins; with the reference
 //! driven (position, and its rates through the plant-inverse feedforward),
 //! `T(e^{jωh})` gives what the learning's correction moves.
@@ -49,13 +50,26 @@ pub struct LoopModel {
     design: ServoDesign,
 }
 
-/// RBJ notch `[b0, b1, b2, a1, a2]` (a0 = 1).
-fn notch(f0: f64, fs: f64, q: f64) -> [f64; 5] {
-    let w0 = std::f64::consts::TAU * f0 / fs;
-    let al = w0.sin() / (2.0 * q);
-    let c = w0.cos();
-    let n = 1.0 + al;
-    [1.0 / n, -2.0 * c / n, 1.0 / n, -2.0 * c / n, (1.0 - al) / n]
+/// A notch `[b0, b1, b2, a1, a2]` (a0 = 1) by the bilinear transform,
+/// prewarped at `f0`, of the continuous prototype `(s² + ω₀²) / ((1 − sin θ
+/// / Q) s² + (ω₀/Q) cos θ · s + ω₀²)`: the RBJ notch at θ = 0, and for θ ≠
+/// 0 the synchronous canceller with phase advance θ that
+/// `zslide::servo::filters::Notch::design_turned` designs in z directly
+/// (poles turned about the zeros; the two agree to first order in the
+/// notch's width, not exactly).
+fn notch(f0: f64, fs: f64, q: f64, turn_rad: f64) -> [f64; 5] {
+    let w = std::f64::consts::TAU * f0;
+    let k = w / (std::f64::consts::PI * f0 / fs).tan();
+    let (a, b) = (1.0 - turn_rad.sin() / q, w / q * turn_rad.cos());
+    let (k2, w2) = (k * k, w * w);
+    let d0 = a * k2 + b * k + w2;
+    [
+        (k2 + w2) / d0,
+        2.0 * (w2 - k2) / d0,
+        (k2 + w2) / d0,
+        2.0 * (w2 - a * k2) / d0,
+        (a * k2 - b * k + w2) / d0,
+    ]
 }
 
 fn biquad_at(c: &[f64; 5], z: C) -> C {
@@ -137,10 +151,16 @@ impl LoopModel {
         let lg =
             poly * o.try_inverse().expect("observable") * nalgebra::Vector3::new(0.0, 0.0, 1.0);
 
-        let hum =
-            (design.hum_notch_q > 0.0).then(|| notch(design.hum_notch_hz, fs, design.hum_notch_q));
+        let hum = (design.hum_notch_q > 0.0).then(|| {
+            notch(
+                design.hum_notch_hz,
+                fs,
+                design.hum_notch_q,
+                design.hum_notch_turn_deg.to_radians(),
+            )
+        });
         let mode = (design.mode_notch_q > 0.0)
-            .then(|| notch(design.mode_notch_hz, fs, design.mode_notch_q));
+            .then(|| notch(design.mode_notch_hz, fs, design.mode_notch_q, 0.0));
 
         // One tick as a linear map of (state, gauge injection, reference).
         // State: plant (3), last output, estimate (3), hum notch (x1, x2,

@@ -27,7 +27,7 @@
 //! inverts the plant, and the spindle-synchronous learning removes what the
 //! model misses at every harmonic of the spindle.
 
-use super::filters::{FilterError, Notch};
+use super::filters::{Canceller, FilterError, Notch};
 use super::observer::ObserverCoeffs;
 
 /// Amplifier-DAC codes per volt.
@@ -222,7 +222,14 @@ impl ServoDesign {
                     FilterError::Frequency | FilterError::Quality => err,
                 })
         };
-        let hum = notch(self.hum_notch_hz, self.hum_notch_q, E::HumNotch)?;
+        let hum = if self.hum_notch_q == 0.0 {
+            None
+        } else {
+            let turn = self.hum_notch_turn_deg.to_radians();
+            let c = Canceller::design(self.hum_notch_hz, fs, self.hum_notch_q, turn)
+                .map_err(|_| E::HumNotch)?;
+            Some(c.coefficient_bits())
+        };
         let mode = notch(self.mode_notch_hz, self.mode_notch_q, E::ModeNotch)?;
 
         if !(0.0..1.0).contains(&self.learning_gain) {
@@ -280,7 +287,7 @@ impl ServoDesign {
             kd_fast_q24: gain((2.0 * self.damping * wf - a) / (k * h), q24)?,
             kff_q24: gain(kff, q24)?,
             ka_q16: gain(ka, 65_536.0)?,
-            hum_notch: hum,
+            hum_canceller: hum,
             mode_notch: mode,
             learning_gain_q16: libm::round(self.learning_gain * 65_536.0) as i32,
             learning_lead_bins: self.learning_lead_bins,
@@ -428,7 +435,7 @@ impl DesignError {
             Self::Observer => "observer_hz: must be > 0 and below rate_hz / 10",
             Self::ObserverFast => "observer_fast_hz in [observer_hz, rate_hz / 10), observer_switch_uin in (0, 10000], observer_hold_ms in [0, 10000]",
             Self::GainRange => "bandwidth_hz/damping: a loop gain exceeds its fixed-point format",
-            Self::HumNotch => "hum_notch_hz/hum_notch_q: frequency in (0, rate/2), q > 0 (0 = off)",
+            Self::HumNotch => "hum_notch_hz/hum_notch_q/hum_notch_turn_deg: frequency in (0, rate/2), q > 0 (0 = off), |turn| < 90 with stable poles",
             Self::ModeNotch => {
                 "mode_notch_hz/mode_notch_q: frequency in (0, rate/2), q > 0 (0 = off)"
             }
@@ -462,8 +469,10 @@ pub struct ServoConfig {
     pub kd_fast_q24: i32,
     pub kff_q24: i32,
     pub ka_q16: i32,
+    /// The hum canceller's resonator `[b0, b1, b2, a1, a2]`, Q30
+    /// (`filters::Canceller`; None = off).
+    pub hum_canceller: Option<[i32; 5]>,
     /// Notch coefficients `[b0, b1, b2, a1, a2]`, Q30 (None = off).
-    pub hum_notch: Option<[i32; 5]>,
     pub mode_notch: Option<[i32; 5]>,
     pub learning_gain_q16: i32,
     pub learning_lead_bins: u32,

@@ -1,4 +1,4 @@
-//! Second-order filters of the loop: the 120 Hz hum notch on the gauge and
+//! Second-order filters of the loop: the 120 Hz hum canceller on the feedback and
 //! the coil-frame-mode notch on the amplifier command.
 //!
 //! The arithmetic is `idsp`'s (quartiq): a biquad in direct form I with
@@ -107,6 +107,94 @@ impl Notch {
     }
 }
 
+/// The hum canceller: `y = x − R(x)`, `R` a resonator at the hum's
+/// frequency that estimates the hum in `x` (the linear equivalent of a
+/// synchronous, adaptive feed-forward canceller whose adaptation has a phase
+/// advance θ: Widrow's adaptive noise canceller with a sinusoidal reference
+/// is a notch). One biquad and a subtraction.
+///
+/// `R = B / (A + B)` with `A(z) = z² − 2 cos ω₀ z + 1` (zeros of `1 − R` on
+/// the unit circle at `f0`: the hum is removed whatever θ) and
+/// `B(z) = (z − 1)(c₁z + c₀)` (`R(1) = 0`: DC passes with gain one, exactly
+/// in the integer coefficients), fixed by `B(z₀) = α(1 + z₀)·e^{−jθ}` at
+/// `z₀ = e^{jω₀}`, `α = sin ω₀ / 2Q`: `c₁ = α sin(ω₀/2 − θ) / sin(ω₀/2)`,
+/// `c₀ = 2α cos(ω₀/2) cos(ω₀/2 − θ) − c₁ cos ω₀`. With θ = 0, `R` is the RBJ
+/// band-pass and `1 − R` the RBJ notch of the same Q.
+///
+/// Why θ: in a loop with sensitivity `S`, a narrow notch's pole pair moves
+/// to `s ≈ jω₀ − (ω₀/2Q)·e^{−jθ}·S(jω₀)`: it stays damped while
+/// `|arg S(jω₀) − θ| < 90°`, and the peak of `|S|` the notch raises beside
+/// `f0` falls as θ follows `arg S(jω₀)`. The engaged part's spring sweeps
+/// `arg S(120 Hz)` over ≈ 55° .. 80° (docs/TUNING.md). The continuous
+/// prototype of `1 − R` is `(s² + ω₀²) / ((1 − sin θ / Q) s² + (ω₀/Q) cos θ
+/// · s + ω₀²)`: its gain far above `f0` is `1 / (1 − sin θ / Q)` (1.026 at
+/// θ 30°, Q 20), more than the `Q2.30` range of a direct-form notch's
+/// `b1` allows, hence `x − R(x)` (R's coefficients are small).
+#[derive(Clone, Debug)]
+pub struct Canceller {
+    coeff: Biquad<Q32<30>>,
+    state: DirectForm1Dither,
+}
+
+impl Canceller {
+    /// The canceller at `f0_hz` sampled at `fs_hz`, quality factor `q` (of
+    /// the equivalent notch: centre / −3 dB width), advance `turn_rad`
+    /// (|θ| < 90°: beyond it the notch alone, S = 1, is unstable).
+    pub fn design(f0_hz: f64, fs_hz: f64, q: f64, turn_rad: f64) -> Result<Self, FilterError> {
+        if !(f0_hz > 0.0 && fs_hz > 0.0 && f0_hz < fs_hz / 2.0 && f0_hz.is_finite()) {
+            return Err(FilterError::Frequency);
+        }
+        if !(q > 0.0 && q.is_finite() && libm::fabs(turn_rad) < 0.5 * core::f64::consts::PI) {
+            return Err(FilterError::Quality);
+        }
+        let w0 = core::f64::consts::TAU * f0_hz / fs_hz;
+        let al = libm::sin(w0) / (2.0 * q);
+        let (h, c) = (0.5 * w0, libm::cos(w0));
+        let c1 = al * libm::sin(h - turn_rad) / libm::sin(h);
+        let c0 = 2.0 * al * libm::cos(h) * libm::cos(h - turn_rad) - c1 * c;
+        // Poles inside the unit circle: a0 > 0, |a2| < 1, |a1| < 1 + a2.
+        let a0 = 1.0 + c1;
+        let (a1, a2) = ((c0 - c1 - 2.0 * c) / a0, (1.0 - c0) / a0);
+        if !(a0 > 0.0 && libm::fabs(a2) < 1.0 && libm::fabs(a1) < 1.0 + a2) {
+            return Err(FilterError::Quality);
+        }
+        let one = (1u64 << 30) as f64;
+        let r = |x: f64| libm::round(x * one) as i64;
+        let (b0, b2) = (r(c1 / a0), r(-c0 / a0));
+        // R(1) = 0 exactly: DC passes the canceller untouched.
+        let b1 = -b0 - b2;
+        // idsp's sign convention: y0 = b·x + a1·y1 + a2·y2.
+        let (a1, a2) = (-r(a1), -r(a2));
+        let fits = |v: i64| v >= i64::from(i32::MIN) && v <= i64::from(i32::MAX);
+        if ![b0, b1, b2, a1, a2].into_iter().all(fits) {
+            return Err(FilterError::Quality);
+        }
+        Ok(Self::from_bits([b0, b1, b2, a1, a2].map(|v| v as i32)))
+    }
+
+    /// A canceller from the resonator's coefficient bits made by
+    /// [`Self::design`] (a parameter block), with a zero state.
+    pub fn from_bits(ba: [i32; 5]) -> Self {
+        Self {
+            coeff: Biquad {
+                ba: ba.map(Q32::<30>::from_bits),
+            },
+            state: DirectForm1Dither::default(),
+        }
+    }
+
+    /// One sample: the input less the resonator's estimate of the hum.
+    #[inline]
+    pub fn process(&mut self, x: i32) -> i32 {
+        x.saturating_sub(self.coeff.process(&mut self.state, x))
+    }
+
+    /// The resonator's coefficients `[b0, b1, b2, a1, a2]`, `Q2.30` bits.
+    pub fn coefficient_bits(&self) -> [i32; 5] {
+        self.coeff.ba.map(|c| c.into_bits())
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
@@ -194,6 +282,60 @@ mod tests {
                 "{f0} Hz: {rms} RMS, {peak} peak"
             );
         }
+    }
+
+    /// Steady-state gain of the canceller at `f_hz`, measured by running it.
+    fn canceller_gain_at(c: &mut Canceller, f_hz: f64, fs: f64) -> f64 {
+        let amp = 1_000_000.0;
+        let total = (fs * 2.0) as usize;
+        let mut peak: f64 = 0.0;
+        for k in 0..total {
+            let x = amp * libm::sin(core::f64::consts::TAU * f_hz * k as f64 / fs);
+            let y = c.process(libm::round(x) as i32);
+            if k > total / 2 {
+                peak = peak.max(f64::from(y).abs());
+            }
+        }
+        peak / amp
+    }
+
+    /// The hum canceller removes its frequency and passes DC exactly,
+    /// turned or not; beside it (±3 Hz, half its width) and away from it its
+    /// |H| is the continuous prototype's closed form `|ω₀² − ω²| / |ω₀² −
+    /// (1 − sin θ/Q) ω² + j (ω₀/Q) cos θ ω|`, lopsided when turned; with no
+    /// turn it is the plain notch of the same Q.
+    #[test]
+    fn canceller_rejects_its_frequency_with_the_prototype_response() {
+        let fs = 20_000.0;
+        let (f0, q) = (120.0, 20.0);
+        for turn_deg in [-45.0f64, 0.0, 30.0, 60.0] {
+            let th = turn_deg.to_radians();
+            let mut c = Canceller::design(f0, fs, q, th).unwrap();
+            let g0 = canceller_gain_at(&mut c, f0, fs);
+            assert!(g0 < 2e-3, "{turn_deg}: {g0} at {f0} Hz");
+            for f in [f0 - 3.0, f0 + 3.0, 60.0, 300.0] {
+                let mut c = Canceller::design(f0, fs, q, th).unwrap();
+                let g = canceller_gain_at(&mut c, f, fs);
+                let (w0, w) = (core::f64::consts::TAU * f0, core::f64::consts::TAU * f);
+                let re = w0 * w0 - (1.0 - libm::sin(th) / q) * w * w;
+                let im = w0 / q * libm::cos(th) * w;
+                let closed = libm::fabs(w0 * w0 - w * w) / libm::sqrt(re * re + im * im);
+                assert!(
+                    (g / closed - 1.0).abs() < 0.02,
+                    "turn {turn_deg}: {f} Hz {g} vs {closed}"
+                );
+            }
+            let mut c = Canceller::design(f0, fs, q, th).unwrap();
+            let mut y = 0;
+            for _ in 0..40_000 {
+                y = c.process(123_456);
+            }
+            assert!((y - 123_456).abs() <= 1, "{turn_deg}: {y}");
+        }
+        assert_eq!(
+            Canceller::design(f0, fs, q, 1.6).err(),
+            Some(FilterError::Quality)
+        );
     }
 
     #[test]

@@ -6,7 +6,7 @@
 //! amplifier enable.
 //!
 //! ```text
-//! gauge ─▶ hum notch ─▶ observer (ẑ, v̂, d̂) ──────────────┐
+//! gauge ─▶ hum canceller ─▶ observer (ẑ, v̂, d̂) ──────────────┐
 //!                 │                                        ▼
 //! reference r,ṙ,r̈ ─▶ slew/range ─▶ + learned c(φ) ─▶ state feedback + plant-inverse FF − d̂
 //!                 │        ▲                                    │
@@ -15,7 +15,7 @@
 //! ```
 //!
 //! One concept per file: [`design`] (f64 design → integer coefficients),
-//! [`filters`] (idsp notches), [`observer`] (position/velocity/disturbance
+//! [`filters`] (idsp notches and the hum canceller), [`observer`] (position/velocity/disturbance
 //! estimate), [`repetitive`] (angle-indexed learning), [`limits`] (slew,
 //! range, current estimate, following error), [`engage`] (arming, sign
 //! check, bumpless engagement). This file composes them.
@@ -56,7 +56,7 @@ use crate::codes::CODE_MAX;
 use crate::safety::Fault;
 use crate::units::SpindleAngle;
 use engage::{SignCheck, SignStep};
-use filters::Notch;
+use filters::{Canceller, Notch};
 use fixed::{mul_hi, qadd_mul, round_q8, ssat};
 use limits::{CurrentLimit, FollowingError, SlewProfile};
 use observer::{Estimate, Observer};
@@ -132,7 +132,7 @@ pub struct Servo {
     cfg: ServoConfig,
     phase: Phase,
     arm_requested: bool,
-    hum: Option<Notch>,
+    hum: Option<Canceller>,
     mode: Option<Notch>,
     observer: Observer,
     /// Requests for the learner, sent with the next sample: forget the
@@ -179,12 +179,11 @@ pub struct Servo {
 
 impl Servo {
     pub fn new(cfg: ServoConfig) -> Self {
-        let notch = |c: Option<[i32; 5]>| c.map(Notch::from_bits);
         Self {
             phase: Phase::Disarmed,
             arm_requested: false,
-            hum: notch(cfg.hum_notch),
-            mode: notch(cfg.mode_notch),
+            hum: cfg.hum_canceller.map(Canceller::from_bits),
+            mode: cfg.mode_notch.map(Notch::from_bits),
             observer: Observer::new(cfg.observer),
             learn_req: LearnRequests::NONE,
             settle_left: 0,
@@ -439,7 +438,9 @@ impl Servo {
         )
         .with_disturbance(est.d_q8);
         let (fb_q8, ff_q8) = self.control(&est, reference, v_ref, a_ref);
-        // The hum notch acts on the feedback only: what the loop corrects
+        // The hum canceller (`filters::Canceller`: a notch whose poles are
+        // turned to stay damped against the engaged part's spring) acts on
+        // the feedback only: what the loop corrects
         // from the gauge loses its 120 Hz, while the feedforward (the
         // commanded motion) passes undistorted. A notch on the measurement
         // itself would distort the measured command (4° at 10 Hz for Q = 2:

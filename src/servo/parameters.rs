@@ -98,6 +98,8 @@ macro_rules! servo_parameters {
                     "Duration of each half of the sign check's doublet, ms."),
                 (31, learning_clip_uin, f64, "uin", 300.0, 1.0, 10_000.0,
                     "Repetitive learning: the error it takes in is clipped to ± this, µin, so one revolution moves the learned correction by at most `learning_gain` × this (what a one-off transient can be replayed by); a periodic error beyond it is still learned, at that rate. Above the largest periodic error of the cut before it is learned (an interrupted cut's edges): docs/TUNING.md."),
+                (32, hum_notch_turn_deg, f64, "deg", 45.0, -80.0, 80.0,
+                    "The hum notch's poles turned about its zeros, degrees (0 = the plain notch): the notch of a synchronous hum canceller with this phase advance. It keeps the notch's closed-loop poles damped while |arg S(120 Hz) − turn| < 90°; the engaged part's spring sweeps arg S, docs/TUNING.md."),
                 // 40, not the next free id: the contour monitoring's
                 // parameters take 32.. on a parallel branch.
                 (40, learning_lowpass_hz, f64, "Hz (0 = off)", 80.0, 0.0, 1000.0,

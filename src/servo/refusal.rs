@@ -79,10 +79,11 @@ impl fmt::Display for Refusal<'_> {
             ),
             E::HumNotch => write!(
                 f,
-                "hum_notch_hz = {} must be in (0, rate_hz / 2 = {}) and hum_notch_q = {} > 0 (0 = off)",
+                "hum_notch_hz = {} must be in (0, rate_hz / 2 = {}), hum_notch_q = {} > 0 (0 = off), and hum_notch_turn_deg = {} must be inside (−90, 90) with the hum canceller's poles inside the unit circle",
                 d.hum_notch_hz,
                 fs / 2.0,
-                d.hum_notch_q
+                d.hum_notch_q,
+                d.hum_notch_turn_deg
             ),
             E::ModeNotch => write!(
                 f,

@@ -83,7 +83,7 @@
 //! 32 bits once.
 
 use super::design::ServoConfig;
-use super::filters::Notch;
+use super::filters::Canceller;
 use super::fixed::sat_i32;
 use crate::units::SpindleAngle;
 use core::sync::atomic::{AtomicI32, Ordering};
@@ -472,9 +472,9 @@ pub struct Learner {
     q_shift: u32,
     /// The clip on the error taken in, codes Q8 (1 ..= 2²⁸).
     clip_q8: i32,
-    /// The hum notch on the error (at 300 rpm the 120 Hz hum is exactly
+    /// The hum canceller on the error (at 300 rpm the 120 Hz hum is exactly
     /// the 24th spindle harmonic: learned, it would move the slide).
-    hum: Option<Notch>,
+    hum: Option<Canceller>,
     /// The low-pass on the error: `α` Q16 (0 = off) and its output,
     /// codes Q8 ([`lowpass`]).
     lowpass_q16: i32,
@@ -508,7 +508,7 @@ impl Learner {
             lead: (cfg.learning_lead_bins as usize).clamp(MIN_LEAD, MASK),
             q_shift: cfg.learning_q_shift.clamp(1, 16),
             clip_q8: cfg.learning_clip_q8.clamp(1, 1 << 28),
-            hum: cfg.hum_notch.map(Notch::from_bits),
+            hum: cfg.hum_canceller.map(Canceller::from_bits),
             lowpass_q16: cfg.learning_lowpass_q16.clamp(0, 65_536),
             lowpass_q8: 0,
             last_bin: None,
@@ -689,7 +689,7 @@ mod tests {
         cfg.learning_gain_q16 = gain_q16;
         cfg.learning_lead_bins = lead;
         cfg.learning_q_shift = q_shift;
-        cfg.hum_notch = None;
+        cfg.hum_canceller = None;
         Learner::new(&cfg)
     }
 
@@ -1008,7 +1008,7 @@ mod tests {
         cfg.learning_gain_q16 = 20_000;
         cfg.learning_lead_bins = 3;
         cfg.learning_q_shift = 2;
-        cfg.hum_notch = None;
+        cfg.hum_canceller = None;
         cfg.learning_lowpass_q16 = 0;
         let mut r = Learner::new(&cfg);
         let t = LearnedTable::new();

@@ -143,6 +143,9 @@ pub struct Summary {
     pub contour_error_max_uin: Option<f64>,
     pub following_error_rms_uin: f64,
     pub following_error_peak_uin: f64,
+    /// The tool's lowest point against the finished surface while it cut,
+    /// engagements and prerolls included, µin (null: it never cut).
+    pub deepest_uin: Option<f64>,
     pub finish_rms_uin: Option<f64>,
     /// Finish by CMM radius, µin RMS.
     pub finish_rms_by_x_uin: Vec<Option<f64>>,
@@ -214,6 +217,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         contour_error_max_uin: band.map(|b| b.1),
         following_error_rms_uin: o.following_error_rms_uin,
         following_error_peak_uin: o.following_error_peak_uin,
+        deepest_uin: o.deepest_uin.is_finite().then_some(o.deepest_uin),
         finish_rms_uin: o
             .rect
             .as_ref()

@@ -703,6 +703,10 @@ pub struct CutOutcome {
     pub passes: PassLog,
     pub following_error_rms_uin: f64,
     pub following_error_peak_uin: f64,
+    /// The tool's lowest point against the finished surface while it cut,
+    /// over every tick of every stretch (engagements included), µin
+    /// (negative: below it; `run::StretchLog::deepest_in`).
+    pub deepest_uin: f64,
     /// Mean cutting force while recording, lbf.
     pub mean_force_lbf: f64,
     /// Largest |coil current| while recording, A.
@@ -756,6 +760,7 @@ pub fn run_pass(
     let (mut sum_sq, mut n, mut peak, mut force) = (0.0, 0u64, 0.0f64, 0.0);
     let mut current_peak_a = 0.0f64;
     let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
+    let mut deepest = f64::INFINITY;
     let mut faults = Vec::new();
     let mut trace = Vec::new();
     let mut traces = Vec::new();
@@ -775,6 +780,7 @@ pub fn run_pass(
         sum_sq += r.log.fe_sum_sq;
         n += r.log.fe_n;
         peak = peak.max(r.log.fe_peak);
+        deepest = deepest.min(r.log.deepest_in);
         current_peak_a = current_peak_a.max(r.log.current_peak_a);
         force += r.log.force_sum;
         simulated_s += r.simulated_s;
@@ -837,6 +843,7 @@ pub fn run_pass(
         passes,
         following_error_rms_uin: (sum_sq / nf).sqrt() * 1e6,
         following_error_peak_uin: peak * 1e6,
+        deepest_uin: deepest * 1e6,
         mean_force_lbf: force / nf,
         current_peak_a,
         trace,

@@ -39,6 +39,10 @@ pub struct StretchLog {
     /// Largest |coil current| while recording (the grid's or the zone's
     /// windows), A.
     pub current_peak_a: f64,
+    /// The tool's lowest point against the finished surface while it cuts
+    /// (any tick with a cutting force, the engagement and the preroll
+    /// included: not only the recording windows), in; +∞ if it never cut.
+    pub deepest_in: f64,
 }
 
 /// The cutting physics and recorder, run by `FirmwareWorld::tick`.
@@ -103,6 +107,7 @@ impl Cutter {
             prev_turns: None,
             log: StretchLog {
                 passes: PassLog::new(),
+                deepest_in: f64::INFINITY,
                 ..StretchLog::default()
             },
             extra_force_lbf: 0.0,
@@ -173,6 +178,9 @@ impl TickHook for Cutter {
         let mut c = self.eng.step(x, phi, e);
         if let Some(er) = self.errors.as_ref() {
             c.force_lbf *= er.force_speed_factor(x);
+        }
+        if c.force_lbf != 0.0 {
+            self.log.deepest_in = self.log.deepest_in.min(e);
         }
         // The chip's broadband force acts on the tool and on the part; the
         // part's overhang mode takes the whole force at the tool's radius.
