@@ -9,7 +9,7 @@
 //! controller  observer x̂' = (A − L C) x̂ + B u + L y,  x = [z, v, d]
 //!             A = [[0, 1, 0], [0, −a, K], [0, 0, 0]], B = [0, K, 0]ᵀ, C = [1, 0, 0]
 //!             L: the triple pole at −ωₒ: l1 = 3ωₒ − a, l2 = 3ωₒ² − a·l1, l3 = ωₒ³/K
-//!             u = −N(s)·F x̂,  F = [ω²/K, (2ζω − a)/K, 1],  N = hum notch · mode notch
+//!             u = −N(s)·F x̂,  F = [ω²/K, (2ζω − a)/K, 1],  N = hum canceller · mode notch
 //!             (the observer sees the DAC code written, after the notches)
 //!             ⇒ C(s) = N·FΦL / (1 + N·FΦB),  Φ = (sI − A + LC)⁻¹
 //! loop        L(jω) = P·C·e^{−jω(d + h/2)}   (DAC latency d, zero-order hold h/2)
@@ -51,12 +51,17 @@ use machine::Machine;
 
 type C = Complex<f64>;
 
-fn notch(s: C, f0: f64, q: f64) -> C {
+/// A notch at `f0` of quality `q`, its poles turned by `turn_rad` (the
+/// hum canceller, `zslide::servo::filters::Canceller`; 0: the plain
+/// notch): the continuous prototype `(s² + ω₀²) / ((1 − sin θ / Q) s² +
+/// (ω₀/Q) cos θ · s + ω₀²)`.
+fn notch(s: C, f0: f64, q: f64, turn_rad: f64) -> C {
     if q == 0.0 {
         return C::new(1.0, 0.0);
     }
     let w0 = TAU * f0;
-    (s * s + w0 * w0) / (s * s + s * (w0 / q) + w0 * w0)
+    (s * s + w0 * w0)
+        / (s * s * (1.0 - turn_rad.sin() / q) + s * (w0 / q * turn_rad.cos()) + w0 * w0)
 }
 
 /// L(j2πf) of `d` on the data sheet `sheet` with the fit `p`.
@@ -77,7 +82,12 @@ fn loop_gain(d: &ServoDesign, sheet: &ZSlideParams, p: &Plant, f: f64) -> C {
     let phi = (Matrix3::from_diagonal_element(s) - a_lc.map(|x| C::new(x, 0.0)))
         .try_inverse()
         .unwrap();
-    let n = notch(s, d.hum_notch_hz, d.hum_notch_q) * notch(s, d.mode_notch_hz, d.mode_notch_q);
+    let n = notch(
+        s,
+        d.hum_notch_hz,
+        d.hum_notch_q,
+        d.hum_notch_turn_deg.to_radians(),
+    ) * notch(s, d.mode_notch_hz, d.mode_notch_q, 0.0);
     let fpl = (fb.transpose() * phi * l)[0];
     let fpb = (fb.transpose() * phi * b)[0];
     let ctrl = n * fpl / (C::new(1.0, 0.0) + n * fpb);
@@ -255,6 +265,8 @@ fn tune_refuses_a_design_below_the_minimum_margins_and_sets_nothing() {
     sc.servo_design.bandwidth_hz = 80.0;
     sc.servo_design.observer_hz = 400.0;
     sc.servo_design.hum_notch_q = 8.0;
+    // The plain notch (the canceller's poles not turned), as in that row.
+    sc.servo_design.hum_notch_turn_deg = 0.0;
     sc.servo = sc.servo_design.config().unwrap();
     let (known, start) = known_from_scenario("legacy-hw").unwrap();
     let (_, pm, _) = closed_form(&sc.servo_design, &known.slide, &start);

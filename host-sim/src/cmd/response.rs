@@ -481,7 +481,8 @@ pub struct Margins {
     /// Where |L| crosses 1 (the first time from below), Hz, and 180° + ∠L there.
     pub crossover_hz: Option<f64>,
     pub phase_margin_deg: Option<f64>,
-    /// Where ∠L crosses −180° above the crossover, Hz, and −20·log|L|
+    /// Where ∠L crosses −180° above the crossover with the largest |L|
+    /// (the smallest margin of those crossings), Hz, and −20·log|L|
     /// there, dB.
     pub phase_crossover_hz: Option<f64>,
     pub gain_margin_db: Option<f64>,
@@ -564,20 +565,31 @@ fn margins_with(pts: &[LoopPoint], refine: Option<&dyn Fn(f64) -> LoopPoint>) ->
         // (integral action in the observer, a type-3 loop at low
         // frequency) passes −180° with |L| ≫ 1, which is conditional
         // stability, not a margin.
-        let (pa, pb) = (a.1 + 180.0, b.1 + 180.0);
+        // Every crossing of the negative real axis above it is a
+        // candidate (the Nyquist plot's, read on L itself rather than on
+        // an unwrapped phase): a notch whose poles are turned (the hum
+        // canceller) takes L through nearly nothing at its own zero, which
+        // an unwrapped phase counts as a turn of 360°, and below the
+        // crossing that sets the margin.
         let above = m.crossover_hz.is_some_and(|fc| a.0.f_hz >= fc);
-        if m.phase_crossover_hz.is_none() && above && (pa > 0.0) != (pb > 0.0) {
-            let positive = pa > 0.0;
-            let same_side = move |_: &LoopPoint, ph: f64| (ph + 180.0 > 0.0) == positive;
+        let (la, lb) = (a.0.l(), b.0.l());
+        if above && (la.im > 0.0) != (lb.im > 0.0) && la.re + lb.re < 0.0 {
+            let positive = la.im > 0.0;
+            let same_side = move |p: &LoopPoint, _: f64| (p.l().im > 0.0) == positive;
             let (a, b) = match refine {
                 Some(f) => bisect(f, a, b, &same_side),
                 None => (a, b),
             };
-            let (pa, pb) = (a.1 + 180.0, b.1 + 180.0);
-            let (ma, mb) = (a.0.l().norm().log10(), b.0.l().norm().log10());
-            let f = pa / (pa - pb);
-            m.phase_crossover_hz = Some(a.0.f_hz * (b.0.f_hz / a.0.f_hz).powf(f));
-            m.gain_margin_db = Some(-20.0 * (ma + f * (mb - ma)));
+            let (la, lb) = (a.0.l(), b.0.l());
+            let f = la.im / (la.im - lb.im);
+            let l = la + (lb - la) * f;
+            if l.re < 0.0 {
+                let gm = -20.0 * l.norm().log10();
+                if m.gain_margin_db.is_none_or(|g| gm < g) {
+                    m.phase_crossover_hz = Some(a.0.f_hz * (b.0.f_hz / a.0.f_hz).powf(f));
+                    m.gain_margin_db = Some(gm);
+                }
+            }
         }
     }
     if let Some(measure) = refine {
