@@ -203,12 +203,17 @@ mod tests {
     /// Amplitude of the filter's steady-state response to a sinusoid at
     /// `f_hz`, measured by running it.
     fn gain_at(n: &mut Notch, f_hz: f64, fs: f64) -> f64 {
+        response_at(&mut |x| n.process(x), f_hz, fs)
+    }
+
+    /// Steady-state gain of `process` at `f_hz`, measured by running it.
+    fn response_at(process: &mut dyn FnMut(i32) -> i32, f_hz: f64, fs: f64) -> f64 {
         let amp = 1_000_000.0;
         let total = (fs * 2.0) as usize;
         let mut peak: f64 = 0.0;
         for k in 0..total {
             let x = amp * libm::sin(core::f64::consts::TAU * f_hz * k as f64 / fs);
-            let y = n.process(libm::round(x) as i32);
+            let y = process(libm::round(x) as i32);
             if k > total / 2 {
                 peak = peak.max(f64::from(y).abs());
             }
@@ -286,17 +291,7 @@ mod tests {
 
     /// Steady-state gain of the canceller at `f_hz`, measured by running it.
     fn canceller_gain_at(c: &mut Canceller, f_hz: f64, fs: f64) -> f64 {
-        let amp = 1_000_000.0;
-        let total = (fs * 2.0) as usize;
-        let mut peak: f64 = 0.0;
-        for k in 0..total {
-            let x = amp * libm::sin(core::f64::consts::TAU * f_hz * k as f64 / fs);
-            let y = c.process(libm::round(x) as i32);
-            if k > total / 2 {
-                peak = peak.max(f64::from(y).abs());
-            }
-        }
-        peak / amp
+        response_at(&mut |x| c.process(x), f_hz, fs)
     }
 
     /// The hum canceller removes its frequency and passes DC exactly,

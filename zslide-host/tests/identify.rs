@@ -35,23 +35,9 @@ use zslide_host::client::Link;
 use zslide_host::identify::{design_on, read_plant};
 
 mod machine;
+mod phase;
 use machine::Machine;
-
-fn wait_phase(link: &mut Link, want: LoopPhase) {
-    let start = Instant::now();
-    loop {
-        let s = link.client().unwrap().status().unwrap();
-        if s.state.phase == want {
-            return;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(30),
-            "not {want:?} within 30 s: {}",
-            zslide_host::words::status_text(&s)
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
+use phase::wait_phase;
 
 fn within(what: &str, got: f64, want: f64, rel: f64) {
     assert!(

@@ -20,7 +20,7 @@
 //! stiffness, or the test proves nothing.
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use host_sim::cut::test_cut::TestCut;
 use host_sim::serve::Setup;
@@ -31,7 +31,9 @@ use zslide_host::identify::{known_from_scenario, plant_text};
 use zslide_host::process::read_process;
 
 mod machine;
+mod phase;
 use machine::Machine;
+use phase::wait_phase;
 
 /// Every run reads 1-2 % above the slope (and a slightly negative
 /// damping): a systematic not yet run down (candidates: the in-air model
@@ -42,22 +44,6 @@ const UNEXPLAINED: f64 = 0.02;
 
 const DEPTH_IN: f64 = 300e-6;
 const FEED_IN: f64 = 100e-6;
-
-fn wait_phase(link: &mut Link, want: LoopPhase) {
-    let start = Instant::now();
-    loop {
-        let s = link.client().unwrap().status().unwrap();
-        if s.state.phase == want {
-            return;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(30),
-            "not {want:?} within 30 s: {}",
-            zslide_host::words::status_text(&s)
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
 
 /// The in-air plant file: the data sheet's (the nominal machine's).
 fn air_plant(dir: &std::path::Path) -> PathBuf {
