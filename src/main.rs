@@ -179,7 +179,7 @@ mod app {
         // The table region is parsed and sign-checked here; a missing or
         // refused table leaves the firmware latched in Fault::Table with
         // the slide held at null (no built-in fallback: docs/BOARD.md).
-        let Ok(fw) = Firmware::with_table_region(link::table_region(), config(loop_cfg)) else {
+        let Ok(mut fw) = Firmware::with_table_region(link::table_region(), config(loop_cfg)) else {
             boot_failure("firmware configuration refused");
         };
         let table = fw.table_identity();
@@ -197,6 +197,17 @@ mod app {
             Err(e) => defmt::error!(
                 "coefficient table refused, slide held at null: {}",
                 defmt::Display2Format(e)
+            ),
+        }
+        // The part's interruption block (bank 2 sector 7), parsed into
+        // RAM: erased is a whole face; a refused block is refused in words
+        // and the cut runs without the edges' anticipation.
+        match fw.set_interruptions_region(link::interruptions_region()) {
+            Ok(Some(n)) => defmt::info!("interruption block: {=usize} holes", n),
+            Ok(None) => defmt::info!("no interruption block: a whole face"),
+            Err(e) => defmt::error!(
+                "interruption block refused, the cut runs without the edges' anticipation: {}",
+                defmt::Display2Format(&e)
             ),
         }
         let (mut lp, ev, learn) = fw.into_parts();

@@ -33,7 +33,24 @@ pub struct Case {
     /// Legacy coefficient output (C00..C03 on the quad DAC, 4-term table).
     pub coefficient_output: bool,
     pub fault: bool,
+    /// The part's interruption block given to the firmware
+    /// ([`HOLES_AT_X`]), recorded with the run.
+    pub holes: bool,
     pub duration_ns: Nanos,
+}
+
+/// The part of the runs that carry an interruption block: eight holes of
+/// 0.5 in on a 3.0 in circle, where the runs cut (X from 3 in): the nose's
+/// whole contact chord crosses every hole, so the edges' anticipation
+/// learns its step at the crossings and feeds it to the tick.
+pub fn holes_at_x() -> crate::plant::cutting::BoltHoles {
+    crate::plant::cutting::BoltHoles {
+        count: 8,
+        circle_radius_in: 3.0,
+        diameter_in: 0.5,
+        phase_deg: 10.0,
+        filled: false,
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -43,7 +60,7 @@ pub enum XKind {
 }
 
 /// The runs `cargo xtask qemu` replays.
-pub const CASES: [Case; 3] = [
+pub const CASES: [Case; 4] = [
     Case {
         name: "legacy-x-tach-coefficient-dacs",
         scenario: "legacy-hw",
@@ -51,6 +68,7 @@ pub const CASES: [Case; 3] = [
         sensor: SpindleSensor::TachIndex,
         coefficient_output: true,
         fault: false,
+        holes: false,
         duration_ns: 300_000_000,
     },
     Case {
@@ -60,6 +78,7 @@ pub const CASES: [Case; 3] = [
         sensor: SpindleSensor::EncoderIndex,
         coefficient_output: false,
         fault: false,
+        holes: false,
         duration_ns: 300_000_000,
     },
     Case {
@@ -69,6 +88,17 @@ pub const CASES: [Case; 3] = [
         sensor: SpindleSensor::EncoderIndex,
         coefficient_output: false,
         fault: true,
+        holes: false,
+        duration_ns: 300_000_000,
+    },
+    Case {
+        name: "legacy-x-encoder-interruptions",
+        scenario: "legacy-hw",
+        x: XKind::LegacyBcd,
+        sensor: SpindleSensor::EncoderIndex,
+        coefficient_output: false,
+        fault: false,
+        holes: true,
         duration_ns: 300_000_000,
     },
 ];
@@ -83,6 +113,8 @@ pub struct Recorded {
     pub index_events: u64,
     pub final_fault: Option<zslide::safety::Fault>,
     pub engaged: bool,
+    /// Hole crossings the edges' anticipation learned its step at.
+    pub edge_crossings: u32,
 }
 
 /// Records `case`.
@@ -121,6 +153,11 @@ pub fn record(case: &Case) -> anyhow::Result<Recorded> {
     let mut s = Scheduler::new();
     s.add(WorldTick::loop_tick(1_000_000_000 / u64::from(sc.loop_hz)));
     w.attach_machine_with_table(&machine, table);
+    if case.holes {
+        let block = crate::cut::interruptions::block_of(&holes_at_x())?;
+        w.set_interruptions(&block)
+            .map_err(|e| anyhow::anyhow!("the firmware refused the interruption block: {e}"))?;
+    }
     add_machine_sources(&w, &mut s);
     w.request(Request::Arm);
     if case.fault {
@@ -160,6 +197,7 @@ pub fn record(case: &Case) -> anyhow::Result<Recorded> {
         index_events: stats.index_events,
         final_fault: w.fw.fault(),
         engaged: w.fw.amplifier_enable(),
+        edge_crossings: w.fw.edges().crossings_learned(),
     })
 }
 

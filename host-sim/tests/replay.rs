@@ -61,6 +61,34 @@ fn every_recorded_run_replays_bit_exact_on_the_host() {
     assert!(played[2].1.frames < 2 * played[2].1.ticks);
     assert!(played[2].1.final_fault.is_empty());
     assert!(runs[2].engaged && runs[2].final_fault.is_none());
+    // The interruption block's run: the edges' anticipation learned its
+    // step at hole crossings (the block acted on the loop).
+    assert!(CASES[3].holes);
+    assert!(runs[3].edge_crossings >= 1, "{}", runs[3].edge_crossings);
+}
+
+/// The interruption block travels with the recording: the run made with
+/// one replays bit-exact, and the same events replayed by a firmware given
+/// no block, or the block with its holes turned 2°, differ at a loop tick's
+/// DAC frame (what the block fed the loop).
+#[test]
+fn a_run_with_an_interruption_block_replays_only_with_its_block() {
+    let case = CASES.iter().find(|c| c.holes).unwrap();
+    let run = leak(record(case).unwrap().bytes);
+    let o = play_run(run);
+    o.result.map_err(|e| e.to_string()).unwrap();
+    let mut turned = host_sim::replay::holes_at_x();
+    turned.phase_deg += 2.0;
+    let turned = host_sim::cut::interruptions::block_of(&turned).unwrap();
+    for block in [&[][..], &turned[..]] {
+        let other = leak(zslide_replay::record::with_interruptions(run, block).unwrap());
+        let err = play_run(other).result.unwrap_err();
+        let RunError::Mismatch(m) = err else {
+            panic!("{err}");
+        };
+        assert_eq!(m.call, Call::LoopTick, "{m}");
+        assert_eq!(m.output, Output::Frame(Dev::AmpDac), "{m}");
+    }
 }
 
 /// Runs recorded shorter (`host-sim replay-record --ms`, the fuzz seeds)

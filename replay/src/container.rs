@@ -13,7 +13,8 @@
 use crate::wire::{take, FormatError};
 
 pub const MAGIC: [u8; 4] = *b"ZSRP";
-pub const VERSION: u32 = 1;
+/// 2: a run's setup carries the part's interruption block.
+pub const VERSION: u32 = 2;
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 fn u32_at(b: &[u8], at: usize) -> Option<u32> {

@@ -153,6 +153,8 @@ pub enum RunError {
     Format(FormatError),
     /// The recorded configuration is refused by this firmware.
     Config,
+    /// The recorded interruption block is refused by this firmware.
+    Interruptions(zslide::table::interrupt::InterruptError),
     Mismatch(Mismatch),
 }
 
@@ -161,6 +163,7 @@ impl core::fmt::Display for RunError {
         match self {
             RunError::Format(e) => write!(f, "{e}"),
             RunError::Config => write!(f, "the recorded firmware configuration is refused"),
+            RunError::Interruptions(e) => write!(f, "the recorded {e}"),
             RunError::Mismatch(m) => write!(f, "{m}"),
         }
     }
@@ -407,6 +410,10 @@ fn play(setup: &Setup<'static>, mut rest: &'static [u8]) -> Result<Played, RunEr
                     ReplayPin { bus: &bus },
                 );
                 let mut f = Firmware::with_table(setup.table, cfg).map_err(|_| RunError::Config)?;
+                if !setup.interruptions.is_empty() {
+                    f.set_interruptions(setup.interruptions)
+                        .map_err(RunError::Interruptions)?;
+                }
                 if init_failed {
                     f.trip(Fault::Bus(Device::AmplifierDac));
                 }

@@ -30,6 +30,8 @@ enum Owned {
 struct Inner {
     name: String,
     setup: Option<(u32, &'static [u8], FirmwareConfig)>,
+    /// The interruption block the firmware took (empty: none).
+    interruptions: Vec<u8>,
     events: Vec<Owned>,
     /// The call under way and the bus items it produced so far.
     call: Option<Event<'static>>,
@@ -55,6 +57,13 @@ impl Recorder {
     pub fn set_setup(&self, table: &'static [u8], fc: &FirmwareConfig) {
         let mut i = self.0.borrow_mut();
         i.setup = Some((fc.loop_cfg.rate_hz, table, *fc));
+    }
+
+    /// The interruption block the firmware took
+    /// (`Firmware::set_interruptions`, before the first tick): the player
+    /// hands it the same bytes.
+    pub fn set_interruptions(&self, block: &[u8]) {
+        self.0.borrow_mut().interruptions = block.to_vec();
     }
 
     /// A loop tick begins with `input`.
@@ -177,7 +186,7 @@ impl Recorder {
         let Some((_, table, fc)) = &i.setup else {
             return Err(format!("run {}: no firmware configuration", i.name));
         };
-        let setup = setup_of(&i.name, table, fc).ok_or_else(|| {
+        let setup = setup_of(&i.name, table, &i.interruptions, fc).ok_or_else(|| {
             format!(
                 "run {}: the loop is not the default design at {} Hz (a recording carries the rate only)",
                 i.name, fc.loop_cfg.rate_hz
@@ -342,4 +351,18 @@ pub fn alter(run: &'static [u8], nth: usize) -> Result<(Vec<u8>, Alteration), St
     }
     let a = done.ok_or_else(|| format!("the run has fewer than {} DAC frames", nth + 1))?;
     Ok((encode(&setup, &events)?, a))
+}
+
+/// The run with its setup's interruption block replaced by `block` (empty:
+/// none), its events as recorded: the firmware that replays it is given
+/// another part, so a block that acted on the run must show in its frames.
+pub fn with_interruptions(run: &[u8], block: &[u8]) -> Result<Vec<u8>, String> {
+    let (setup, rest) = crate::wire::take::<Setup<'_>>(run).map_err(|e| e.to_string())?;
+    let setup = Setup {
+        interruptions: block,
+        ..setup
+    };
+    let mut out = postcard::to_allocvec(&setup).map_err(|e| e.to_string())?;
+    out.extend_from_slice(rest);
+    Ok(out)
 }

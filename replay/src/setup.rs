@@ -75,7 +75,12 @@ impl Setup<'_> {
 
 /// The recording's form of `fc`; `None` when its loop is not the default
 /// design at its rate (a recording carries the rate only).
-pub fn setup_of<'a>(name: &'a str, table: &'a [u8], fc: &FirmwareConfig) -> Option<Setup<'a>> {
+pub fn setup_of<'a>(
+    name: &'a str,
+    table: &'a [u8],
+    interruptions: &'a [u8],
+    fc: &FirmwareConfig,
+) -> Option<Setup<'a>> {
     let loop_hz = fc.loop_cfg.rate_hz;
     if ServoConfig::at_rate(loop_hz).ok()? != fc.loop_cfg {
         return None;
@@ -84,6 +89,7 @@ pub fn setup_of<'a>(name: &'a str, table: &'a [u8], fc: &FirmwareConfig) -> Opti
         name,
         loop_hz,
         table,
+        interruptions,
         spindle: match fc.spindle {
             SpindleMode::None => SpindleSetup::None,
             SpindleMode::Encoder(c) => SpindleSetup::Encoder {

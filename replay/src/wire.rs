@@ -148,6 +148,9 @@ pub struct Setup<'a> {
     pub loop_hz: u32,
     /// The coefficient table image the firmware was built from.
     pub table: &'a [u8],
+    /// The interruption block the firmware was given
+    /// (`Firmware::set_interruptions`), empty when it was given none.
+    pub interruptions: &'a [u8],
     pub spindle: SpindleSetup,
     pub x: XSetup,
     pub coefficient_output: bool,
@@ -593,6 +596,7 @@ mod tests {
             name: "run",
             loop_hz: 20_000,
             table: &[1, 2, 3],
+            interruptions: &[4, 5],
             spindle: SpindleSetup::None,
             x: XSetup::None,
             coefficient_output: false,

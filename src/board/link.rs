@@ -1,5 +1,6 @@
-//! The NUCLEO's host link and the table region of `memory.x` (the
-//! parameter region is the store's, `board::flash`), and the RTT channels (one control block:
+//! The NUCLEO's host link, the table and interruption regions of
+//! `memory.x` (the parameter region is the store's, `board::flash`), and
+//! the RTT channels (one control block:
 //! up channel 0 carries the defmt log, which `probe-rs run` decodes; the
 //! link's frames go up on channel 1 and come down on channel 1, the pair
 //! OpenOCD's `rtt server start PORT 1` bridges to a TCP port for
@@ -20,6 +21,8 @@ pub static TAP: TapShared<'static, CAPTURE> = TapShared::new(&SCOPE);
 extern "C" {
     static __zsct_start: u8;
     static __zsct_size: u8;
+    static __zsib_start: u8;
+    static __zsib_size: u8;
 }
 
 /// The bytes of a `memory.x` region given its start and size symbols.
@@ -39,6 +42,16 @@ pub fn table_region() -> &'static [u8] {
     region(
         core::ptr::addr_of!(__zsct_start),
         core::ptr::addr_of!(__zsct_size),
+    )
+}
+
+/// The interruption region (`ZSIB`, bank 2 sector 7, 0x081E_0000): the
+/// part's interruption block (`zslide::table::interrupt`), or erased. Read
+/// at boot only: a parameter save stalls bank 2's reads.
+pub fn interruptions_region() -> &'static [u8] {
+    region(
+        core::ptr::addr_of!(__zsib_start),
+        core::ptr::addr_of!(__zsib_size),
     )
 }
 

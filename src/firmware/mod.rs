@@ -153,6 +153,22 @@ impl Firmware {
         Ok(())
     }
 
+    /// [`Self::set_interruptions`] for a board's interruption region
+    /// (`Interruptions::parse_region`): an erased region holds no block
+    /// (`Ok(None)`: the firmware runs as without one); else the block's
+    /// hole count, or its refusal in words (nothing changed).
+    pub fn set_interruptions_region(
+        &mut self,
+        region: &[u8],
+    ) -> Result<Option<usize>, crate::table::interrupt::InterruptError> {
+        let Some(holes) = crate::table::interrupt::Interruptions::parse_region(region)? else {
+            return Ok(None);
+        };
+        let n = holes.holes().len();
+        self.learn.set_interruptions(holes);
+        Ok(Some(n))
+    }
+
     /// The hole edges' anticipation (its learned step).
     pub fn edges(&self) -> &crate::servo::edges::Edges {
         self.learn.ahead().edges()

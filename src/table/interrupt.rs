@@ -246,6 +246,27 @@ impl Interruptions {
         Ok(out)
     }
 
+    /// The block at the start of a board's interruption region (flash:
+    /// `ZSIB` in `memory.x`, written by `zslide table flash F.zsib`), the
+    /// region's bytes after it ignored. An erased region (its header all
+    /// 0xFF, or all zeros where QEMU's loader wrote nothing) holds no block:
+    /// `Ok(None)`, a whole face. Anything else is [`Self::parse`]d, its
+    /// length from its own count: a refusal is the block's.
+    pub fn parse_region(region: &[u8]) -> Result<Option<Self>, InterruptError> {
+        if let Some(h) = region.get(..HEADER_LEN) {
+            if h.iter().all(|&b| b == 0xFF) || h.iter().all(|&b| b == 0) {
+                return Ok(None);
+            }
+            let n = usize::from(u16_at(region, 6));
+            if n <= MAX_HOLES {
+                if let Some(block) = region.get(..HEADER_LEN + n * HOLE_LEN + 4) {
+                    return Self::parse(block).map(Some);
+                }
+            }
+        }
+        Self::parse(region).map(Some)
+    }
+
     /// The holes, in the block's order.
     pub fn holes(&self) -> &[Hole] {
         self.holes.get(..self.count).unwrap_or(&[])
@@ -390,6 +411,36 @@ mod tests {
         assert_eq!(
             Interruptions::parse(&z[..m]),
             Err(InterruptError::CoversTheAxis { index: 1 })
+        );
+    }
+
+    #[test]
+    fn a_region_holds_the_block_at_its_start_or_none_when_erased() {
+        let (b, n) = block(&eight());
+        for fill in [0xFF, 0x00] {
+            let mut region = [fill; 4096];
+            assert_eq!(Interruptions::parse_region(&region), Ok(None));
+            region[..n].copy_from_slice(&b[..n]);
+            let got = Interruptions::parse_region(&region).unwrap().unwrap();
+            assert_eq!(got.holes(), &eight()[..]);
+            // A damaged block in the region is refused, not taken for none.
+            region[HEADER_LEN + 1] ^= 1;
+            assert!(matches!(
+                Interruptions::parse_region(&region),
+                Err(InterruptError::BadCrc { .. })
+            ));
+        }
+        // A count beyond the limit, or a block longer than its region.
+        let mut region = [0xFF; 64];
+        region[..n.min(64)].copy_from_slice(&b[..n.min(64)]);
+        assert!(matches!(
+            Interruptions::parse_region(&region),
+            Err(InterruptError::Truncated { len: 64, .. })
+        ));
+        region[6..8].copy_from_slice(&40u16.to_le_bytes());
+        assert_eq!(
+            Interruptions::parse_region(&region),
+            Err(InterruptError::TooManyHoles(40))
         );
     }
 

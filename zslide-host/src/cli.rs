@@ -96,10 +96,51 @@ pub enum TableCmd {
     /// the same code): `MEASURED --out F.zsct [--from T.zsct] [--gain G]`.
     Compensate(host_sim::cmd::compensate::Args),
     /// Check a table file as the firmware checks it (parser, CRC, sign
-    /// check, region size) and print its identity.
+    /// check, region size) and print its identity; an interruption block
+    /// (`table holes`) likewise, with its holes.
     Check { file: PathBuf },
-    /// Check a table file, then write it to the NUCLEO's table region.
+    /// Check a table file, then write it to the NUCLEO's table region; an
+    /// interruption block to the NUCLEO's interruption region.
     Flash(FlashArgs),
+    /// The part's interruption block (its bolt holes, for the hole edges'
+    /// anticipation) from a scenario's `[cutting.bolt_holes]`, checked as
+    /// the firmware checks it: `--config SCENARIO.toml --out PART.zsib`.
+    Holes(HolesArgs),
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct HolesArgs {
+    /// The scenario file (or `legacy-hw` / `modern-hw`) whose
+    /// `[cutting.bolt_holes]` the part has.
+    #[arg(long, value_name = "FILE")]
+    pub config: String,
+    /// The interruption block to write.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+/// `table holes`: the block of the scenario's bolt holes (filled holes: an
+/// empty block, a whole face), written whole.
+fn table_holes(a: &HolesArgs, out: &mut dyn Write) -> Result<()> {
+    host_sim::outpath::check_file("--out", &a.out).map_err(|e| format!("{e:#}"))?;
+    let sc = host_sim::scenario::load(&a.config).map_err(|e| format!("{e:#}"))?;
+    let block = host_sim::cut::interruptions::block_of(&sc.cutting.bolt_holes)
+        .map_err(|e| format!("{}: {e:#}", a.config))?;
+    let holes = zslide::table::interrupt::Interruptions::parse(&block)
+        .map_err(|e| format!("{}: interruption block refused: {e}", a.config))?;
+    crate::write_file(&a.out, &block)?;
+    for line in regions::hole_lines(&holes) {
+        say_to(out, &line)?;
+    }
+    say_to(
+        out,
+        &format!(
+            "wrote {} ({} bytes, {} holes)",
+            a.out.display(),
+            block.len(),
+            holes.holes().len()
+        ),
+    )
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -237,6 +278,46 @@ pub fn execute(cmd: &Cmd, link: &mut Link, out: &mut dyn Write) -> Result<()> {
             TableCmd::Build(a) => table_build(a, out),
             TableCmd::Compensate(a) => {
                 host_sim::cmd::compensate::run(a.clone()).map_err(|e| format!("{e:#}"))
+            }
+            TableCmd::Holes(a) => table_holes(a, out),
+            TableCmd::Check { file } if regions::is_interruption_file(file)? => {
+                let holes = regions::check_interruptions_file(file, &NUCLEO)?;
+                say(format!(
+                    "{}: interruption block, {} holes",
+                    file.display(),
+                    holes.holes().len()
+                ))?;
+                for line in regions::hole_lines(&holes) {
+                    say(line)?;
+                }
+                say(format!(
+                    "fits the NUCLEO's interruption region ({} KiB){}",
+                    NUCLEO.interruptions_len / 1024,
+                    if regions::check_interruptions_file(file, &QEMU).is_ok() {
+                        " and the QEMU image's"
+                    } else {
+                        ""
+                    }
+                ))
+            }
+            TableCmd::Flash(a) if regions::is_interruption_file(&a.file)? => {
+                let holes = regions::check_interruptions_file(&a.file, &NUCLEO)?;
+                say(format!(
+                    "{}: interruption block, {} holes",
+                    a.file.display(),
+                    holes.holes().len()
+                ))?;
+                say(format!(
+                    "interruption region of the NUCLEO-H743ZI2: {:#010x} ({} KiB)",
+                    NUCLEO.interruptions_addr,
+                    NUCLEO.interruptions_len / 1024
+                ))?;
+                flash::download(
+                    &a.file,
+                    NUCLEO.interruptions_addr,
+                    a.probe.as_deref(),
+                    a.dry_run,
+                )
             }
             TableCmd::Check { file } => {
                 let id = regions::check_table_file(file, &NUCLEO)?;

@@ -1,6 +1,6 @@
 //! The flash regions a machinist writes without rebuilding the firmware:
-//! the coefficient table (`ZSCT`) and the servo parameter block (`ZSPB`)
-//! of both boards' `memory.x`. Every file is checked with the firmware's
+//! the coefficient table (`ZSCT`), the servo parameter block (`ZSPB`) and
+//! the part's interruption block (`ZSIB`) of both boards' `memory.x`. Every file is checked with the firmware's
 //! own code (parser, sign check, parameter limits) before it is written,
 //! and every refusal names the file.
 
@@ -9,6 +9,7 @@ use std::path::Path;
 
 use zslide::params::{self, ParamSource};
 use zslide::servo::ServoDesign;
+use zslide::table::interrupt::{self, Interruptions};
 use zslide::table::TableIdentity;
 
 use crate::Result;
@@ -20,15 +21,20 @@ pub struct Regions {
     pub table_len: u32,
     pub params_addr: u32,
     pub params_len: u32,
+    pub interruptions_addr: u32,
+    pub interruptions_len: u32,
 }
 
 /// NUCLEO-H743ZI2 (`memory.x` at the root): the table in bank 1 sector 7,
-/// the parameter store in bank 2 sectors 5-6.
+/// the parameter store in bank 2 sectors 5-6, the interruption block in
+/// bank 2 sector 7.
 pub const NUCLEO: Regions = Regions {
     table_addr: 0x080E_0000,
     table_len: 128 * 1024,
     params_addr: 0x081A_0000,
     params_len: 256 * 1024,
+    interruptions_addr: 0x081E_0000,
+    interruptions_len: 128 * 1024,
 };
 /// probe-rs's name for the NUCLEO's chip.
 pub const NUCLEO_CHIP: &str = "STM32H743ZITx";
@@ -39,6 +45,8 @@ pub const QEMU: Regions = Regions {
     table_len: 512 * 1024,
     params_addr: 0x0038_0000,
     params_len: 4 * 1024,
+    interruptions_addr: 0x0038_1000,
+    interruptions_len: 4 * 1024,
 };
 
 /// The loop rate both boards run (their parameter blocks are checked at it).
@@ -58,6 +66,8 @@ fn other_kind(bytes: &[u8], want: [u8; 4]) -> Option<&'static str> {
         Some("this is a servo parameter block (ZSPB), not a coefficient table: write it with `zslide params flash`")
     } else if magic == zslide::table::MAGIC {
         Some("this is a coefficient table (ZSCT), not a servo parameter block: write it with `zslide table flash`")
+    } else if magic == interrupt::MAGIC {
+        Some("this is an interruption block (ZSIB), not a servo parameter block: write it with `zslide table flash`")
     } else {
         None
     }
@@ -82,6 +92,47 @@ pub fn check_table_file(file: &Path, regions: &Regions) -> Result<TableIdentity>
         ));
     }
     Ok(id)
+}
+
+/// Whether `file` holds an interruption block (its magic), not a table:
+/// `zslide table check` / `flash` take both.
+pub fn is_interruption_file(file: &Path) -> Result<bool> {
+    Ok(read(file)?.get(0..4) == Some(&interrupt::MAGIC[..]))
+}
+
+/// The interruption block in `file`, checked as the firmware checks it
+/// (`Interruptions::parse`), and that it fits `regions`.
+pub fn check_interruptions_file(file: &Path, regions: &Regions) -> Result<Interruptions> {
+    let bytes = read(file)?;
+    let holes = Interruptions::parse(&bytes)
+        .map_err(|e| format!("{}: interruption block refused: {e}", file.display()))?;
+    if bytes.len() as u32 > regions.interruptions_len {
+        return Err(format!(
+            "{}: interruption block refused: {} bytes do not fit the {} KiB interruption region",
+            file.display(),
+            bytes.len(),
+            regions.interruptions_len / 1024
+        ));
+    }
+    Ok(holes)
+}
+
+/// The holes of a checked block, one line each: centre radius, angle
+/// (degrees of the firmware's spindle angle) and diameter, inches.
+pub fn hole_lines(holes: &Interruptions) -> Vec<String> {
+    holes
+        .holes()
+        .iter()
+        .enumerate()
+        .map(|(k, h)| {
+            format!(
+                "hole {k}: centre radius {:.4} in, angle {:.3}° (spindle), diameter {:.4} in",
+                f64::from(h.centre_radius_uin) * 1e-6,
+                f64::from(h.angle.0) * 360.0 / 4_294_967_296.0,
+                f64::from(h.diameter_uin) * 1e-6
+            )
+        })
+        .collect()
 }
 
 /// The parameter block in `file`, checked as the firmware checks it:

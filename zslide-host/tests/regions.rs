@@ -58,18 +58,43 @@ fn the_regions_are_those_of_both_memory_x() {
             (r.params_addr, r.params_len),
             "{file}"
         );
-        let flash = region_of(&text, "FLASH");
-        assert!(
-            flash.0 + flash.1 <= r.table_addr.min(r.params_addr),
+        assert_eq!(
+            region_of(&text, "ZSIB"),
+            (r.interruptions_addr, r.interruptions_len),
             "{file}"
         );
+        let flash = region_of(&text, "FLASH");
+        assert!(
+            flash.0 + flash.1
+                <= r.table_addr.min(r.params_addr).min(r.interruptions_addr),
+            "{file}"
+        );
+        // No two regions overlap.
+        let mut spans = [
+            (r.table_addr, r.table_len),
+            (r.params_addr, r.params_len),
+            (r.interruptions_addr, r.interruptions_len),
+        ];
+        spans.sort();
+        for w in spans.windows(2) {
+            assert!(w[0].0 + w[0].1 <= w[1].0, "{file}: {spans:x?}");
+        }
     }
     // Each NUCLEO region is made of whole 128 KiB sectors; the table is in
     // bank 1 with the image, the parameter store alone in bank 2 (a bank-2
     // erase stalls reads of bank 2 only: `src/board/flash.rs`).
-    for a in [NUCLEO.table_addr, NUCLEO.params_addr] {
+    for a in [
+        NUCLEO.table_addr,
+        NUCLEO.params_addr,
+        NUCLEO.interruptions_addr,
+    ] {
         assert_eq!((a - 0x0800_0000) % (128 * 1024), 0);
     }
+    // The interruption block's sector ends bank 2 (read at boot only).
+    assert_eq!(
+        NUCLEO.interruptions_addr + NUCLEO.interruptions_len,
+        0x0820_0000
+    );
 }
 
 // The table in bank 1, the store alone in bank 2 (bank 2 starts at
@@ -133,6 +158,66 @@ fn table_files_are_checked_and_the_probe_rs_command_built() {
     let e = check_table_file(&p, &NUCLEO).unwrap_err();
     assert!(e.contains("do not fit the 128 KiB table region"), "{e}");
 }
+
+/// `table holes` writes the block of a scenario's bolt holes, which
+/// `table check` reads as the firmware does (its holes listed); a damaged
+/// block is refused in the parser's words, naming the file; `table flash
+/// --dry-run` writes a block to the NUCLEO's interruption region.
+#[test]
+fn interruption_blocks_are_built_checked_and_flashed_to_their_region() {
+    use zslide_host::cli::{execute, Cmd, HolesArgs, TableCmd};
+    let dir = scratch();
+    let out = dir.join("part.zsib");
+    let mut link = zslide_host::client::Link::new(
+        "tcp:127.0.0.1:1",
+        std::time::Duration::from_millis(100),
+    );
+    let mut said = Vec::new();
+    let holes = Cmd::Table {
+        cmd: TableCmd::Holes(HolesArgs {
+            config: "legacy-hw".into(),
+            out: out.clone(),
+        }),
+    };
+    execute(&holes, &mut link, &mut said).unwrap();
+    let said = String::from_utf8(said).unwrap();
+    // legacy-hw: eight 0.75 in holes on the 3.5 in circle; 12 + 8 × 12 + 4
+    // bytes (`zslide::table::interrupt`'s format).
+    assert!(said.contains("wrote"), "{said}");
+    assert!(said.contains("(112 bytes, 8 holes)"), "{said}");
+    assert!(
+        said.contains("hole 0: centre radius 3.5000 in, angle 157.500° (spindle), diameter 0.7500 in"),
+        "{said}"
+    );
+    assert!(is_interruption_file(&out).unwrap());
+    assert!(!is_interruption_file(&root().join("tables/default.zsct")).unwrap());
+    let holes = check_interruptions_file(&out, &NUCLEO).unwrap();
+    assert_eq!(holes.holes().len(), 8);
+
+    let mut bytes = fs::read(&out).unwrap();
+    bytes[LAST_DIAMETER_BYTE] ^= 1;
+    let bad = dir.join("bad.zsib");
+    fs::write(&bad, &bytes).unwrap();
+    let e = check_interruptions_file(&bad, &NUCLEO).unwrap_err();
+    assert!(
+        e.contains("bad.zsib: interruption block refused: interruption block CRC mismatch"),
+        "{e}"
+    );
+    let mut said = Vec::new();
+    let flash = Cmd::Table {
+        cmd: TableCmd::Flash(zslide_host::cli::FlashArgs {
+            file: bad,
+            dry_run: true,
+            probe: None,
+        }),
+    };
+    let e = execute(&flash, &mut link, &mut said).unwrap_err();
+    assert!(e.contains("CRC mismatch"), "{e}");
+    assert!(said.is_empty(), "nothing written for a refused block");
+}
+
+/// A byte of the last hole's diameter in a block of eight.
+const LAST_DIAMETER_BYTE: usize = 12 + 7 * 12 + 8;
 
 /// A parameter block handed to the table command (and the reverse) is
 /// named for what it is, not "cut short".

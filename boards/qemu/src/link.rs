@@ -26,6 +26,8 @@ extern "C" {
     static __zsct_size: u8;
     static __zspb_start: u8;
     static __zspb_size: u8;
+    static __zsib_start: u8;
+    static __zsib_size: u8;
 }
 
 /// The bytes of a `memory.x` region given its start and size symbols.
@@ -52,6 +54,15 @@ pub fn params_region() -> &'static [u8] {
     region(
         core::ptr::addr_of!(__zspb_start),
         core::ptr::addr_of!(__zspb_size),
+    )
+}
+
+/// The interruption region (`ZSIB`, 0x0038_1000, 4 KiB): the part's
+/// interruption block (`zslide::table::interrupt`), or zeros.
+pub fn interruptions_region() -> &'static [u8] {
+    region(
+        core::ptr::addr_of!(__zsib_start),
+        core::ptr::addr_of!(__zsib_size),
     )
 }
 

@@ -169,10 +169,42 @@ fn main() -> ! {
     defmt::info!("loop config: {}", cfg.loop_cfg);
     // The table region (`memory.x`: 0x0030_0000), written by QEMU's
     // `-device loader`; parsed and sign-checked here.
-    let Ok(fw) = Firmware::with_table_region(link::table_region(), cfg) else {
+    let Ok(mut fw) = Firmware::with_table_region(link::table_region(), cfg) else {
         defmt::error!("FAIL: configuration refused");
         exit(false);
     };
+    // The part's interruption block: the interruption region's (`memory.x`:
+    // 0x0038_1000, QEMU's loader, as `zslide table flash F.zsib` writes the
+    // NUCLEO's), parsed here; a refused one is refused in words and the cut
+    // runs without the edges' anticipation. With none there, the checked
+    // run takes its scenario's part (`scenario::HOLES`); a link session a
+    // whole face.
+    match fw.set_interruptions_region(link::interruptions_region()) {
+        Ok(Some(n)) => defmt::info!("interruption block (region): {=usize} holes", n),
+        Ok(None) if session => defmt::info!("no interruption block: a whole face"),
+        Ok(None) => match fw.set_interruptions(&scenario::interruption_block()) {
+            Ok(()) => {
+                let h = scenario::HOLES[0];
+                defmt::info!(
+                    "interruption block (the scenario's part): {=usize} holes of {=u32} uin on a {=u32} uin circle",
+                    scenario::HOLES.len(),
+                    h.diameter_uin,
+                    h.centre_radius_uin
+                );
+            }
+            Err(e) => {
+                defmt::error!(
+                    "FAIL: the scenario's interruption block refused: {}",
+                    defmt::Display2Format(&e)
+                );
+                exit(false);
+            }
+        },
+        Err(e) => defmt::error!(
+            "interruption block refused, the cut runs without the edges' anticipation: {}",
+            defmt::Display2Format(&e)
+        ),
+    }
     let table = fw.table_identity();
     if let (Some(g), Ok(id)) = (fw.command_gen(), &table) {
         let h = g.interpolator().table().header();

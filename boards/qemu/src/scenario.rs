@@ -1,12 +1,16 @@
 //! The synthetic machine the QEMU image runs against, and the run's script:
 //! rates, the spindle (encoder and index), the X feed (legacy half-mil
 //! events with duplicates and a reversal, or a count), when the trace
-//! samples are taken and when the gauge bus breaks. World time is the loop
-//! tick count (`WORLD_TICK`); everything here is a pure function of it.
+//! samples are taken and when the gauge bus breaks, and the part's
+//! interruptions (the block the checked run hands the firmware). World time
+//! is the loop tick count (`WORLD_TICK`); everything here is a pure
+//! function of it.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use zslide::hw::EncoderSample;
+use zslide::table::interrupt::{Hole, Interruptions, HEADER_LEN, HOLE_LEN};
+use zslide::units::SpindleAngle;
 use zslide::xpos::CountConfig;
 
 /// Loop-tick rate, Hz (the real board's rate).
@@ -115,3 +119,31 @@ pub(crate) fn index_pulses() -> u32 {
 /// The fault-path check's instant (`crate::INJECT`): the loop is engaged
 /// and tracking there (the amplifier enabled).
 pub(crate) const FAULT_AT: u32 = 3_000;
+
+/// The part's interruptions: four holes of 0.25 in on a 2.05 in circle,
+/// at 45°, 135°, 225° and 315° of the spindle angle. X runs from 2.0000 in
+/// to 2.092 in, so the nose's whole contact chord (0.0087 in) crosses every
+/// hole every turn: the edges' anticipation learns its step at every
+/// crossing and the loop tick takes an edge's change about every 19 ticks
+/// (the hole's 3.5° half-width at 0.36° a tick), the tick's worst path.
+pub(crate) const HOLES: [Hole; 4] = {
+    const fn hole(eighths: u32) -> Hole {
+        Hole {
+            centre_radius_uin: 2_050_000,
+            angle: SpindleAngle(eighths << 29),
+            diameter_uin: 250_000,
+        }
+    }
+    [hole(1), hole(3), hole(5), hole(7)]
+};
+/// Bytes of [`HOLES`]' block.
+pub(crate) const BLOCK_LEN: usize = HEADER_LEN + HOLES.len() * HOLE_LEN + 4;
+
+/// The interruption block of [`HOLES`], as the part program writes it
+/// (`Interruptions::encode`: the firmware's own format, CRC'd).
+pub(crate) fn interruption_block() -> [u8; BLOCK_LEN] {
+    let mut b = [0u8; BLOCK_LEN];
+    // `BLOCK_LEN` is the length of `HOLES`' block: the encoder fills it.
+    let _ = Interruptions::encode(&HOLES, &mut b);
+    b
+}

@@ -40,6 +40,9 @@ struct RunSummary {
     index_events: u64,
     engaged_at_end: bool,
     fault_at_end: Option<String>,
+    /// Hole crossings the edges' anticipation learned at (runs with an
+    /// interruption block).
+    edge_crossings: u32,
 }
 
 #[derive(serde::Serialize)]
@@ -100,6 +103,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 index_events: r.index_events,
                 engaged_at_end: r.engaged,
                 fault_at_end: r.final_fault.map(|f| format!("{f:?}")),
+                edge_crossings: r.edge_crossings,
             })
             .collect(),
         altered,

@@ -567,7 +567,7 @@ pub fn build_stretch(
         let mut holes = cutting.bolt_holes.clone();
         holes.phase_deg += spec.block_angle_error_deg;
         let block = interruptions::block_of(&holes)?;
-        w.fw.set_interruptions(&block)
+        w.set_interruptions(&block)
             .map_err(|e| anyhow::anyhow!("the firmware refused the interruption block: {e}"))?;
     }
     spec.controller.attach(&mut w, &mut s);

@@ -323,6 +323,21 @@ impl FirmwareWorld {
         });
     }
 
+    /// The part's interruption block to the firmware
+    /// (`Firmware::set_interruptions`, before the first tick), recorded
+    /// with the run when one is being recorded: refused in the firmware's
+    /// words, and then nothing changes.
+    pub fn set_interruptions(
+        &mut self,
+        block: &[u8],
+    ) -> Result<(), zslide::table::interrupt::InterruptError> {
+        self.fw.set_interruptions(block)?;
+        if let Some(r) = &self.recorder {
+            r.set_interruptions(block);
+        }
+        Ok(())
+    }
+
     /// The loop-tick interrupt, on the board's timing (`RigConfig`): the
     /// loop-timer event is now; the gauge is sampled `adc_sample_ns` later
     /// (CNV, hardware); the handler reads the clock, the spindle encoder or
