@@ -65,8 +65,7 @@ fn the_regions_are_those_of_both_memory_x() {
         );
         let flash = region_of(&text, "FLASH");
         assert!(
-            flash.0 + flash.1
-                <= r.table_addr.min(r.params_addr).min(r.interruptions_addr),
+            flash.0 + flash.1 <= r.table_addr.min(r.params_addr).min(r.interruptions_addr),
             "{file}"
         );
         // No two regions overlap.
@@ -168,10 +167,8 @@ fn interruption_blocks_are_built_checked_and_flashed_to_their_region() {
     use zslide_host::cli::{execute, Cmd, HolesArgs, TableCmd};
     let dir = scratch();
     let out = dir.join("part.zsib");
-    let mut link = zslide_host::client::Link::new(
-        "tcp:127.0.0.1:1",
-        std::time::Duration::from_millis(100),
-    );
+    let mut link =
+        zslide_host::client::Link::new("tcp:127.0.0.1:1", std::time::Duration::from_millis(100));
     let mut said = Vec::new();
     let holes = Cmd::Table {
         cmd: TableCmd::Holes(HolesArgs {
@@ -186,7 +183,9 @@ fn interruption_blocks_are_built_checked_and_flashed_to_their_region() {
     assert!(said.contains("wrote"), "{said}");
     assert!(said.contains("(112 bytes, 8 holes)"), "{said}");
     assert!(
-        said.contains("hole 0: centre radius 3.5000 in, angle 157.500° (spindle), diameter 0.7500 in"),
+        said.contains(
+            "hole 0: centre radius 3.5000 in, angle 157.500° (spindle), diameter 0.7500 in"
+        ),
         "{said}"
     );
     assert!(is_interruption_file(&out).unwrap());
