@@ -132,7 +132,10 @@ fn check_run(run: &[u8]) {
     match setup.firmware_config() {
         Some(fc) => {
             assert!(designs);
-            assert_eq!(setup_of(setup.name, setup.table, &fc), Some(setup));
+            assert_eq!(
+                setup_of(setup.name, setup.table, setup.interruptions, &fc),
+                Some(setup)
+            );
         }
         None => assert!(!designs, "{setup:?}"),
     }
