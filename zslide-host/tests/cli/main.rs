@@ -23,6 +23,7 @@ fn every_command_refuses_unknown_flags_and_has_help() {
         &["table", "build", "--config", "p.toml", "--out", "p.zsct"][..],
         &["table", "check", "t.zsct"],
         &["table", "flash", "t.zsct", "--dry-run"],
+        &["table", "holes", "--config", "legacy-hw", "--out", "p.zsib"],
         &["params", "show"],
         &["params", "get", "damping"],
         &["params", "set", "bandwidth_hz", "40"],
