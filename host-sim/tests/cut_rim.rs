@@ -23,7 +23,7 @@ fn spec(k_e_scale: f64) -> CutSpec {
 /// is below the surface by no more than the loop's following error in air:
 /// twice the track figure's bound, for the gauge noise and hum the cut adds.
 /// Entering the stock with the loop still being referenced (the tool in
-/// the stock from the first tick, `Entry::InStock`) breaks it: −388 µin.
+/// the stock from the first tick, `Entry::InStock`) breaks it: −111.8 µin.
 #[test]
 fn the_rim_engagement_with_twice_the_edge_force_stays_inside_the_depth_of_cut() {
     let s = spec(2.0);
