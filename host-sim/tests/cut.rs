@@ -92,6 +92,7 @@ fn open_bolt_holes_interrupt_the_force_at_the_bolt_circle_only() {
         windows: vec![(r_b - s.band_half_in, r_b + s.band_half_in)],
         zone: vec![],
         index: 3,
+        entry: host_sim::cut::run::Entry::AfterPreroll,
     };
     let at3 = run(&s, &on_circle);
     let at5 = run(&s, &band(&s, 5.0));

@@ -47,6 +47,7 @@ fn worst_beyond_10_mils(s: &CutSpec) -> (f64, usize) {
             windows: vec![],
             zone: vec![(lo, hi)],
             index: z.index,
+            entry: z.entry,
         })
         .unwrap();
     let r = run_stretch(s, &st, &Extras::default(), &|_| {}).unwrap();

@@ -146,6 +146,9 @@ pub struct Summary {
     /// The tool's lowest point against the finished surface while it cut,
     /// engagements and prerolls included, µin (null: it never cut).
     pub deepest_uin: Option<f64>,
+    /// The same over the pass's one engagement, at the stock's rim
+    /// (`cut::rim_stretch`), µin.
+    pub rim_deepest_uin: Option<f64>,
     pub finish_rms_uin: Option<f64>,
     /// Finish by CMM radius, µin RMS.
     pub finish_rms_by_x_uin: Vec<Option<f64>>,
@@ -218,6 +221,7 @@ fn summarise(spec: &CutSpec, o: &CutOutcome) -> Summary {
         following_error_rms_uin: o.following_error_rms_uin,
         following_error_peak_uin: o.following_error_peak_uin,
         deepest_uin: o.deepest_uin.is_finite().then_some(o.deepest_uin),
+        rim_deepest_uin: o.rim_deepest_uin.is_finite().then_some(o.rim_deepest_uin),
         finish_rms_uin: o
             .rect
             .as_ref()

@@ -29,7 +29,14 @@
 //!   With `e = e_prev` it is `f/2`, the steady contact of `CuttingParams`.
 //! * Force magnitude `engaged · (k_t d_f f + k_e l_c)`, `l_c` the sum of
 //!   the two contacts (`CuttingParams::thrust_lbf` in the steady state),
-//!   `engaged` the fraction of the chord not over an open bolt hole.
+//!   `engaged` the fraction of the chord over material: not over an open
+//!   bolt hole, and inside the stock's rim (`set_rim`: the stock lies at
+//!   X ≤ the rim, so a tool feeding in from outside meets it with the
+//!   leading point of its nose and the chord over material grows by one
+//!   feed a revolution, `sqrt(2 r_t d)/f + 1/2` revolutions to the whole
+//!   chord).
+//! * The memory records only where the tool cut: out of the stock (no
+//!   material under the chord) the tool leaves no surface behind.
 //!
 //! Filled holes (the second part of chapter 5) are cut like the part
 //! material: the cast filler's own cutting constants are not known, so the
@@ -165,6 +172,11 @@ pub struct Engagement {
     sync: Vec<f64>,
     last_bin: Option<usize>,
     last_e: f64,
+    /// Whether the tool was in the stock at the last call.
+    last_cut: bool,
+    /// Tool-centre X of the stock's outer edge, in (material at X ≤ it;
+    /// +∞: the tool is in the stock everywhere, −∞: nowhere).
+    rim_in: f64,
 }
 
 impl Engagement {
@@ -179,7 +191,15 @@ impl Engagement {
             sync: vec![f64::NAN; BINS],
             last_bin: None,
             last_e: 0.0,
+            last_cut: false,
+            rim_in: f64::INFINITY,
         }
+    }
+
+    /// Places the stock's outer edge at tool-centre X `rim_in` (material
+    /// at X ≤ `rim_in`; `-∞`: the tool is clear of the stock).
+    pub fn set_rim(&mut self, rim_in: f64) {
+        self.rim_in = rim_in;
     }
 
     /// Forgets the stock memory: the next revolution defines `ē` and
@@ -213,9 +233,17 @@ impl Engagement {
             0.0
         };
         let chord = front + rear;
-        let engaged = if chord > 0.0 {
-            self.holes
-                .engaged_fraction(x_in - front, x_in + rear, phi_turns)
+        // The chord [X − front, X + rear] over the stock (X ≤ rim).
+        let inside = if chord > 0.0 {
+            ((self.rim_in - (x_in - front)) / chord).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let engaged = if inside > 0.0 {
+            inside
+                * self
+                    .holes
+                    .engaged_fraction(x_in - front, x_in + rear, phi_turns)
         } else {
             0.0
         };
@@ -223,7 +251,7 @@ impl Engagement {
         // Memory: the bins the tool has just left keep the `e` it had
         // there, so every visit of a bin during one revolution reads the
         // previous revolution's values.
-        if let Some(l) = self.last_bin {
+        if let Some(l) = self.last_bin.filter(|_| self.last_cut) {
             let mut k = l;
             while k != b {
                 self.prev[k] = self.last_e;
@@ -238,6 +266,7 @@ impl Engagement {
         }
         self.last_bin = Some(b);
         self.last_e = e_in;
+        self.last_cut = inside > 0.0;
         Contact {
             depth_in: depth,
             chord_in: chord,

@@ -329,6 +329,8 @@ pub struct Stretch {
     pub zone: Vec<(f64, f64)>,
     /// Stream index of its seeds.
     pub index: u64,
+    /// How its tool meets the stock.
+    pub entry: run::Entry,
 }
 
 /// Seed streams of the hole zone's stretches start here (the CMM bands
@@ -341,7 +343,43 @@ impl Stretch {
     }
 }
 
-/// The stretches of the pass: one band per CMM radius, or the whole pass.
+/// Seed stream of the rim's stretch.
+pub const RIM_SEED: u64 = 999;
+
+/// Revolutions the pass starts with the nose's leading point clear of the
+/// stock: the legacy X chain's first half-mil event and the firmware's
+/// table engaging happen in air, as a machinist starts a facing pass.
+pub const RIM_CLEAR_REVS: f64 = 5.0;
+
+/// Revolutions the rim's stretch runs after the chord is whole.
+pub const RIM_AFTER_REVS: f64 = 30.0;
+
+/// Tool-centre X of the stock's rim: the pass starts `RIM_CLEAR_REVS`
+/// revolutions before the leading point of the nose (`sqrt(2 r_t d)`
+/// ahead of the centre) meets it.
+pub fn rim_in(spec: &CutSpec) -> f64 {
+    let front = (2.0 * spec.scenario.cutting.tool_radius_in * spec.depth_in).sqrt();
+    spec.x_start_in - front - RIM_CLEAR_REVS * spec.feed_per_rev_in
+}
+
+/// The stretch from the pass's start to the chord whole under the stock
+/// and `RIM_AFTER_REVS` more: the rim engagement.
+pub fn rim_stretch(spec: &CutSpec) -> Stretch {
+    let f = spec.feed_per_rev_in;
+    let chord = (2.0 * spec.scenario.cutting.tool_radius_in * spec.depth_in).sqrt() + f;
+    let rim = rim_in(spec);
+    Stretch {
+        x_start_in: spec.x_start_in,
+        x_end_in: (rim - chord - RIM_AFTER_REVS * f).max(0.0),
+        windows: vec![],
+        zone: vec![],
+        index: RIM_SEED,
+        entry: run::Entry::Rim(rim),
+    }
+}
+
+/// The stretches of the pass: one band per CMM radius (the hole zone's
+/// bands, then the rim's engagement after them), or the whole pass.
 pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
     let f = spec.feed_per_rev_in;
     // The zone's grid needs the part's own gain; a plan asked with another
@@ -369,6 +407,7 @@ pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
             windows,
             zone,
             index: 0,
+            entry: run::Entry::Rim(rim_in(spec)),
         }];
     }
     let bands = windows
@@ -380,6 +419,7 @@ pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
             windows: vec![(lo, hi)],
             zone: vec![],
             index: k as u64 + 1,
+            entry: run::Entry::AfterPreroll,
         });
     let zone = zone.into_iter().enumerate().map(|(k, (lo, hi))| Stretch {
         x_start_in: hi + spec.preroll_revs * f,
@@ -387,8 +427,12 @@ pub fn plan(spec: &CutSpec, contact_gain: f64) -> Vec<Stretch> {
         windows: vec![],
         zone: vec![(lo, hi)],
         index: ZONE_SEED_BASE + k as u64,
+        entry: run::Entry::AfterPreroll,
     });
-    bands.chain(zone).collect()
+    bands
+        .chain(zone)
+        .chain(std::iter::once(rim_stretch(spec)))
+        .collect()
 }
 
 /// What a stretch returns.
@@ -511,6 +555,7 @@ pub fn build_stretch(
         // The slide starts at null, the firmware unreferenced: the stock
         // memory starts after a third of the pre-roll (at least 5 revs).
         (rec_start_s / 3.0).max(5.0 * 60.0 / spec.rpm),
+        st.entry,
     )));
     {
         let mut c = cutter.borrow_mut();
@@ -707,6 +752,8 @@ pub struct CutOutcome {
     /// over every tick of every stretch (engagements included), µin
     /// (negative: below it; `run::StretchLog::deepest_in`).
     pub deepest_uin: f64,
+    /// The same over the rim's engagement alone (`run::Entry::Rim`), µin.
+    pub rim_deepest_uin: f64,
     /// Mean cutting force while recording, lbf.
     pub mean_force_lbf: f64,
     /// Largest |coil current| while recording, A.
@@ -761,11 +808,15 @@ pub fn run_pass(
     let mut current_peak_a = 0.0f64;
     let (mut simulated_s, mut cpu_s) = (0.0, 0.0);
     let mut deepest = f64::INFINITY;
+    let mut rim_deepest = f64::INFINITY;
     let mut faults = Vec::new();
     let mut trace = Vec::new();
     let mut traces = Vec::new();
-    for r in results {
+    for (r, st) in results.into_iter().zip(&stretches) {
         let mut r = r?;
+        if matches!(st.entry, run::Entry::Rim(_)) {
+            rim_deepest = rim_deepest.min(r.log.deepest_in);
+        }
         traces.push(std::mem::take(&mut r.log.trace));
         passes.merge(r.log.passes);
         if let (Some(a), Some(b)) = (grid_log.as_mut(), r.log.grid.take()) {
@@ -844,6 +895,7 @@ pub fn run_pass(
         following_error_rms_uin: (sum_sq / nf).sqrt() * 1e6,
         following_error_peak_uin: peak * 1e6,
         deepest_uin: deepest * 1e6,
+        rim_deepest_uin: rim_deepest * 1e6,
         mean_force_lbf: force / nf,
         current_peak_a,
         trace,

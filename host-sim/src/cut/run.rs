@@ -17,6 +17,25 @@ use zslide::firmware::Firmware;
 /// at the outer edge, 3–4 A on the slide: 10 lbf at 7.25 in).
 const FULL_LOAD_LBF_IN: f64 = 10.0 * 7.25;
 
+/// How a stretch's tool meets the stock.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Entry {
+    /// The pass's own start: the tool feeds in from outside the stock,
+    /// whose rim lies at this tool-centre X, in (the nose's chord grows
+    /// over it: `engage`). The only engagement a facing pass has.
+    Rim(f64),
+    /// A band inside the part: the pre-roll runs with the tool clear of
+    /// the stock while the firmware arms, references X and follows the
+    /// table, as a continuous pass does before its rim; at the settle time
+    /// (and the firmware following its table) the whole chord is in the
+    /// stock at once, the stock being what the previous pass left from
+    /// there on. A step: harsher than the rim's growing chord.
+    AfterPreroll,
+    /// The tool in the stock from the first tick, the loop engaging onto
+    /// the running cut (a fault campaign's stretch).
+    InStock,
+}
+
 /// What one stretch records.
 #[derive(Clone, Debug, Default)]
 pub struct StretchLog {
@@ -55,8 +74,9 @@ pub struct Cutter {
     /// Tick-by-tick trace window (time, s).
     trace_window: (f64, f64),
     /// Time at which the start-up transient is over and the stock memory
-    /// starts afresh, s (NaN once done).
+    /// starts afresh, s (∞ once done).
     settle_s: f64,
+    entry: Entry,
     prev: Option<(f64, f64, f64)>,
     rev: i64,
     rev_force_sum: f64,
@@ -92,9 +112,23 @@ impl Cutter {
         windows: Vec<(f64, f64)>,
         trace_window: (f64, f64),
         settle_s: f64,
+        entry: Entry,
     ) -> Self {
+        let mut eng = eng;
+        let settle_s = match entry {
+            Entry::Rim(rim) => {
+                eng.set_rim(rim);
+                f64::INFINITY
+            }
+            Entry::AfterPreroll => {
+                eng.set_rim(f64::NEG_INFINITY);
+                settle_s
+            }
+            Entry::InStock => settle_s,
+        };
         Self {
             settle_s,
+            entry,
             eng,
             nominal: nominal.into(),
             index_phase_turns,
@@ -170,8 +204,15 @@ impl TickHook for Cutter {
         let z = z + self.axial.as_ref().map_or(0.0, |a| a.at(x));
         let nom = self.nominal_sign * self.nominal.fast(x, phi);
         let e = z - nom;
-        if t_s >= self.settle_s {
+        // A band enters the stock once the digital firmware (when it
+        // drives the slide) follows its table: its command before that is
+        // not the part's.
+        let following = !fw.amplifier_enable() || fw.table_code() != 0;
+        if t_s >= self.settle_s && (self.entry != Entry::AfterPreroll || following) {
             self.eng.reset_memory();
+            if self.entry == Entry::AfterPreroll {
+                self.eng.set_rim(f64::INFINITY);
+            }
             self.settle_s = f64::INFINITY;
         }
         self.last_error_in = e;

@@ -40,6 +40,9 @@ pub struct Row {
     /// engagements included (`CutOutcome::deepest_uin`), µin: deeper than
     /// −depth of cut is scrap whatever the band.
     pub deepest_uin: f64,
+    /// The same over the rim's engagement alone
+    /// (`CutOutcome::rim_deepest_uin`), µin.
+    pub rim_deepest_uin: f64,
     pub mean_force_lbf: f64,
     /// The engaged part's stiffness at this scale (`stiffness_lbf_per_in`).
     pub stiffness_lbf_per_in: f64,
@@ -76,6 +79,7 @@ pub fn run(spec: &CutSpec, progress: &dyn Fn(&str)) -> anyhow::Result<Vec<Row>> 
                 band_max_uin: hi,
                 following_error_rms_uin: o.following_error_rms_uin,
                 deepest_uin: o.deepest_uin,
+                rim_deepest_uin: o.rim_deepest_uin,
                 mean_force_lbf: o.mean_force_lbf,
                 stiffness_lbf_per_in: stiffness_lbf_per_in(
                     &s.scenario.cutting,
@@ -104,13 +108,20 @@ pub fn table(spec: &CutSpec, rows: &[Row]) -> String {
     );
     let _ = writeln!(
         o,
-        "{:<10} {:>12} {:>10} {:>20} {:>10} {:>12} {:>12}  faults",
-        "constant", "value", "lbf/in", "contour band, µin", "p-v µin", "FE RMS µin", "deepest µin"
+        "{:<10} {:>12} {:>10} {:>20} {:>10} {:>12} {:>12} {:>10}  faults",
+        "constant",
+        "value",
+        "lbf/in",
+        "contour band, µin",
+        "p-v µin",
+        "FE RMS µin",
+        "deepest µin",
+        "rim µin"
     );
     for r in rows {
         let _ = writeln!(
             o,
-            "{:<10} {:>12} {:>10.0} {:>20} {:>10.1} {:>12.1} {:>12.1}  {}",
+            "{:<10} {:>12} {:>10.0} {:>20} {:>10.1} {:>12.1} {:>12.1} {:>10.1}  {}",
             format!("{} × {}", r.constant, r.factor),
             format!("{:.1}", r.value),
             r.stiffness_lbf_per_in,
@@ -118,6 +129,7 @@ pub fn table(spec: &CutSpec, rows: &[Row]) -> String {
             r.band_max_uin - r.band_min_uin,
             r.following_error_rms_uin,
             r.deepest_uin,
+            r.rim_deepest_uin,
             if r.faults.is_empty() {
                 "none".to_string()
             } else {

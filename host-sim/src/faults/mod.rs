@@ -415,6 +415,8 @@ fn simulate(
         windows: vec![(x_at_inj - 0.01, x_start)],
         zone: vec![],
         index: seed_index,
+        // The campaign's stretch engages onto the running cut.
+        entry: crate::cut::run::Entry::InStock,
     };
     let mut spec = spec.clone();
     if case == Case::XOutsideTable {
