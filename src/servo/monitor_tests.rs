@@ -335,3 +335,39 @@ fn the_contour_checks_wait_for_the_engagement_but_the_frozen_gauge_does_not() {
     }
     assert_eq!(m.sample(&engaging(0, 7), false), Some(Fault::GaugeFrozen));
 }
+
+/// Over a hole (and for `edge_settle_ticks` after it) an error deep
+/// toward the stock and ringing raises nothing, whatever its size; the
+/// tick after that window, three deep ticks latch the guard again, and a
+/// frozen gauge is raised over the hole too.
+#[test]
+fn over_a_hole_and_its_edges_transient_the_depth_and_ring_checks_stand_down() {
+    let c = cfg();
+    assert!(c.edge_settle_ticks > 0);
+    let g = c.depth_guard_q8 + 1;
+    let mut m = settled(c);
+    let mut k = 0;
+    // Two windows of ±10 guards over the hole.
+    for q in 0..(2 << OSC_SHIFT) {
+        k += 1;
+        let e = if q % 2 == 0 { 10 * g } else { -10 * g };
+        assert_eq!(m.sample(&live(e, k, 0), true), None, "over the hole, {q}");
+    }
+    // Deep through the edges' transient after it.
+    for q in 0..c.edge_settle_ticks {
+        k += 1;
+        assert_eq!(m.sample(&live(10 * g, k, 0), false), None, "transient, {q}");
+    }
+    k += 1;
+    assert_eq!(m.sample(&live(g, k, 0), false), None);
+    k += 1;
+    assert_eq!(m.sample(&live(g, k, 0), false), None);
+    k += 1;
+    assert_eq!(m.sample(&live(g, k, 0), false), Some(Fault::DepthGuard));
+    // The gauge frozen over a hole: the first sets the code, n repeats
+    // of it trip.
+    for _ in 0..c.gauge_frozen_ticks {
+        assert_eq!(m.sample(&live(0, 5, 0), true), None);
+    }
+    assert_eq!(m.sample(&live(0, 5, 0), true), Some(Fault::GaugeFrozen));
+}
