@@ -281,7 +281,7 @@ impl Fault {
             Fault::CentringNoConvergence => "`centring::cycle`: more than `max_cycles` corrections",
             Fault::CentringSlideTimeout => "`centring::cycle`: a correction not settled within `max_correction_ticks`",
             Fault::DepthGuard => "`servo::monitor` (learning handler, on the tick's samples): command − gauge toward the stock (opposite `retract_z_in`) beyond the depth guard (`depth_of_cut_uin` less the retract's stop, `ServoDesign::depth_guard_uin`) on 3 consecutive ticks, not over the part's holes nor in their edges' transient, from 2 revolutions of live command after the engagement (`SETTLE_REVS`: the spindle angle's first index correction)",
-            Fault::Oscillation => "`servo::monitor`: the error's mean square about its 50 Hz mean (exponential windows of 2⁸ and 2⁶ ticks) above `oscillation_uin`² for a whole window (12.8 ms), from 2 revolutions of live command after the engagement",
+            Fault::Oscillation => "`servo::monitor`: the error's mean square about its 50 Hz mean (exponential windows of 2⁸ and 2⁶ ticks) above `oscillation_uin`² for a whole window (12.8 ms), not over the part's holes nor in their edges' transient, from 2 revolutions of live command after the engagement",
             Fault::GaugeFrozen => "`servo::monitor`: the gauge's 20-bit code identical for `gauge_frozen_ms` while the loop is closed, watched also while another fault's reaction runs",
             Fault::XStalled => "`servo::monitor`: `x_stall_revs` revolutions (0 = off) with the table command live and no new coefficient set",
         }

@@ -10,9 +10,6 @@ use host_sim::faults::{run_case, spec, Case, Outcome};
 use host_sim::scenario::load;
 use zslide::safety::{Fault, Reaction};
 
-/// Chapter 5's depth of cut, µin: the stock the finishing pass removes.
-const DEPTH_OF_CUT_UIN: f64 = 300.0;
-
 const SCENARIOS: [&str; 2] = ["legacy-hw", "modern-hw"];
 
 fn run(scenario: &str, case: Case) -> (host_sim::cut::CutSpec, Outcome) {
@@ -21,10 +18,14 @@ fn run(scenario: &str, case: Case) -> (host_sim::cut::CutSpec, Outcome) {
     (spec, o)
 }
 
+/// The part program's depth of cut (`depth_of_cut_uin`: chapter 5's
+/// finishing pass, 300 µin): the tool beyond it is into the finished
+/// surface.
 fn within_depth(scenario: &str, o: &Outcome) {
     let e = o.row.max_excursion_uin.unwrap();
+    let depth = load(scenario).unwrap().servo_design.depth_of_cut_uin;
     assert!(
-        e < DEPTH_OF_CUT_UIN,
+        e < depth,
         "{scenario} {}: {e} µin into the part, beyond the depth of cut",
         o.row.fault
     );
