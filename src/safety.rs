@@ -66,6 +66,19 @@ pub enum Fault {
     /// Centring: a slide did not settle in the allowed time (jammed slide,
     /// open motor or tachometer).
     CentringSlideTimeout,
+    /// Contour monitoring (`servo::monitor`): the tool went below the
+    /// commanded surface, into the stock, by more than the depth guard.
+    DepthGuard,
+    /// Contour monitoring: the following error oscillates (its windowed
+    /// RMS about its slow mean above the limit): the loop rings against
+    /// the process (a blunt edge, another material) or the slide.
+    Oscillation,
+    /// Contour monitoring: the gauge's 20-bit code has not changed for
+    /// longer than a driven slide's noise allows.
+    GaugeFrozen,
+    /// Contour monitoring: no new X for too many revolutions while the
+    /// table command is live (the X count stopped while X feeds).
+    XStalled,
 }
 
 /// What the machine does about a fault.
@@ -76,6 +89,10 @@ pub enum Fault {
 pub enum Reaction {
     /// Keep the loop closed, ramp the command to null, hold there.
     RampToNull,
+    /// Keep the loop closed and take the tool out of the stock: the
+    /// command ramps at the slew limit to the retract position
+    /// (`retract_z_in`, away from the stock), and holds there.
+    Retract,
     /// Open the loop: DAC to zero volts, amplifier disabled.
     DisableAmplifier,
 }
@@ -113,6 +130,16 @@ impl Fault {
             | Fault::CentringWorse
             | Fault::CentringNoConvergence
             | Fault::CentringSlideTimeout => Reaction::DisableAmplifier,
+            // The loop's sensing and actuation are sound but the tool is
+            // where it must not be (or the command is for another radius):
+            // out of the stock is the only place the tool is safe, and a
+            // loop ringing against the process spring stops ringing once
+            // the spring is gone.
+            Fault::DepthGuard | Fault::Oscillation | Fault::XStalled => Reaction::Retract,
+            // A loop on a reading that no longer follows the slide drives
+            // it blind: amplifier off, and the cutting force (the part
+            // pushes the tool away from itself) takes the tool out.
+            Fault::GaugeFrozen => Reaction::DisableAmplifier,
         }
     }
 
@@ -150,6 +177,10 @@ impl Fault {
             }
             Fault::CentringNoConvergence => "centring: the level was not reached in the allowed number of cycles",
             Fault::CentringSlideTimeout => "centring: a slide did not come to rest in the allowed time",
+            Fault::DepthGuard => "depth guard: the tool went into the stock below the commanded surface by more than the guard",
+            Fault::Oscillation => "sustained oscillation of the following error (windowed RMS above its limit): the loop rings against the process or the slide",
+            Fault::GaugeFrozen => "gauge frozen: its code has not changed for longer than a driven slide's noise allows",
+            Fault::XStalled => "X stalled: no new X for too many revolutions while the table command is live",
         }
     }
 }
@@ -173,7 +204,7 @@ impl Fault {
     /// One fault of each kind, in declaration order (the refused table
     /// twice: `Missing` has words of its own): the fault table of
     /// docs/SAFETY.md is generated from it (`cargo xtask figures`).
-    pub const EACH: [Fault; 26] = [
+    pub const EACH: [Fault; 30] = [
         Fault::Table(TableError::Missing),
         Fault::Table(TableError::Truncated { needed: 64, got: 3 }),
         Fault::Parameters(ParamError::BlockMagic),
@@ -203,6 +234,10 @@ impl Fault {
             stored: 1,
             computed: 2,
         }),
+        Fault::DepthGuard,
+        Fault::Oscillation,
+        Fault::GaugeFrozen,
+        Fault::XStalled,
     ];
 
     /// When the fault may be cleared (`LoopState::clear_fault` applies it).
@@ -245,6 +280,10 @@ impl Fault {
             Fault::CentringWorse => "`centring::cycle`: the off-centre larger than the previous cycle's",
             Fault::CentringNoConvergence => "`centring::cycle`: more than `max_cycles` corrections",
             Fault::CentringSlideTimeout => "`centring::cycle`: a correction not settled within `max_correction_ticks`",
+            Fault::DepthGuard => "`servo::monitor` (learning handler, on the tick's samples): command − gauge toward the stock (opposite `retract_z_in`) beyond the depth guard (`depth_of_cut_uin` less the retract's stop, `ServoDesign::depth_guard_uin`) on 3 consecutive ticks, not over the part's holes nor in their edges' transient, from 2 revolutions of live command after the engagement (`SETTLE_REVS`: the spindle angle's first index correction)",
+            Fault::Oscillation => "`servo::monitor`: the error's mean square about its 50 Hz mean (exponential windows of 2⁸ and 2⁶ ticks) above `oscillation_uin`² for a whole window (12.8 ms), not over the part's holes nor in their edges' transient, from 2 revolutions of live command after the engagement",
+            Fault::GaugeFrozen => "`servo::monitor`: the gauge's 20-bit code identical for `gauge_frozen_ms` while the loop is closed, watched also while another fault's reaction runs",
+            Fault::XStalled => "`servo::monitor`: `x_stall_revs` revolutions (0 = off) with the table command live and no new coefficient set",
         }
     }
 }
@@ -359,6 +398,10 @@ pub enum DesignError {
     SignCheck,
     /// Last, so that the variants before keep their wire numbers.
     BandwidthFast,
+    /// A contour-monitoring parameter out of its range (`depth_guard_uin`,
+    /// `oscillation_uin`, `gauge_frozen_ms`, `x_stall_revs`,
+    /// `retract_z_in`).
+    Monitor,
 }
 
 #[cfg(test)]
@@ -368,7 +411,7 @@ mod tests {
     use std::format;
     use std::string::ToString;
 
-    const ALL: [Fault; 26] = Fault::EACH;
+    const ALL: [Fault; 30] = Fault::EACH;
 
     /// Each cause has words of its own (the host prints them, and a
     /// machinist acts on them): none empty, no two faults alike (the two

@@ -18,6 +18,7 @@ use crate::command::{Coefficients, CommandGen};
 use crate::handoff::ahead::Ahead;
 use crate::handoff::Shared;
 use crate::servo::edges::Edges;
+use crate::servo::monitor::Monitor;
 use crate::servo::{Learner, ServoConfig};
 use crate::table::interrupt::Interruptions;
 use crate::units::SpindleAngle;
@@ -32,6 +33,8 @@ pub struct LearnState {
     /// never the four it reads: `servo::repetitive`).
     ahead: AheadState,
     learner: Learner,
+    /// Contour monitoring on the same samples (`servo::monitor`).
+    monitor: Monitor,
     /// The ring's lost-sample count when last seen.
     lost_seen: u32,
 }
@@ -51,6 +54,7 @@ impl LearnState {
         Self {
             ahead: AheadState::new(gen, x_published),
             learner: Learner::new(cfg),
+            monitor: Monitor::new(cfg.monitor),
             lost_seen: 0,
         }
     }
@@ -70,15 +74,32 @@ impl LearnState {
         }
         while let Some(s) = sh.learn_queue().pop() {
             self.learner.apply(&s, sh.learned());
+            let mut over_hole = false;
             if let Some((phi, _)) = s.angle() {
                 self.ahead
                     .edges
                     .learn(phi, s.disturbance_q8(), edge_learning(&s));
+                over_hole = self.ahead.edges.over_hole(phi);
+            }
+            if s.requests().clears() {
+                sh.lower_monitor();
+            }
+            if let Some(f) = self.monitor.sample(&s, over_hole) {
+                sh.raise(f);
             }
         }
         // After the samples: the learned correction it expands is the
         // table the next tick would have read itself.
+        let x_seen = self.ahead.coeff_seen;
         self.ahead.run(sh);
+        if self.ahead.coeff_seen != x_seen {
+            self.monitor.new_x();
+        }
+    }
+
+    /// Contour monitoring's state.
+    pub fn monitor(&self) -> &Monitor {
+        &self.monitor
     }
 
     /// The evaluation ahead of the tick (the coefficients it holds).

@@ -81,6 +81,9 @@ pub struct LoopState {
     pub(crate) fallback_seen: u32,
     pub(crate) index_seen: u32,
     pub(crate) x_faults_seen: u32,
+    /// Where a latched fault's reaction takes the command, gauge codes:
+    /// null, or the retract (`Reaction::Retract`).
+    pub(crate) fault_goal: i32,
     /// The angle history of the setpoint's rates.
     pub(crate) sp: SetpointState,
     /// The table command was live (not null) on the last tick.
@@ -135,6 +138,7 @@ impl LoopState {
             fallback_seen: 0,
             index_seen: 0,
             x_faults_seen: 0,
+            fault_goal: 0,
             sp: SetpointState::default(),
             command_live: false,
             last_coeff_x: None,
@@ -162,7 +166,14 @@ impl LoopState {
     pub fn trip(&mut self, fault: Fault) {
         match self.fault {
             Some(f) if f.reaction() >= fault.reaction() => {}
-            _ => self.fault = Some(fault),
+            _ => {
+                self.fault = Some(fault);
+                self.fault_goal = if fault.reaction() == Reaction::Retract {
+                    self.servo.config().monitor.retract_code
+                } else {
+                    0
+                };
+            }
         }
     }
 
@@ -173,7 +184,7 @@ impl LoopState {
         self.target = code.clamp(CODE_MIN, CODE_MAX);
     }
 
-    /// Picks up what the X / index handlers published.
+    /// Picks up what the X / index / learning handlers published.
     #[inline(always)]
     pub(crate) fn take_published(&mut self, sh: &Shared) {
         let xf = sh.x_faults();
@@ -368,8 +379,12 @@ impl LoopState {
         self.ff_q16 = slope;
         self.accel_q16 = accel;
         let reference = if self.fault.is_some() {
-            // RampToNull: the loop stays closed and ramps to null.
-            Reference::default()
+            // RampToNull: the loop stays closed and ramps to null;
+            // Retract: to the retract, out of the stock.
+            Reference {
+                code: self.fault_goal,
+                ..Reference::default()
+            }
         } else {
             // The target offset's own rate (a user signal, clean) joins the
             // table's analytic rate in the velocity feedforward when it is a

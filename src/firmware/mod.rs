@@ -228,6 +228,10 @@ impl Firmware {
     pub fn loop_state_mut(&mut self) -> &mut LoopState {
         &mut self.lp
     }
+    /// Contour monitoring's state (`servo::monitor`).
+    pub fn monitor(&self) -> &crate::servo::monitor::Monitor {
+        self.learn.monitor()
+    }
     /// The learning (why it is frozen, revolutions learned); the table is
     /// [`Shared::learned`].
     pub fn learning(&self) -> &crate::servo::Learner {

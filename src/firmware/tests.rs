@@ -1,6 +1,7 @@
 extern crate std;
 
 use super::*;
+use crate::codes::{CODE_MAX, CODE_MIN};
 use crate::hw::{BusError, EncoderSample, GaugeSample};
 use crate::safety::{Device, Reaction};
 use crate::spindle::EncoderConfig;
@@ -11,13 +12,16 @@ use core::sync::atomic::Ordering;
 use std::vec::Vec;
 
 /// A gauge whose next reading the test sets.
-struct Gauge(Result<GaugeSample, BusError>);
+struct Gauge(Result<GaugeSample, BusError>, u32);
 impl Gauge {
     fn at(code: i32) -> Self {
-        Self(Ok(GaugeSample {
+        Self::of(Ok(GaugeSample {
             code,
             overrange: false,
         }))
+    }
+    fn of(r: Result<GaugeSample, BusError>) -> Self {
+        Self(r, 0)
     }
     fn set(&mut self, code: i32) {
         self.0 = Ok(GaugeSample {
@@ -27,8 +31,19 @@ impl Gauge {
     }
 }
 impl GaugeAdc for Gauge {
+    /// The code, one code lower on every other read: a real 20-bit
+    /// reading of a held slide moves by its noise (≥ 10 codes RMS), and
+    /// one that does not is a frozen gauge (`servo::monitor`). A code on a
+    /// rail stays there (a pinned gauge).
     fn read(&mut self) -> Result<GaugeSample, BusError> {
-        self.0
+        self.1 = self.1.wrapping_add(1);
+        let mut r = self.0;
+        if let Ok(s) = &mut r {
+            if s.code > CODE_MIN + 1 && s.code < CODE_MAX {
+                s.code -= (self.1 & 1) as i32 ^ 1;
+            }
+        }
+        r
     }
 }
 
@@ -116,7 +131,7 @@ fn gauge_pinned_at_either_rail_is_saturated_and_disables_amplifier() {
     // The AD4020's extreme codes, ±10 V (±0.010 in), without OV.
     for code in [(1 << 19) - 1, -(1 << 19)] {
         let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
-        let mut g = Gauge(Ok(GaugeSample {
+        let mut g = Gauge::of(Ok(GaugeSample {
             code,
             overrange: false,
         }));
@@ -129,7 +144,7 @@ fn gauge_pinned_at_either_rail_is_saturated_and_disables_amplifier() {
     }
     // One code inside the rail is a reading like any other.
     let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
-    let mut g = Gauge(Ok(GaugeSample {
+    let mut g = Gauge::of(Ok(GaugeSample {
         code: (1 << 19) - 2,
         overrange: false,
     }));
@@ -141,7 +156,7 @@ fn gauge_pinned_at_either_rail_is_saturated_and_disables_amplifier() {
 #[test]
 fn overrange_gauge_disables_amplifier() {
     let mut fw = Firmware::new(ServoConfig::at_rate(20_000).unwrap());
-    let mut g = Gauge(Ok(GaugeSample {
+    let mut g = Gauge::of(Ok(GaugeSample {
         code: CODE_MAX,
         overrange: true,
     }));
@@ -216,7 +231,7 @@ fn amplifier_stays_off_until_armed_and_engages_bumpless() {
 fn a_fault_is_cleared_only_when_its_cause_is_gone_and_needs_a_new_arm() {
     let mut fw = armed_without_sign_check();
     let mut d = Dac::default();
-    let mut g = Gauge(Ok(GaugeSample {
+    let mut g = Gauge::of(Ok(GaugeSample {
         code: 1000,
         overrange: true,
     }));
@@ -932,4 +947,41 @@ fn hand_off_never_tears_under_concurrency() {
         }
     });
     assert_eq!(lp.fault(), None);
+}
+
+/// A gauge whose code stops changing while the loop is closed latches
+/// `GaugeFrozen` (amplifier off) after `gauge_frozen_ms` (100 ticks at
+/// 20 kHz) and the tick after the learning handler sees it, not before.
+#[test]
+fn a_frozen_gauge_disables_the_amplifier_after_its_ticks() {
+    struct Stuck;
+    impl GaugeAdc for Stuck {
+        fn read(&mut self) -> Result<GaugeSample, BusError> {
+            Ok(GaugeSample {
+                code: 1000,
+                overrange: false,
+            })
+        }
+    }
+    let mut fw = armed_without_sign_check();
+    let (mut g, mut d) = (Gauge::at(1000), Dac::default());
+    for _ in 0..500 {
+        fw.loop_tick(&TickInput::NONE, &mut g, &mut d);
+    }
+    assert_eq!(fw.fault(), None);
+    let n = fw.config().monitor.gauge_frozen_ticks;
+    let mut latched_at = None;
+    for k in 0..3 * n {
+        fw.loop_tick(&TickInput::NONE, &mut Stuck, &mut d);
+        if fw.fault().is_some() {
+            latched_at = Some(k);
+            break;
+        }
+    }
+    assert_eq!(fw.fault(), Some(Fault::GaugeFrozen));
+    // The first stuck read may repeat the last live one; n repeats, then
+    // one tick for the hand-off.
+    let k = latched_at.unwrap();
+    assert!((n - 1..=n + 1).contains(&k), "{k} against {n}");
+    assert!(!fw.amplifier_enable());
 }

@@ -68,27 +68,44 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use learn::LearnQueue;
 use seqlock::Seqlock;
 
-/// Fault bits of the X handler ([`Shared::x_faults`]).
+/// Fault bits of the handlers below the tick ([`Shared::x_faults`]): the
+/// X handler's (0..3) and contour monitoring's (4..7, the learning
+/// handler's: `servo::monitor`).
 pub(crate) const XF_OUTSIDE: u32 = 1 << 0;
 pub(crate) const XF_STORM: u32 = 1 << 1;
 pub(crate) const XF_BCD: u32 = 1 << 2;
 pub(crate) const XF_QUAD_BUS: u32 = 1 << 3;
+pub(crate) const XF_DEPTH: u32 = 1 << 4;
+pub(crate) const XF_OSCILLATION: u32 = 1 << 5;
+pub(crate) const XF_GAUGE_FROZEN: u32 = 1 << 6;
+pub(crate) const XF_X_STALLED: u32 = 1 << 7;
+/// Contour monitoring's bits: lowered at every arming, so that a fault
+/// raised again after a clear is a new bit for the tick.
+pub(crate) const XF_MONITOR: u32 = XF_DEPTH | XF_OSCILLATION | XF_GAUGE_FROZEN | XF_X_STALLED;
 
 pub(crate) fn x_fault_bit(f: Fault) -> u32 {
     match f {
         Fault::XOutsideTable => XF_OUTSIDE,
         Fault::XBadBcd => XF_BCD,
         Fault::Bus(Device::CoefficientDac) => XF_QUAD_BUS,
+        Fault::DepthGuard => XF_DEPTH,
+        Fault::Oscillation => XF_OSCILLATION,
+        Fault::GaugeFrozen => XF_GAUGE_FROZEN,
+        Fault::XStalled => XF_X_STALLED,
         // Every other fault the X path can meet is a storm of some kind.
         _ => XF_STORM,
     }
 }
 
-pub(crate) const X_FAULTS: [(u32, Fault); 4] = [
+pub(crate) const X_FAULTS: [(u32, Fault); 8] = [
     (XF_OUTSIDE, Fault::XOutsideTable),
     (XF_STORM, Fault::XGlitchStorm),
     (XF_BCD, Fault::XBadBcd),
     (XF_QUAD_BUS, Fault::Bus(Device::CoefficientDac)),
+    (XF_DEPTH, Fault::DepthGuard),
+    (XF_OSCILLATION, Fault::Oscillation),
+    (XF_GAUGE_FROZEN, Fault::GaugeFrozen),
+    (XF_X_STALLED, Fault::XStalled),
 ];
 
 /// The data that crosses priorities (see the module docs): written by the
@@ -249,6 +266,11 @@ impl Shared {
     pub(crate) fn raise(&self, f: Fault) {
         self.x_faults.fetch_or(x_fault_bit(f), Ordering::Relaxed);
     }
+    /// Lowers contour monitoring's bits (the learning handler, at an
+    /// arming: its faults are raised once per arming).
+    pub(crate) fn lower_monitor(&self) {
+        self.x_faults.fetch_and(!XF_MONITOR, Ordering::Relaxed);
+    }
     /// Counts an accepted legacy X event (the X handler, the only writer:
     /// a load and a store, no read-modify-write loop).
     #[inline(always)]
@@ -284,8 +306,10 @@ impl Default for Shared {
 mod tests {
     use super::*;
 
-    /// Each X fault has its own single bit, and `x_fault_bit` names it: a
-    /// word holding two faults at once says both.
+    /// Each fault of the word (the X handler's and contour monitoring's)
+    /// has its own single bit, and `x_fault_bit` names it: a word holding
+    /// two faults at once says both. Contour monitoring's are the bits an
+    /// arming lowers, and only those.
     #[test]
     fn each_x_fault_has_its_own_bit() {
         let mut seen = 0u32;
@@ -295,6 +319,7 @@ mod tests {
             assert_eq!(x_fault_bit(f), bit, "{f:?}");
             seen |= bit;
         }
-        assert_eq!(seen, 0b1111);
+        assert_eq!(seen, 0xff);
+        assert_eq!(XF_MONITOR, 0xf0);
     }
 }

@@ -118,6 +118,22 @@ impl SlideModel {
 }
 
 impl ServoDesign {
+    /// Contour monitoring's depth guard, µin: the depth of cut less the
+    /// retract's stopping distance (docs/SAFETY.md, "Contour monitoring").
+    /// The tool crossing the guard moves on at its speed `v` for the
+    /// detection (`DEPTH_GUARD_TICKS` + the tick that latches) and, once
+    /// the retract's loop takes it back, for about one time constant of
+    /// the error dynamics, 1/ω (ω = 2π·`bandwidth_hz`): `v·(t_d + 1/ω)`.
+    /// The fastest error motion the oscillation limit lets pass is a ring
+    /// at the loop's bandwidth with RMS `oscillation_uin`: `v = ω·√2·σ`,
+    /// so the stop is `√2·σ·(1 + ω·t_d)`. A faster swing is an oscillation
+    /// (`Fault::Oscillation`).
+    pub fn depth_guard_uin(&self) -> f64 {
+        let w = core::f64::consts::TAU * self.bandwidth_hz;
+        let t_d = f64::from(super::monitor::DEPTH_GUARD_TICKS + 1) / f64::from(self.rate_hz);
+        self.depth_of_cut_uin - core::f64::consts::SQRT_2 * self.oscillation_uin * (1.0 + w * t_d)
+    }
+
     /// The integer configuration, or the first parameter out of range.
     // Every range test is written `!(in range)` so that a NaN is refused.
     #[allow(clippy::nonminimal_bool)]
@@ -267,6 +283,17 @@ impl ServoDesign {
         {
             return Err(E::SignCheck);
         }
+        let depth_guard_uin = self.depth_guard_uin();
+        if !(self.depth_of_cut_uin > 0.0 && self.depth_of_cut_uin <= 10_000.0)
+            || !(depth_guard_uin >= self.depth_of_cut_uin / 2.0
+                && depth_guard_uin <= self.depth_of_cut_uin)
+            || !(self.oscillation_uin > 0.0 && self.oscillation_uin <= 10_000.0)
+            || !(self.gauge_frozen_ms > 0.0 && self.gauge_frozen_ms <= 10_000.0)
+            || self.x_stall_revs > 10_000
+            || !(self.retract_z_in >= -0.010 && self.retract_z_in <= 0.010)
+        {
+            return Err(E::Monitor);
+        }
         let ticks = |ms: f64| libm::round(ms * 1e-3 * fs).max(1.0) as u32;
         // DAC volts that hold `current_limit_a` through the coil at rest.
         let i_lim_code = self.current_limit_a * s.r_ohm / s.amp_gain * DAC_CODES_PER_V;
@@ -317,6 +344,19 @@ impl ServoDesign {
             sign_check_ticks: ticks(self.sign_check_ms),
             sign_check_expected_code: libm::round(expected) as i32,
             settle_ticks: libm::round(10.0 / (self.damping * w) * fs) as u32,
+            monitor: MonitorConfig {
+                // ≤ 10 000 µin: 1.34·10⁸ < 2³¹ Q8.
+                depth_guard_q8: libm::round(depth_guard_uin * 1e-6 * cpi * 256.0).max(1.0) as i32,
+                // Squared whole codes: ≤ (524 288)² < 2⁴⁰.
+                oscillation_sq: {
+                    let c = self.oscillation_uin * 1e-6 * cpi;
+                    libm::round(c * c).max(1.0) as u64
+                },
+                gauge_frozen_ticks: ticks(self.gauge_frozen_ms),
+                x_stall_revs: self.x_stall_revs,
+                retract_code: libm::round(self.retract_z_in * cpi) as i32,
+                edge_settle_ticks: libm::round(3.0 / (self.damping * w) * fs) as u32,
+            },
         })
     }
 
@@ -449,6 +489,9 @@ impl DesignError {
                 "following_error_in in (0, 0.010], following_error_ms in [0, 10000]"
             }
             Self::SignCheck => "sign_check_v in [0, 2], sign_check_ms in (0, 20]",
+            Self::Monitor => {
+                "depth_of_cut_uin and oscillation_uin in (0, 10000], the depth guard (depth_of_cut_uin − √2·oscillation_uin·(1 + 2π·bandwidth_hz·detection)) at least half the depth of cut, gauge_frozen_ms in (0, 10000], x_stall_revs 0..=10000, retract_z_in in [-0.010, 0.010]"
+            }
         }
     }
 }
@@ -502,6 +545,27 @@ pub struct ServoConfig {
     /// Ticks the loop needs to settle after engaging (ten time constants
     /// of the error dynamics) before the learning starts.
     pub settle_ticks: u32,
+    pub monitor: MonitorConfig,
+}
+
+/// Contour monitoring's limits (`servo::monitor`), in the units it
+/// compares: gauge codes (Q8 for the error, whole codes squared for its
+/// mean square), loop ticks, revolutions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct MonitorConfig {
+    /// The depth guard, codes Q8 (`depth_guard_uin`).
+    pub depth_guard_q8: i32,
+    /// The oscillation limit's square, codes² (`oscillation_uin`).
+    pub oscillation_sq: u64,
+    pub gauge_frozen_ticks: u32,
+    /// 0: no X stall check.
+    pub x_stall_revs: u32,
+    /// The retract position, gauge codes along +Z (`retract_z_in`).
+    pub retract_code: i32,
+    /// Ticks the depth and ring checks stand down after a hole (the
+    /// edges' transient): three time constants of the error dynamics.
+    pub edge_settle_ticks: u32,
 }
 
 impl ServoConfig {

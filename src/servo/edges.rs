@@ -271,6 +271,18 @@ impl Edges {
         ((i64::from(self.amplitude_q8) * i64::from(f)) >> 16) as i32
     }
 
+    /// Whether any of the nose's contact chord is over a hole at `phi`
+    /// (the cut's force is short there): contour monitoring's depth and
+    /// ring checks stand down (`super::monitor`).
+    pub fn over_hole(&self, phi: SpindleAngle) -> bool {
+        let Some((k, d)) = self.nearest(phi) else {
+            return false;
+        };
+        self.at_x
+            .get(k)
+            .is_some_and(|p| Self::versine(d) < p.v_hi_q31)
+    }
+
     /// One tick's sample: the angle it was taken at, the observer's
     /// disturbance estimate then (after the tick's feedforward), and
     /// whether the loop was closed on the cut and learning (a frozen

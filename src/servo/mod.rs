@@ -41,12 +41,13 @@ pub mod engage;
 pub mod filters;
 pub(crate) mod fixed;
 pub mod limits;
+pub mod monitor;
 pub mod observer;
 pub mod parameters;
 pub mod refusal;
 pub mod repetitive;
 
-pub use design::{DesignError, ServoConfig, ServoDesign, SlideModel};
+pub use design::{DesignError, MonitorConfig, ServoConfig, ServoDesign, SlideModel};
 pub use engage::Phase;
 pub use repetitive::{
     Correction, CorrectionAhead, Freeze, LearnRequests, LearnSample, LearnedTable, Learner,
@@ -436,7 +437,8 @@ impl Servo {
             freeze,
             core::mem::take(&mut self.learn_req),
         )
-        .with_disturbance(est.d_q8);
+        .with_disturbance(est.d_q8)
+        .with_gauge(input.gauge_code);
         let (fb_q8, ff_q8) = self.control(&est, reference, v_ref, a_ref);
         // The hum canceller (`filters::Canceller`: a notch whose poles are
         // turned to stay damped against the engaged part's spring) acts on

@@ -100,8 +100,16 @@ macro_rules! servo_parameters {
                     "Repetitive learning: the error it takes in is clipped to ± this, µin, so one revolution moves the learned correction by at most `learning_gain` × this (what a one-off transient can be replayed by); a periodic error beyond it is still learned, at that rate. Above the largest periodic error of the cut before it is learned (an interrupted cut's edges): docs/TUNING.md."),
                 (32, hum_notch_turn_deg, f64, "deg", 45.0, -80.0, 80.0,
                     "The hum notch's poles turned about its zeros, degrees (0 = the plain notch): the notch of a synchronous hum canceller with this phase advance. It keeps the notch's closed-loop poles damped while |arg S(120 Hz) − turn| < 90°; the engaged part's spring sweeps arg S, docs/TUNING.md."),
-                // 40, not the next free id: the contour monitoring's
-                // parameters take 32.. on a parallel branch.
+                (33, depth_of_cut_uin, f64, "uin", 300.0, 1.0, 10_000.0,
+                    "The part program's depth of cut, µin: the stock the pass removes (chapter 5: 300 finishing, 5 000..10 000 roughing). The contour monitoring's depth guard and the hole edges' contact chord follow from it."),
+                (34, oscillation_uin, f64, "uin RMS", 40.0, 0.1, 10_000.0,
+                    "Contour monitoring: the following error's RMS about its slow mean, over a 12.8 ms window (256 ticks at 20 kHz), above this is `Oscillation` (retract), µin RMS. Above the cut's own following error (legacy-hw 2.4 µin RMS, 13 µin peak) by the error budget's factor (docs/SAFETY.md)."),
+                (35, gauge_frozen_ms, f64, "ms", 5.0, 0.1, 1_000.0,
+                    "Contour monitoring: the gauge's code unchanged for this long while the loop is closed is `GaugeFrozen` (amplifier off), ms. A 20-bit reading with ≥ 0.2 µin RMS noise (10 codes) repeats a code on the next tick with probability < 3 %."),
+                (36, x_stall_revs, u32, "rev (0 = off)", 0, 0.0, 10_000.0,
+                    "Contour monitoring: revolutions with the table command live and no new X before `XStalled` (retract); 0 = off, the default: only the part program knows that X feeds (a dwell is legal). 20 for a pass that feeds ≥ 25 µin/rev: four half-mil X steps at the finishing feed of 100 µin/rev."),
+                (37, retract_z_in, f64, "in", 0.009, -0.010, 0.010,
+                    "Where the command goes on a `Retract` fault, in along +Z; its sign names the side away from the stock (chapter 5's stock lies toward −Z, `cut.part_side = −1`), which the depth guard watches the other way."),
                 (40, learning_lowpass_hz, f64, "Hz (0 = off)", 80.0, 0.0, 1000.0,
                     "Repetitive learning: first-order low-pass on the error it takes in, Hz (0 = off). Its lag takes back the lead's excess above ≈ 60 Hz, where the engaged part's spring turns the loop's phase forward: the learning converges at every harmonic from in air to 11 000 lbf/in (k_e × 5), docs/TUNING.md."),
             }

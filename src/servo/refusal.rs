@@ -128,6 +128,17 @@ impl fmt::Display for Refusal<'_> {
                 "sign_check_v = {} must be in [0, 2] and sign_check_ms = {} in (0, 20]",
                 d.sign_check_v, d.sign_check_ms
             ),
+            E::Monitor => write!(
+                f,
+                "depth_of_cut_uin = {} (depth guard {:.1} µin), oscillation_uin = {}, gauge_frozen_ms = {}, x_stall_revs = {}, retract_z_in = {}: {}",
+                d.depth_of_cut_uin,
+                d.depth_guard_uin(),
+                d.oscillation_uin,
+                d.gauge_frozen_ms,
+                d.x_stall_revs,
+                d.retract_z_in,
+                E::Monitor.reason()
+            ),
             E::GainRange => write!(
                 f,
                 "bandwidth_hz = {}, bandwidth_fast_hz = {}, damping = {} at rate_hz = {}: {}",

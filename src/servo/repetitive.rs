@@ -160,16 +160,18 @@ impl Freeze {
 /// and the observer's disturbance estimate, for the hole edges' learning
 /// (`super::edges`).
 ///
-/// Packed in five words, the form the hand-off ring carries (so the loop
+/// Packed in six words, the form the hand-off ring carries (so the loop
 /// tick builds it with a few bit operations): `[error, angle, angle step,
-/// flags, disturbance]`, flags = freeze code (bits 0..2, [`Freeze::code`]), angle known
-/// (3), clear (4), hold reason code (5..7), hold ticks (8..31, at most
-/// 2²⁴ − 1: 14 minutes at 20 kHz).
+/// flags, disturbance, gauge]`, flags = freeze code (bits 0..2,
+/// [`Freeze::code`]), angle known (3), clear (4), hold reason code (5..7),
+/// hold ticks (8..31, at most 2²⁴ − 1: 14 minutes at 20 kHz); the gauge's
+/// code is contour monitoring's (`servo::monitor`: a frozen gauge), not
+/// the learner's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LearnSample(pub(crate) [u32; SAMPLE_WORDS]);
 
 /// Words of a [`LearnSample`].
-pub const SAMPLE_WORDS: usize = 5;
+pub const SAMPLE_WORDS: usize = 6;
 
 const S_ANGLE: u32 = 1 << 3;
 const S_CLEAR: u32 = 1 << 4;
@@ -195,6 +197,7 @@ impl LearnSample {
             dphi as u32,
             Freeze::code(freeze) | a | requests.0,
             0,
+            0,
         ])
     }
     /// The sample with the observer's disturbance estimate `d̂` (DAC codes
@@ -206,6 +209,16 @@ impl LearnSample {
     /// The observer's disturbance estimate of the tick, DAC codes Q8.
     pub fn disturbance_q8(&self) -> i32 {
         self.0[4] as i32
+    }
+    /// The sample with the tick's gauge code (+Z, as the servo takes it).
+    #[inline(always)]
+    pub fn with_gauge(mut self, gauge_code: i32) -> Self {
+        self.0[5] = gauge_code as u32;
+        self
+    }
+    /// The tick's gauge code.
+    pub fn gauge_code(&self) -> i32 {
+        self.0[5] as i32
     }
     /// Command − gauge, codes Q8.
     pub fn error_q8(&self) -> i32 {

@@ -136,7 +136,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return run_sweep(&spec, &name, n as usize, args.seed, args.x_in, args.json);
     }
     let cases: Vec<Case> = if args.fault.is_empty() {
-        Case::ALL.to_vec()
+        Case::ALL.iter().chain(&Case::PROCESS).copied().collect()
     } else {
         args.fault.clone()
     };
@@ -181,7 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!(
             "{:<21} {:>8} {:<17} {:<24} {:>10} {:>6} {:>10}  {}",
             r.fault,
-            opt(r.detected),
+            detected(r),
             r.reaction.as_deref().unwrap_or("-"),
             r.latched.as_deref().map_or("-".into(), |s| short(s, 24)),
             r.max_excursion_uin
@@ -353,6 +353,15 @@ impl Drive {
             release_velocity_in_s: last.velocity_in_s,
             peak_at_ms: (deepest.t_ns - t_inj) as f64 * 1e-6,
         })
+    }
+}
+
+/// A row judged with nothing to detect (a change of the cut the loop
+/// rode out) reads "none due", not "n/a" (a case the machine cannot have).
+fn detected(r: &Row) -> String {
+    match (r.detected, r.safe_state) {
+        (None, Some(_)) => "none due".into(),
+        (d, _) => opt(d),
     }
 }
 

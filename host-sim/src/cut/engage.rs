@@ -205,6 +205,12 @@ impl Engagement {
     /// Forgets the stock memory: the next revolution defines `ē` and
     /// `e_prev` afresh (after the start-up transient of a stretch, which
     /// the previous pass did not have).
+    /// Scales the edge force `k_e` from now on (a fault campaign's blunt
+    /// edge or harder material mid-cut).
+    pub fn scale_edge_force(&mut self, factor: f64) {
+        self.cut.k_e_lbf_per_in *= factor;
+    }
+
     pub fn reset_memory(&mut self) {
         self.prev.iter_mut().for_each(|v| *v = 0.0);
         self.sync.iter_mut().for_each(|v| *v = f64::NAN);

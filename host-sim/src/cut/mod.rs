@@ -605,7 +605,13 @@ pub fn build_stretch(
         (sign::CommandSign::Reversed, Controller::Digital) => sign::negated_default_table()?,
         _ => table,
     };
-    let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, sc.servo, table);
+    // The part program's depth of cut (`--depth-in`): the depth guard's.
+    let mut design = sc.servo_design;
+    design.depth_of_cut_uin = spec.depth_in * 1e6;
+    let servo = design
+        .config()
+        .map_err(|e| anyhow::anyhow!("servo.{}", design.refusal(e)))?;
+    let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, servo, table);
     if spec.anticipate && spec.controller == Controller::Digital {
         // The part program's interruption block, through the firmware's
         // own parser (filled holes: an empty block).

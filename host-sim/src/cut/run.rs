@@ -105,6 +105,11 @@ pub struct Cutter {
 }
 
 impl Cutter {
+    /// The tool's engagement with the stock (its cutting constants).
+    pub fn engagement_mut(&mut self) -> &mut Engagement {
+        &mut self.eng
+    }
+
     pub fn new(
         eng: Engagement,
         nominal: impl Into<Command>,

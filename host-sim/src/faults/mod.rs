@@ -29,6 +29,9 @@ use zslide::safety::{Device, Fault, Reaction};
 use zslide::servo::Phase;
 
 const MS: Nanos = 1_000_000;
+/// The engagement row's re-arm after its disarm: the ramp to null (at
+/// most 0.004 in at the slew limits, ~30 ms) and the amplifier off.
+const REARM_NS: Nanos = 100 * MS;
 
 /// Radius of the cut where faults are injected, in (tool-centre X).
 pub const X_INJECT_IN: f64 = 5.0;
@@ -71,6 +74,11 @@ pub enum Case {
     StalledLoop,
     Panic,
     MalformedHostFrame,
+    EdgeForceX2,
+    EdgeForceX4,
+    GaugeFrozen,
+    XCountStopped,
+    EngageRunning,
 }
 
 impl Case {
@@ -95,6 +103,19 @@ impl Case {
         Case::MalformedHostFrame,
     ];
 
+    /// The process rows (contour monitoring, issue 30): the cut itself
+    /// changes under the loop, or its X or gauge stops following it. Apart
+    /// from [`Case::ALL`], whose rows are each a fault the firmware must
+    /// latch: a doubled edge force the loop rides out within the depth of
+    /// cut needs no fault (`host-sim/tests/faults_process.rs`).
+    pub const PROCESS: [Case; 5] = [
+        Case::EdgeForceX2,
+        Case::EdgeForceX4,
+        Case::GaugeFrozen,
+        Case::XCountStopped,
+        Case::EngageRunning,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             Case::CorruptTable => "corrupt-table",
@@ -115,6 +136,11 @@ impl Case {
             Case::StalledLoop => "stalled-loop",
             Case::Panic => "panic",
             Case::MalformedHostFrame => "malformed-host-frame",
+            Case::EdgeForceX2 => "edge-force-x2",
+            Case::EdgeForceX4 => "edge-force-x4",
+            Case::GaugeFrozen => "gauge-frozen",
+            Case::XCountStopped => "x-count-stopped",
+            Case::EngageRunning => "engage-running",
         }
     }
 
@@ -139,13 +165,25 @@ impl Case {
             Case::StalledLoop => "the loop-tick interrupt stops running (the board's IWDG is fed by it)",
             Case::Panic => "the firmware panics (board panic handler)",
             Case::MalformedHostFrame => "a flood of 235 malformed host-link frames (garbage, truncated, corrupt, unknown command, other version, undecodable, oversize) and 10 empty ones, 4 valid read-only requests among them, as fast as the RTT buffer takes them",
+            Case::EdgeForceX2 => "the edge force k_e doubles mid-cut (a worn edge, a ploughing chip): the process spring on the slide doubles",
+            Case::EdgeForceX4 => "the edge force k_e quadruples mid-cut (another material)",
+            Case::GaugeFrozen => "the gauge ADC's result freezes at its last, in-range code (a stuck converter)",
+            Case::XCountStopped => "the X count stops (a dead X encoder or half-mil line) while the X slide feeds on",
+            Case::EngageRunning => "the loop disarmed mid-cut (ramp to null, amplifier off) and armed again 100 ms later, the spindle turning and X feeding: sign check and engagement onto the running cut",
         }
     }
 
     /// Whether the injection must latch a fault (a malformed host frame
-    /// must not: it is refused and counted, the cut goes on).
+    /// must not: it is refused and counted, the cut goes on; nor may an
+    /// engagement onto the running cut).
     pub fn expects_fault(self) -> bool {
-        self != Case::MalformedHostFrame
+        !matches!(self, Case::MalformedHostFrame | Case::EngageRunning) && !self.may_ride_out()
+    }
+
+    /// A change of the cut the loop may ride out within the depth of cut
+    /// with no fault (else it must latch one of [`Self::expects`]).
+    pub fn may_ride_out(self) -> bool {
+        matches!(self, Case::EdgeForceX2 | Case::EdgeForceX4)
     }
 
     /// Whether `f` is the fault this injection must latch.
@@ -163,7 +201,13 @@ impl Case {
             Case::GaugeSaturation => f == Fault::GaugeRange,
             Case::AdcBusError => f == Fault::Bus(Device::GaugeAdc),
             Case::DacBusError => f == Fault::Bus(Device::AmplifierDac),
-            Case::FollowingError => f == Fault::FollowingError,
+            // The push stays under the following-error limit; its rebound
+            // into the stock is the depth guard's (or the ring the
+            // oscillation monitor's).
+            Case::FollowingError => matches!(
+                f,
+                Fault::FollowingError | Fault::DepthGuard | Fault::Oscillation
+            ),
             // A slide lost at ~4 in/s crosses the 0.006 in between the
             // following-error limit (0.004 in) and the gauge's range
             // (0.010 in) in ~1.5 ms, inside the monitor's 2 ms persistence:
@@ -175,6 +219,14 @@ impl Case {
             Case::StalledLoop => f == Fault::Watchdog,
             Case::Panic => f == Fault::Panic,
             Case::MalformedHostFrame => false,
+            // The loop rings against the doubled spring (or the tool is
+            // pulled into the stock first): either monitor, both retract.
+            Case::EdgeForceX2 | Case::EdgeForceX4 => {
+                matches!(f, Fault::Oscillation | Fault::DepthGuard)
+            }
+            Case::GaugeFrozen => f == Fault::GaugeFrozen,
+            Case::XCountStopped => f == Fault::XStalled,
+            Case::EngageRunning => false,
         }
     }
 
@@ -213,6 +265,15 @@ impl Case {
             Case::SpindleSpeed => 2_500 * MS,
             // One revolution (200 ms) plus its tolerance.
             Case::IndexMissing => 600 * MS,
+            // x_stall_revs (20) revolutions at 300 rpm: 4 s, and the hold.
+            Case::XCountStopped => 4_600 * MS,
+            // Ten revolutions: a ring the doubled spring starts has grown
+            // (or died) well within them.
+            Case::EdgeForceX2 | Case::EdgeForceX4 => 2_000 * MS,
+            // The re-arm (100 ms), the sign check and the engagement, the
+            // settling revolutions of contour monitoring
+            // (`servo::monitor::SETTLE_REVS`) and eight revolutions judged.
+            Case::EngageRunning => 2_500 * MS,
             _ => 400 * MS,
         }
     }
@@ -600,6 +661,22 @@ fn simulate(
         Case::AmplifierTrip => w.rig.amp.trip_now(),
         Case::StalledLoop => w.cpu = Cpu::LoopStalled,
         Case::Panic => board::panic(w),
+        Case::EdgeForceX2 | Case::EdgeForceX4 => {
+            let k = if case == Case::EdgeForceX2 { 2.0 } else { 4.0 };
+            let c = rig.cutter.clone();
+            burst.at(t_inj, move |_, _| {
+                c.borrow_mut().engagement_mut().scale_edge_force(k)
+            });
+        }
+        Case::GaugeFrozen => w.rig.gauge_frozen = true,
+        Case::XCountStopped => {
+            burst.at(t_inj, |_, w| w.hold_x());
+        }
+        Case::EngageRunning => {
+            use zslide::firmware::Request;
+            burst.at(t_inj, |_, w| w.request(Request::Disarm));
+            burst.at(t_inj + REARM_NS, |_, w| w.request(Request::Arm));
+        }
         Case::MalformedHostFrame => {
             if let (Some(bytes), Some(l)) = (flood, host_link.clone()) {
                 burst.at(t_inj, move |_, _| l.borrow_mut().send(&bytes));
@@ -663,15 +740,26 @@ pub fn run_case_at(
         trace,
         t_inj,
         t_end,
+        phase,
         ..
     } = simulate(spec, case, seed_index, at, None)?;
+    if latched.is_none() && (case.may_ride_out() || case == Case::EngageRunning) {
+        return Ok(ridden_out(spec, case, before_rev_in, trace, t_inj, phase));
+    }
     let reaction = latched.map(Fault::reaction);
+    let retract_in = spec.scenario.servo_design.retract_z_in;
     let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
     let safe = |x: &Sample| match reaction {
         Some(Reaction::RampToNull) => {
             x.amp_enabled && x.command_in == 0.0 && x.z_in.abs() <= NULL_HOLD_IN
         }
         Some(Reaction::DisableAmplifier) => !x.amp_enabled,
+        // Out of the stock at the retract, the loop closed.
+        Some(Reaction::Retract) => {
+            x.amp_enabled
+                && (x.command_in - retract_in).abs() * CODES_PER_IN <= 1.0
+                && x.err_in > 0.0
+        }
         None => false,
     };
     // The first sample from which the safe state holds to the end.
@@ -710,6 +798,45 @@ pub fn run_case_at(
         latched,
         trace,
     })
+}
+
+/// The row of a change of the cut that latched nothing: nothing was to
+/// detect (`detected` none); safe when the loop is engaged at the end and
+/// the tool never went deeper than the depth of cut.
+fn ridden_out(
+    spec: &CutSpec,
+    case: Case,
+    before_rev_in: f64,
+    trace: Vec<Sample>,
+    t_inj: Nanos,
+    phase: Phase,
+) -> Outcome {
+    let after: Vec<&Sample> = trace.iter().filter(|x| x.t_ns >= t_inj).collect();
+    let into = into_part(&after);
+    let depth_uin = spec.depth_in * 1e6;
+    let safe = phase == Phase::Engaged && into < depth_uin;
+    Outcome {
+        row: Row {
+            fault: case.name(),
+            injection: case.injection(),
+            detected: None,
+            latched: None,
+            reaction: None,
+            max_excursion_uin: Some(into),
+            excursion_before_uin: Some(before_rev_in.max(0.0) * 1e6),
+            excursion_undisturbed_uin: None,
+            safe_state: Some(safe),
+            reason: format!(
+                "no fault latched: the loop {} the cut ({phase:?} at the end), the tool at most {into:.1} µin into the part against the {depth_uin:.0} µin depth of cut",
+                if phase == Phase::Engaged { "rode out" } else { "did not ride out" }
+            ),
+            time_to_safe_ms: None,
+            injected_at_s: Some(t_inj as f64 * 1e-9),
+            link: None,
+        },
+        latched: None,
+        trace,
+    }
 }
 
 /// The row of a case this machine cannot have: nothing injected, nothing

@@ -82,6 +82,10 @@ pub struct FirmwareWorld {
     /// of (a stalled loop-tick interrupt, a halted core), set by the fault
     /// campaign's board models (`faults::board`).
     pub cpu: Cpu,
+    /// The X count as the board sees it, held at this value while the X
+    /// slide feeds on (a fault campaign's dead X encoder or half-mil
+    /// line: no X interrupt reaches the firmware); `None` normally.
+    pub x_held: Option<u32>,
 }
 
 /// The MCU's execution state, as far as the handlers are concerned.
@@ -196,6 +200,7 @@ impl FirmwareWorld {
             init_fault,
             analog: None,
             cpu: Cpu::Running,
+            x_held: None,
             recorder,
         }
     }
@@ -393,7 +398,7 @@ impl FirmwareWorld {
                 m.stats.referenced = referenced;
             }
             if let XState::Count { enc, decoder } = &mut m.x {
-                input.x_count = enc.sample().count;
+                input.x_count = self.x_held.unwrap_or_else(|| enc.sample().count);
                 m.stats.x = Some(decoder.x(input.x_count));
             }
         }
@@ -428,10 +433,24 @@ impl FirmwareWorld {
         self.rig.time.set(t_event);
     }
 
+    /// Stops the X count where it is now (`x_held`): the count the
+    /// firmware reads every tick stays, and no half-mil interrupt reaches
+    /// it, while the X slide feeds on.
+    pub fn hold_x(&mut self) {
+        let count = match self.machine.as_mut().map(|m| &mut m.x) {
+            Some(XState::Count { enc, .. }) => enc.sample().count,
+            _ => 0,
+        };
+        self.x_held = Some(count);
+    }
+
     /// The half-mil interrupt: the latch was loaded at the edge; the
     /// firmware's `x_event` reads it through `hw::XLatch`.
     pub fn x_event(&mut self, stale: bool) {
         if self.cpu == Cpu::Halted {
+            return;
+        }
+        if self.x_held.is_some() {
             return;
         }
         let now = self.clock.now_ticks();

@@ -90,6 +90,10 @@ pub struct Rig {
     /// measurement disturbance the sensitivity functions are measured
     /// with; 0 otherwise).
     pub gauge_injection_in: f64,
+    /// The gauge ADC's result frozen at its last conversion (a fault
+    /// campaign's stuck converter: a plausible, in-range code that no
+    /// longer follows the slide); false normally.
+    pub gauge_frozen: bool,
 }
 
 impl Rig {
@@ -119,6 +123,7 @@ impl Rig {
             f_ext: 0.0,
             steps: 0,
             gauge_injection_in: 0.0,
+            gauge_frozen: false,
         }
     }
 
@@ -141,6 +146,9 @@ impl Rig {
 
     /// CNV: the gauge ADC converts the gauge output at the plant's time.
     pub fn cnv(&mut self) {
+        if self.gauge_frozen {
+            return;
+        }
         let v = self.gauge.volts(
             self.t_ns,
             self.slide.gauge_position_in() + self.gauge_injection_in,

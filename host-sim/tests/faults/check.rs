@@ -40,6 +40,7 @@ pub(crate) fn check_row(
         Some(match reaction {
             Reaction::RampToNull => "RampToNull",
             Reaction::DisableAmplifier => "DisableAmplifier",
+            Reaction::Retract => "Retract",
         }),
         "{r:?}"
     );
@@ -146,6 +147,11 @@ pub(crate) fn check_row(
                 at_release * 1e6,
                 carry * 1e6
             )
+        }
+        // The process rows' reaction: `faults_process.rs` judges them.
+        Reaction::Retract => {
+            assert!(last.amp_enabled, "{r:?}");
+            format!("{}: retract {t_safe_ms:.1} ms", r.fault)
         }
         Reaction::RampToNull => {
             assert!(last.amp_enabled && last.command_in == 0.0, "{r:?}");

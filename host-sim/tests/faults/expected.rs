@@ -52,12 +52,15 @@ pub(crate) enum Detect {
     Handler,
     /// Nothing is detected (refused frames).
     Nothing,
+    /// Contour monitoring's windows (`servo::monitor`): the process rows,
+    /// timed by `faults_process.rs`, not here.
+    Monitor,
 }
 
 pub(crate) fn expected(case: Case) -> Expected {
     use zslide::safety::Device;
     use zslide::table::TableError;
-    use Reaction::{DisableAmplifier as Off, RampToNull as Null};
+    use Reaction::{DisableAmplifier as Off, RampToNull as Null, Retract as Back};
     let (faults, detect): (&'static [FaultRule], Detect) = match case {
         Case::CorruptTable => (
             &[(
@@ -108,8 +111,15 @@ pub(crate) fn expected(case: Case) -> Expected {
             )],
             Detect::NextTick,
         ),
+        // The push stays under the following-error limit where the loop
+        // is stiff (modern-hw); its rebound into the stock, or the ring,
+        // is contour monitoring's (SAFETY.md, "Contour monitoring").
         Case::FollowingError => (
-            &[(|f| f == Fault::FollowingError, Null, "following error")],
+            &[
+                (|f| f == Fault::FollowingError, Null, "following error"),
+                (|f| f == Fault::DepthGuard, Back, "depth guard"),
+                (|f| f == Fault::Oscillation, Back, "oscillation"),
+            ],
             Detect::FollowingError,
         ),
         // A slide lost fast crosses from the following-error limit to
@@ -144,6 +154,26 @@ pub(crate) fn expected(case: Case) -> Expected {
         // Outputs off first, in the handler.
         Case::Panic => (&[(|f| f == Fault::Panic, Off, "panic")], Detect::Handler),
         Case::MalformedHostFrame => (&[], Detect::Nothing),
+        // The process rows (`Case::PROCESS`): `faults_process.rs` runs and
+        // times them against contour monitoring's windows.
+        Case::EdgeForceX2 => (&[], Detect::Monitor),
+        Case::EdgeForceX4 => (
+            &[
+                (|f| f == Fault::Oscillation, Back, "oscillation"),
+                (|f| f == Fault::DepthGuard, Back, "depth guard"),
+            ],
+            Detect::Monitor,
+        ),
+        Case::GaugeFrozen => (
+            &[(|f| f == Fault::GaugeFrozen, Off, "gauge frozen")],
+            Detect::Monitor,
+        ),
+        Case::XCountStopped => (
+            &[(|f| f == Fault::XStalled, Back, "x stalled")],
+            Detect::Monitor,
+        ),
+        // Nothing may latch: an engagement is no fault.
+        Case::EngageRunning => (&[], Detect::Nothing),
     };
     Expected {
         faults,
@@ -166,7 +196,7 @@ pub(crate) fn detection_deadline_ms(
     let spindle = &spec.scenario.file.spindle;
     let slowest_rev_ms = 60e3 / (spec.rpm - spindle.sag_rpm - spindle.ripple_rpm);
     Some(match d {
-        Detect::Nothing => return None,
+        Detect::Nothing | Detect::Monitor => return None,
         // Refused at boot: latched before the first sample of the run.
         Detect::Boot => tick_ms,
         // The doublet: sign_check_ms each way, judged at its end.
