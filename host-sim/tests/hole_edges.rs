@@ -114,7 +114,10 @@ fn the_learned_step_settles_on_the_force_models_step() {
         .map(|&(t, a)| (t / rev_s, f64::from(a) / 256.0))
         .filter(|&(rev, _)| rev >= 25.0)
         .collect();
-    assert!(settled.last().is_some_and(|&(rev, _)| rev > 130.0), "{settled:?}");
+    assert!(
+        settled.last().is_some_and(|&(rev, _)| rev > 130.0),
+        "{settled:?}"
+    );
     for &(rev, a) in &settled {
         println!("rev {rev:5.0}: step {a:7.0} codes, model {want:7.0}");
         assert!(
