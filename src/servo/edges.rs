@@ -40,17 +40,27 @@
 //! one fixed-point cosine of the angle to the nearest hole (`crate::trig`).
 //!
 //! # The step's size: learned at every crossing
-//! Where the whole chord crosses a hole, the handler averages `d̂` over a
-//! window before the entry (its half-width's span of angle, the stock
-//! cut) and over the middle half of the hole (`|δ|` below half its
-//! full-chord half-width). The observer's `d̂` in the hole has moved by the
-//! fed-forward step `A` at once and from there toward the true step `Δ`:
-//! the difference of the two means is `A + ρ(Δ − A)`, ρ in (0, 1] the part
-//! of its convergence the window sees. `A ← A + (that − A) / 2` has its one
-//! fixed point at `A = Δ` whatever ρ is, so it does not depend on the
-//! observer's speed, the cutting constants (k_e, k_t) or the motor's force
-//! constant: it is the DAC code the step needs, measured. One amplitude
-//! for all holes (one depth of cut).
+//! Where the whole chord crosses a hole, the force the cut drops is the
+//! one it held just before: the handler averages `d̂` over a window before
+//! the entry (from the chord's first touch out to twice its angle, the
+//! stock cut steadily, the observer settled on it) and takes the step as
+//! its negative, `A ← A + (−d̂_pre − A) / 2`, once the chord has lain
+//! wholly over the hole (the crossing happened while learning). The step
+//! is the DAC code the force needs, measured: it does not depend on the
+//! cutting constants (k_e, k_t) or the motor's force constant. One
+//! amplitude for all holes (one depth of cut). `d̂` also holds what the
+//! model misses at rest (an amplifier offset): that is taken as part of
+//! the step (on `legacy-hw` the learned step is within 3 % of the force
+//! model's, `host-sim/tests/hole_edges.rs`).
+//!
+//! The step is not taken from `d̂` inside the hole: the observer's slow
+//! gains, in use while the anticipation leaves it little innovation,
+//! first move `d̂` away from a small force error before they turn (over
+//! the middle half of a bolt-circle crossing on `legacy-hw`, −0.07 of the
+//! error, against +0.70 with the fast gains a large error trips). A
+//! step learned from `d̂` there had its fixed point unstable once close:
+//! it wandered 5..20 % from the true step over hundreds of revolutions
+//! (docs/CUT.md, the hole zone).
 //!
 //! # Number formats
 //! Lengths µin (`i64` in the profile's arithmetic: (10 in)² fits); versines
@@ -98,7 +108,7 @@ struct Crossing {
     hole: usize,
     pre_sum: i64,
     pre_n: u32,
-    in_sum: i64,
+    /// Samples with the whole chord over the hole: the crossing happened.
     in_n: u32,
 }
 
@@ -322,13 +332,12 @@ impl Edges {
         // Windows by versine (≈ δ²/2): before the entry, from the chord's
         // first touch out to twice that angle (four times the versine);
         // inside, the middle half of the full-chord span (a quarter of
-        // its versine).
+        // its versine), counted only: the chord lay wholly over the hole.
         let v_pre_far = p.v_hi_q31.saturating_mul(4);
         if d < 0 && v > p.v_hi_q31 && v <= v_pre_far {
             c.pre_sum += i64::from(d_q8);
             c.pre_n += 1;
         } else if v < p.v_lo_q31 / 4 {
-            c.in_sum += i64::from(d_q8);
             c.in_n += 1;
         } else if d > 0 && v >= p.v_hi_q31 {
             // Out of the hole's far edge: the crossing is complete.
@@ -338,8 +347,9 @@ impl Edges {
                 // Checked divisions and max/min, not `clamp`: no panic
                 // path in the handler (`cargo xtask no-panic`).
                 let pre = done.pre_sum.checked_div(i64::from(done.pre_n)).unwrap_or(0);
-                let inside = done.in_sum.checked_div(i64::from(done.in_n)).unwrap_or(0);
-                let step = inside.saturating_sub(pre);
+                // The step: the steady cut's force, held in d̂ before the
+                // entry, vanishes (module doc: the step's size).
+                let step = pre.saturating_neg();
                 let a = i64::from(self.amplitude_q8);
                 let m = i64::from(AMPLITUDE_MAX_Q8);
                 self.amplitude_q8 = (a + (step - a) / 2).max(-m).min(m) as i32;

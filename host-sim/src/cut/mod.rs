@@ -442,6 +442,10 @@ pub struct StretchResult {
     pub simulated_s: f64,
     pub wall_s: f64,
     pub faults: Vec<String>,
+    /// The hole edges' learned step (`zslide::servo::edges`) after every
+    /// half second of machine time: (seconds from the stretch's start,
+    /// DAC codes Q8).
+    pub edge_steps_q8: Vec<(f64, i32)>,
 }
 
 /// Extra outputs of one stretch.
@@ -712,9 +716,11 @@ pub fn run_stretch(
     let t_end = (total_s * 1e9) as u64;
     let chunk = 500_000_000u64;
     let mut t = 0;
+    let mut edge_steps_q8 = Vec::new();
     while t < t_end {
         t = (t + chunk).min(t_end);
         s.run_until(&mut w, t);
+        edge_steps_q8.push((t as f64 * 1e-9, w.fw.edges().amplitude_q8()));
         progress(chunk.min(t_end) as f64 * 1e-9);
     }
     if let Some((partial, tr)) = trace {
@@ -744,6 +750,7 @@ pub fn run_stretch(
         simulated_s: total_s,
         wall_s: wall0.elapsed().as_secs_f64(),
         faults,
+        edge_steps_q8,
     })
 }
 
