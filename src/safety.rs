@@ -359,6 +359,9 @@ pub enum DesignError {
     SignCheck,
     /// Last, so that the variants before keep their wire numbers.
     BandwidthFast,
+    /// The part program's depth of cut (`depth_of_cut_uin`) out of its
+    /// range.
+    DepthOfCut,
 }
 
 #[cfg(test)]

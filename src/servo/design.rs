@@ -267,6 +267,9 @@ impl ServoDesign {
         {
             return Err(E::SignCheck);
         }
+        if !(self.depth_of_cut_uin >= 1.0 && self.depth_of_cut_uin <= 10_000.0) {
+            return Err(E::DepthOfCut);
+        }
         let ticks = |ms: f64| libm::round(ms * 1e-3 * fs).max(1.0) as u32;
         // DAC volts that hold `current_limit_a` through the coil at rest.
         let i_lim_code = self.current_limit_a * s.r_ohm / s.amp_gain * DAC_CODES_PER_V;
@@ -317,6 +320,7 @@ impl ServoDesign {
             sign_check_ticks: ticks(self.sign_check_ms),
             sign_check_expected_code: libm::round(expected) as i32,
             settle_ticks: libm::round(10.0 / (self.damping * w) * fs) as u32,
+            depth_of_cut_uin: libm::round(self.depth_of_cut_uin) as u32,
         })
     }
 
@@ -449,6 +453,7 @@ impl DesignError {
                 "following_error_in in (0, 0.010], following_error_ms in [0, 10000]"
             }
             Self::SignCheck => "sign_check_v in [0, 2], sign_check_ms in (0, 20]",
+            Self::DepthOfCut => "depth_of_cut_uin: must be in [1, 10000] µin (0.010 in, the gauge's range)",
         }
     }
 }
@@ -502,6 +507,10 @@ pub struct ServoConfig {
     /// Ticks the loop needs to settle after engaging (ten time constants
     /// of the error dynamics) before the learning starts.
     pub settle_ticks: u32,
+    /// The part program's depth of cut, whole µin (1..=10 000,
+    /// `depth_of_cut_uin` rounded): the hole edges' contact chord
+    /// (`servo::edges::contact_chord_uin`).
+    pub depth_of_cut_uin: u32,
 }
 
 impl ServoConfig {
