@@ -47,6 +47,16 @@ fn a_cut_deeper_than_the_gauge_or_the_amplifier_allows_is_refused_with_the_reaso
         e.contains("75.3 lbf") && e.contains("26.0 A") && e.contains("8 A limit"),
         "{e}"
     );
+    // k_e × 2.7: 0.2 + 405·0.050050 = 20.5 lbf, 7.1 A: within the
+    // amplifier's 8 A, beyond the firmware's 6 A (current_limit_a), which
+    // would fault the pass after 20 ms.
+    let o = host_sim(&["cut", "--depth-in", "0.01", "--ke-scale", "2.7"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("20.5 lbf") && e.contains("7.1 A") && e.contains("firmware's current limit 6 A"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -938,7 +938,7 @@ fn hand_off_never_tears_under_concurrency() {
 /// (`depth_of_cut_uin`) under the loaded table's nose (0.125 in): the
 /// closed form √(2 r_t d), 0.050 in at a 0.010 in roughing pass and
 /// 0.00866 in at the 300 µin finishing pass, whatever the interruption
-/// block (an empty one here).
+/// block (one without holes here).
 #[test]
 fn the_edges_contact_chord_is_root_2_r_d_of_the_depth_parameter_and_the_tables_nose() {
     let nose_in = CoeffTable::parse(crate::DEFAULT_TABLE)
@@ -954,7 +954,9 @@ fn the_edges_contact_chord_is_root_2_r_d_of_the_depth_parameter_and_the_tables_n
         let mut cfg = fw_cfg(XMode::Legacy { clock_hz: CLOCK_HZ }, false);
         cfg.loop_cfg = d.config().unwrap();
         let mut fw = Firmware::with_table(crate::DEFAULT_TABLE, cfg).unwrap();
-        fw.set_interruptions(&[]).unwrap();
+        let mut block = [0u8; 64];
+        let n = crate::table::interrupt::Interruptions::encode(&[], &mut block).unwrap();
+        fw.set_interruptions(&block[..n]).unwrap();
         let closed = (2.0 * nose_in * depth_uin * 1e-6).sqrt() * 1e6;
         let got = fw.edges().contact_inside_uin();
         assert_eq!(got, want_uin, "{depth_uin} µin deep");

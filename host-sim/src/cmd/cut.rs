@@ -358,20 +358,20 @@ fn check_depth(spec: &CutSpec, depth_in: f64) -> anyhow::Result<()> {
         .cutting
         .thrust_lbf(depth_in, spec.feed_per_rev_in);
     let amps = force / f.motor.kf_lbf_per_a;
+    anyhow::ensure!(
+        amps <= f.amplifier.current_limit_a,
+        "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
+         amplifier's {} A limit (scenario {}: motor.kf_lbf_per_a {}, amplifier.current_limit_a)",
+        f.amplifier.current_limit_a,
+        f.name,
+        f.motor.kf_lbf_per_a
+    );
     let fw_limit_a = spec.scenario.servo_design.current_limit_a;
     anyhow::ensure!(
         amps <= fw_limit_a,
         "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
          firmware's current limit {fw_limit_a} A (servo.current_limit_a; the loop would fault CurrentLimit \
          mid-pass; scenario {}: motor.kf_lbf_per_a {})",
-        f.name,
-        f.motor.kf_lbf_per_a
-    );
-    anyhow::ensure!(
-        amps <= f.amplifier.current_limit_a,
-        "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
-         amplifier's {} A limit (scenario {}: motor.kf_lbf_per_a {}, amplifier.current_limit_a)",
-        f.amplifier.current_limit_a,
         f.name,
         f.motor.kf_lbf_per_a
     );
