@@ -56,9 +56,13 @@ fn a_pass_0_010_in_deep_over_open_holes_completes_without_a_fault_within_the_cur
     );
     assert!(r.faults.is_empty(), "{:?}", r.faults);
     assert!(z.points > 1000, "{} points cut", z.points);
-    assert!(peak > steady_a, "the cut's current {peak} A vs steady {steady_a} A");
     assert!(
-        peak < s.scenario.servo_design.current_limit_a && peak < s.scenario.file.amplifier.current_limit_a,
+        peak > steady_a,
+        "the cut's current {peak} A vs steady {steady_a} A"
+    );
+    assert!(
+        peak < s.scenario.servo_design.current_limit_a
+            && peak < s.scenario.file.amplifier.current_limit_a,
         "{peak} A"
     );
 }

@@ -974,6 +974,11 @@ fn a_depth_of_cut_beyond_the_gauge_range_is_refused_in_words() {
         let e = d.config().unwrap_err();
         assert_eq!(e, crate::servo::DesignError::DepthOfCut);
         let m = std::format!("{}", d.refusal(e));
-        assert!(m.starts_with(&std::format!("depth_of_cut_uin = {bad} must be in [1, 10000]")), "{m}");
+        assert!(
+            m.starts_with(&std::format!(
+                "depth_of_cut_uin = {bad} must be in [1, 10000]"
+            )),
+            "{m}"
+        );
     }
 }

@@ -27,10 +27,7 @@ fn ready(angle_deg: f64, x_in: f64) -> Edges {
 }
 
 fn ready_at_depth(angle_deg: f64, x_in: f64, depth_uin: u32) -> Edges {
-    let mut e = Edges::new(
-        one_hole(angle_deg),
-        contact_chord_uin(depth_uin, NOSE_NIN),
-    );
+    let mut e = Edges::new(one_hole(angle_deg), contact_chord_uin(depth_uin, NOSE_NIN));
     e.set_x(XInches::from_f64(x_in));
     e.refresh_step();
     e
