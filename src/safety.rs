@@ -398,10 +398,13 @@ pub enum DesignError {
     SignCheck,
     /// Last, so that the variants before keep their wire numbers.
     BandwidthFast,
-    /// A contour-monitoring parameter out of its range (`depth_guard_uin`,
+    /// A contour-monitoring parameter out of its range (the depth guard,
     /// `oscillation_uin`, `gauge_frozen_ms`, `x_stall_revs`,
     /// `retract_z_in`).
     Monitor,
+    /// The part program's depth of cut (`depth_of_cut_uin`) out of its
+    /// range.
+    DepthOfCut,
 }
 
 #[cfg(test)]

@@ -33,20 +33,32 @@ fn negative_values_reach_the_range_check_instead_of_clap() {
 }
 
 #[test]
-fn a_cut_deeper_than_the_gauge_or_the_amplifier_allows_is_refused_with_the_reason() {
-    let o = host_sim(&["cut", "--depth-in", "0.011"]);
-    let e = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{e}");
-    assert!(e.contains("--depth-in 0.011") && e.contains("gauge"), "{e}");
-    // k_e × 10 at 0.010 in: 2e5·0.01·1e-4 + 1500·(√(2·0.125·0.01) + 50e-6)
-    // = 75.3 lbf, 26.0 A at 2.9 lbf/A, beyond legacy-hw's 8 A.
-    let o = host_sim(&["cut", "--depth-in", "0.01", "--ke-scale", "10"]);
-    let e = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{e}");
-    assert!(
-        e.contains("75.3 lbf") && e.contains("26.0 A") && e.contains("8 A limit"),
-        "{e}"
-    );
+fn a_cut_deeper_than_the_gauge_or_the_amplifier_or_the_firmware_allows_is_refused_with_the_reason()
+{
+    for (args, said) in [
+        (
+            &["--depth-in", "0.011"][..],
+            &["--depth-in 0.011", "gauge"][..],
+        ),
+        // k_e × 10 at 0.010 in: 2e5·0.01·1e-4 + 1500·(√(2·0.125·0.01) +
+        // 50e-6) = 75.3 lbf, 26.0 A at 2.9 lbf/A, beyond legacy-hw's 8 A.
+        (
+            &["--depth-in", "0.01", "--ke-scale", "10"],
+            &["75.3 lbf", "26.0 A", "8 A limit"],
+        ),
+        // k_e × 2.7: 0.2 + 405·0.050050 = 20.5 lbf, 7.1 A: within the
+        // amplifier's 8 A, beyond the firmware's 6 A (current_limit_a),
+        // which would fault the pass after 20 ms.
+        (
+            &["--depth-in", "0.01", "--ke-scale", "2.7"],
+            &["20.5 lbf", "7.1 A", "firmware's current limit 6 A"],
+        ),
+    ] {
+        let o = host_sim(&[&["cut"][..], args].concat());
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(said.iter().all(|w| e.contains(w)), "{args:?}: {e}");
+    }
 }
 
 #[test]

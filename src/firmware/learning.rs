@@ -17,7 +17,7 @@ use crate::command::expansion::{rate_step, Expansion};
 use crate::command::{Coefficients, CommandGen};
 use crate::handoff::ahead::Ahead;
 use crate::handoff::Shared;
-use crate::servo::edges::Edges;
+use crate::servo::edges::{contact_chord_uin, Edges};
 use crate::servo::monitor::Monitor;
 use crate::servo::{Learner, ServoConfig};
 use crate::table::interrupt::Interruptions;
@@ -37,6 +37,11 @@ pub struct LearnState {
     monitor: Monitor,
     /// The ring's lost-sample count when last seen.
     lost_seen: u32,
+    /// The nose's contact chord into the fresh stock, µin: the part
+    /// program's depth of cut (`ServoConfig::depth_of_cut_uin`) under the
+    /// table's nose (`Geometry::tool_radius_nin`; 0 without a table),
+    /// computed once here, below the tick, for the edges' profile.
+    contact_inside_uin: i64,
 }
 
 /// Whether a sample may teach the hole edges' step: the loop closed on a
@@ -51,11 +56,15 @@ impl LearnState {
         gen: Option<CommandGen<'static>>,
         x_published: bool,
     ) -> Self {
+        let nose_radius_nin = gen.map_or(0, |g| {
+            g.interpolator().table().header().geometry.tool_radius_nin
+        });
         Self {
             ahead: AheadState::new(gen, x_published),
             learner: Learner::new(cfg),
             monitor: Monitor::new(cfg.monitor),
             lost_seen: 0,
+            contact_inside_uin: contact_chord_uin(cfg.depth_of_cut_uin, nose_radius_nin),
         }
     }
 
@@ -114,7 +123,7 @@ impl LearnState {
 
     /// The part's interruptions (a checked block: `Firmware::set_interruptions`).
     pub(crate) fn set_interruptions(&mut self, holes: Interruptions) {
-        self.ahead.edges = Edges::new(holes);
+        self.ahead.edges = Edges::new(holes, self.contact_inside_uin);
     }
 }
 
@@ -146,7 +155,7 @@ impl AheadState {
             coeff_seen: 0,
             request_seen: 0,
             published: 0,
-            edges: Edges::new(Interruptions::NONE),
+            edges: Edges::new(Interruptions::NONE, 0),
         }
     }
 

@@ -985,3 +985,52 @@ fn a_frozen_gauge_disables_the_amplifier_after_its_ticks() {
     assert!((n - 1..=n + 1).contains(&k), "{k} against {n}");
     assert!(!fw.amplifier_enable());
 }
+
+/// The hole edges' contact chord follows the part program's depth of cut
+/// (`depth_of_cut_uin`) under the loaded table's nose (0.125 in): the
+/// closed form √(2 r_t d), 0.050 in at a 0.010 in roughing pass and
+/// 0.00866 in at the 300 µin finishing pass, whatever the interruption
+/// block (one without holes here).
+#[test]
+fn the_edges_contact_chord_is_root_2_r_d_of_the_depth_parameter_and_the_tables_nose() {
+    let nose_in = CoeffTable::parse(crate::DEFAULT_TABLE)
+        .unwrap()
+        .header()
+        .geometry
+        .tool_radius_nin as f64
+        * 1e-9;
+    assert_eq!(nose_in, 0.125);
+    for (depth_uin, want_uin) in [(10_000.0, 50_000), (300.0, 8_660)] {
+        let mut d = crate::servo::ServoDesign::brief(20_000);
+        d.depth_of_cut_uin = depth_uin;
+        let mut cfg = fw_cfg(XMode::Legacy { clock_hz: CLOCK_HZ }, false);
+        cfg.loop_cfg = d.config().unwrap();
+        let mut fw = Firmware::with_table(crate::DEFAULT_TABLE, cfg).unwrap();
+        let mut block = [0u8; 64];
+        let n = crate::table::interrupt::Interruptions::encode(&[], &mut block).unwrap();
+        fw.set_interruptions(&block[..n]).unwrap();
+        let closed = (2.0 * nose_in * depth_uin * 1e-6).sqrt() * 1e6;
+        let got = fw.edges().contact_inside_uin();
+        assert_eq!(got, want_uin, "{depth_uin} µin deep");
+        assert!((got as f64 - closed).abs() < 1.0, "{got} vs {closed}");
+    }
+}
+
+/// A depth of cut outside [1, 10 000] µin is refused by the design, in
+/// words that name the parameter and its value.
+#[test]
+fn a_depth_of_cut_beyond_the_gauge_range_is_refused_in_words() {
+    for bad in [0.0, 10_001.0, f64::NAN] {
+        let mut d = crate::servo::ServoDesign::brief(20_000);
+        d.depth_of_cut_uin = bad;
+        let e = d.config().unwrap_err();
+        assert_eq!(e, crate::servo::DesignError::DepthOfCut);
+        let m = std::format!("{}", d.refusal(e));
+        assert!(
+            m.starts_with(&std::format!(
+                "depth_of_cut_uin = {bad} must be in [1, 10000]"
+            )),
+            "{m}"
+        );
+    }
+}

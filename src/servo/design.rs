@@ -283,9 +283,11 @@ impl ServoDesign {
         {
             return Err(E::SignCheck);
         }
+        if !(self.depth_of_cut_uin >= 1.0 && self.depth_of_cut_uin <= 10_000.0) {
+            return Err(E::DepthOfCut);
+        }
         let depth_guard_uin = self.depth_guard_uin();
-        if !(self.depth_of_cut_uin > 0.0 && self.depth_of_cut_uin <= 10_000.0)
-            || !(depth_guard_uin >= self.depth_of_cut_uin / 2.0
+        if !(depth_guard_uin >= self.depth_of_cut_uin / 2.0
                 && depth_guard_uin <= self.depth_of_cut_uin)
             || !(self.oscillation_uin > 0.0 && self.oscillation_uin <= 10_000.0)
             || !(self.gauge_frozen_ms > 0.0 && self.gauge_frozen_ms <= 10_000.0)
@@ -357,6 +359,7 @@ impl ServoDesign {
                 retract_code: libm::round(self.retract_z_in * cpi) as i32,
                 edge_settle_ticks: libm::round(3.0 / (self.damping * w) * fs) as u32,
             },
+            depth_of_cut_uin: libm::round(self.depth_of_cut_uin) as u32,
         })
     }
 
@@ -490,8 +493,9 @@ impl DesignError {
             }
             Self::SignCheck => "sign_check_v in [0, 2], sign_check_ms in (0, 20]",
             Self::Monitor => {
-                "depth_of_cut_uin and oscillation_uin in (0, 10000], the depth guard (depth_of_cut_uin − √2·oscillation_uin·(1 + 2π·bandwidth_hz·detection)) at least half the depth of cut, gauge_frozen_ms in (0, 10000], x_stall_revs 0..=10000, retract_z_in in [-0.010, 0.010]"
+                "oscillation_uin in (0, 10000], the depth guard (depth_of_cut_uin − √2·oscillation_uin·(1 + 2π·bandwidth_hz·detection)) at least half the depth of cut, gauge_frozen_ms in (0, 10000], x_stall_revs 0..=10000, retract_z_in in [-0.010, 0.010]"
             }
+            Self::DepthOfCut => "depth_of_cut_uin: must be in [1, 10000] µin (0.010 in, the gauge's range)",
         }
     }
 }
@@ -546,6 +550,10 @@ pub struct ServoConfig {
     /// of the error dynamics) before the learning starts.
     pub settle_ticks: u32,
     pub monitor: MonitorConfig,
+    /// The part program's depth of cut, whole µin (1..=10 000,
+    /// `depth_of_cut_uin` rounded): the hole edges' contact chord
+    /// (`servo::edges::contact_chord_uin`).
+    pub depth_of_cut_uin: u32,
 }
 
 /// Contour monitoring's limits (`servo::monitor`), in the units it

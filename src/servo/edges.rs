@@ -27,8 +27,10 @@
 //! # The shape: the nose's contact against the rim
 //! The nose touches the stock along a radial chord from `X − inside` to
 //! `X + outside` (`X` the tool centre's radius; the feed is toward the
-//! axis, so the fresh stock ahead is inside, its chord √(2 r_t d); behind,
-//! half a feed). The force falls in proportion to the part of that chord
+//! axis, so the fresh stock ahead is inside, its chord √(2 r_t d) of the
+//! table's nose radius r_t and the part program's depth of cut d
+//! ([`contact_chord_uin`]: 0.0087 in finishing, 0.050 in at 0.010 in
+//! deep); behind, half a feed). The force falls in proportion to the part of that chord
 //! over a hole. A point at radius r, angle δ from a hole's centre (bolt
 //! circle radius R, hole radius ρ) is over the hole when
 //! `1 − cos δ < v(r) = (ρ² − (r − R)²) / (2 r R)`: the versine of the
@@ -63,7 +65,9 @@
 //! (docs/CUT.md, the hole zone).
 //!
 //! # Number formats
-//! Lengths µin (`i64` in the profile's arithmetic: (10 in)² fits); versines
+//! Lengths µin (`i64` in the profile's arithmetic: (10 in)² fits); the
+//! contact chord whole µin, `⌊√(2 r_t d)⌋` in integers (r_t nin, d µin:
+//! below 1 µin short, 0.012 % of the finishing pass's); versines
 //! `u32` Q31 (LSB 4.7e-10; a hole's half-width versine at the bolt circle
 //! is ~6e-3, one tick of angle at 300 rpm ~1.2e-6); fractions `u32` Q16;
 //! disturbances DAC codes Q8 `i32` (the observer's `d̂`), the amplitude
@@ -75,11 +79,23 @@ use crate::trig;
 use crate::units::{SpindleAngle, XInches};
 
 /// The nose's contact with the stock inside the tool centre (toward the
-/// axis, the fresh stock), µin: √(2 r_t d) of the finishing pass the
-/// brief's tool cuts (0.125 in nose, 0.0003 in deep: 0.0087 in).
-pub const CONTACT_INSIDE_UIN: i64 = 8_700;
-/// ... and outside it (the previous revolution's stock: half a feed of
-/// 100 µin a revolution), µin.
+/// axis, the fresh stock), whole µin: the chord `⌊√(2 r_t d)⌋` a nose of
+/// radius `nose_radius_nin` (nin, the table's `Geometry::tool_radius_nin`)
+/// cuts at `depth_uin` deep (the part program's `depth_of_cut_uin`). The
+/// brief's 0.125 in nose: 8660 µin at 300 µin (finishing), 50 000 at
+/// 10 000 (roughing). Both saturate (a radius below 0 is 0; the product
+/// at `u64::MAX`, a chord of 2³² µin), so no input panics; the chord of
+/// a radius of more than 4 300 in (i64 nin's range) is meaningless but
+/// bounded.
+pub fn contact_chord_uin(depth_uin: u32, nose_radius_nin: i64) -> i64 {
+    let r = nose_radius_nin.max(0) as u64;
+    // 2 r d in nin·µin; / 1000: µin².
+    let sq_uin2 = r.saturating_mul(2 * u64::from(depth_uin)) / 1_000;
+    sq_uin2.isqrt() as i64
+}
+
+/// The contact chord outside the tool centre (the previous revolution's
+/// stock: half a feed of 100 µin a revolution), µin.
 pub const CONTACT_OUTSIDE_UIN: i64 = 50;
 /// Largest |amplitude| (DAC codes Q8): a quarter of the DAC's span, about
 /// 4 A of coil current, beyond any hole step the amplifier can drive.
@@ -116,6 +132,9 @@ struct Crossing {
 #[derive(Clone, Debug)]
 pub struct Edges {
     holes: Interruptions,
+    /// The nose's contact chord inside the tool centre, µin
+    /// ([`contact_chord_uin`]).
+    contact_inside_uin: i64,
     /// X the profile is for, µin (`None`: no X yet).
     x_uin: Option<i64>,
     at_x: [HoleAtX; MAX_HOLES],
@@ -152,10 +171,13 @@ fn versine_at(r: i64, rc: i64, rho: i64) -> u32 {
 }
 
 impl Edges {
-    /// The anticipation of `holes` (none: it never acts).
-    pub fn new(holes: Interruptions) -> Self {
+    /// The anticipation of `holes` (none: it never acts) for a nose whose
+    /// contact chord into the fresh stock is `contact_inside_uin`
+    /// ([`contact_chord_uin`]).
+    pub fn new(holes: Interruptions, contact_inside_uin: i64) -> Self {
         Self {
             holes,
+            contact_inside_uin,
             x_uin: None,
             at_x: [HoleAtX::default(); MAX_HOLES],
             refresh: 0,
@@ -167,6 +189,11 @@ impl Edges {
 
     pub fn holes(&self) -> &Interruptions {
         &self.holes
+    }
+
+    /// The contact chord inside the tool centre the profile uses, µin.
+    pub fn contact_inside_uin(&self) -> i64 {
+        self.contact_inside_uin
     }
 
     /// The learned step, DAC codes Q8 (the change of `d̂` when the whole
@@ -201,7 +228,10 @@ impl Edges {
         self.refresh = k + 1;
         let rc = i64::from(h.centre_radius_uin);
         let rho = i64::from(h.diameter_uin / 2);
-        let (ra, rb) = (x - CONTACT_INSIDE_UIN, x + CONTACT_OUTSIDE_UIN);
+        let (ra, rb) = (
+            x.saturating_sub(self.contact_inside_uin),
+            x + CONTACT_OUTSIDE_UIN,
+        );
         let (va, vb) = (versine_at(ra, rc, rho), versine_at(rb, rc, rho));
         let vc = if ra < rc && rc < rb {
             versine_at(rc, rc, rho)

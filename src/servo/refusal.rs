@@ -148,6 +148,11 @@ impl fmt::Display for Refusal<'_> {
                 d.rate_hz,
                 E::GainRange.reason()
             ),
+            E::DepthOfCut => write!(
+                f,
+                "depth_of_cut_uin = {} must be in [1, 10000] µin (0.010 in: the gauge's range, over which the slide lifts the tool clear of the stock)",
+                d.depth_of_cut_uin
+            ),
             E::Slide => f.write_str(E::Slide.reason()),
         }
     }

@@ -43,9 +43,11 @@ pub struct Args {
     /// Revolutions simulated before each band's recording starts.
     #[arg(long, default_value_t = 60.0)]
     pub preroll_revs: f64,
-    /// Depth of cut, in.
-    #[arg(long, default_value_t = 0.0003)]
-    pub depth_in: f64,
+    /// Depth of cut, in (default: the scenario's `[servo]
+    /// depth_of_cut_uin`, 300 µin): the pass cuts it and the firmware's
+    /// part program says it (`depth_of_cut_uin`).
+    #[arg(long)]
+    pub depth_in: Option<f64>,
     /// Offset added to the firmware's Z command, µin (positive: the tool
     /// stays off the part and leaves that much stock).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -281,7 +283,6 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
     );
     spec.band_half_in = args.band_in;
     spec.preroll_revs = args.preroll_revs;
-    spec.depth_in = args.depth_in;
     anyhow::ensure!(
         args.z_offset_uin.abs() <= 5000.0,
         "--z-offset-uin {}: must be within ±5000 µin (half the gauge range)",
@@ -324,7 +325,9 @@ fn spec_of(args: &Args, controller: Controller) -> anyhow::Result<CutSpec> {
         args.ke_scale
     );
     spec.scenario.cutting.k_e_lbf_per_in *= args.ke_scale;
-    check_depth(&spec, args.depth_in)?;
+    let depth_in = args.depth_in.unwrap_or(spec.depth_in);
+    check_depth(&spec, depth_in)?;
+    spec.set_depth_in(depth_in)?;
     // The budget and the sweep compare the CMM grid run by run; the zone
     // is the single cut's.
     spec.hole_zone = args.hole_zone == OnOff::On && !args.budget && !args.force_sensitivity;
@@ -345,7 +348,8 @@ pub const MAX_DEPTH_IN: f64 = 0.010;
 
 /// Refuses a depth of cut the machine cannot take, with the reason: deeper
 /// than [`MAX_DEPTH_IN`], or a steady cutting force whose current (at the
-/// scenario's force constant) exceeds the amplifier's limit.
+/// scenario's force constant) exceeds the amplifier's limit or the
+/// firmware's (`current_limit_a`, which faults after `current_limit_ms`).
 fn check_depth(spec: &CutSpec, depth_in: f64) -> anyhow::Result<()> {
     anyhow::ensure!(
         depth_in > 0.0 && depth_in <= MAX_DEPTH_IN,
@@ -363,6 +367,15 @@ fn check_depth(spec: &CutSpec, depth_in: f64) -> anyhow::Result<()> {
         "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
          amplifier's {} A limit (scenario {}: motor.kf_lbf_per_a {}, amplifier.current_limit_a)",
         f.amplifier.current_limit_a,
+        f.name,
+        f.motor.kf_lbf_per_a
+    );
+    let fw_limit_a = spec.scenario.servo_design.current_limit_a;
+    anyhow::ensure!(
+        amps <= fw_limit_a,
+        "--depth-in {depth_in}: the steady cutting force {force:.1} lbf needs {amps:.1} A, beyond the \
+         firmware's current limit {fw_limit_a} A (servo.current_limit_a; the loop would fault CurrentLimit \
+         mid-pass; scenario {}: motor.kf_lbf_per_a {})",
         f.name,
         f.motor.kf_lbf_per_a
     );

@@ -134,7 +134,7 @@ impl CutSpec {
     /// The pass of chapter 5 on `scenario`: its spindle speed unless
     /// `rpm` is given, its feed read as a feed per revolution at its own
     /// speed (−0.03 in/min at 300 rpm = 100 µin/rev), its holes unless
-    /// `holes` is given, 0.0003 in depth of cut.
+    /// `holes` is given, its depth of cut (`[servo] depth_of_cut_uin`).
     pub fn chapter5(
         scenario: Scenario,
         controller: Controller,
@@ -171,13 +171,14 @@ impl CutSpec {
         interruptions::block_of(&scenario.cutting.bolt_holes)
             .with_context(|| format!("scenario {}", f.name))?;
         let error_levels = scenario.file.errors.clone();
+        let depth_in = scenario.servo_design.depth_of_cut_uin / 1e6;
         Ok(Self {
             x_start_in: f.x.x0_in,
             scenario,
             controller,
             rpm,
             holes,
-            depth_in: 0.0003,
+            depth_in,
             feed_per_rev_in,
             band_half_in: 0.01,
             preroll_revs: 60.0,
@@ -202,6 +203,20 @@ impl CutSpec {
             anticipate: true,
             block_angle_error_deg: 0.0,
         })
+    }
+
+    /// Cuts `depth_in` deep, and tells the firmware so: its
+    /// `depth_of_cut_uin` set as a parameter set over the link is
+    /// (checked, the design refusing in its words).
+    pub fn set_depth_in(&mut self, depth_in: f64) -> anyhow::Result<()> {
+        let p = zslide::params::by_name("depth_of_cut_uin")
+            .ok_or_else(|| anyhow::anyhow!("the firmware has no depth_of_cut_uin parameter"))?;
+        let (design, cfg) = zslide::params::set(&self.scenario.servo_design, p.id, depth_in * 1e6)
+            .map_err(|e| anyhow::anyhow!("--depth-in {depth_in}: {e}"))?;
+        self.scenario.servo_design = design;
+        self.scenario.servo = cfg;
+        self.depth_in = depth_in;
+        Ok(())
     }
 
     /// The hole zone's grid when this cut measures it: the scenario's
