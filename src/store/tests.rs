@@ -306,8 +306,14 @@ fn each_map_error_is_reported_as_its_own_store_error() {
     use sequential_storage::Error as E;
     let storage = |value| E::Storage { value };
     let cases: [(E<K>, StoreError); 8] = [
-        (storage(K::NotAligned), StoreError::Flash(FlashFault::NotAligned)),
-        (storage(K::OutOfBounds), StoreError::Flash(FlashFault::OutOfBounds)),
+        (
+            storage(K::NotAligned),
+            StoreError::Flash(FlashFault::NotAligned),
+        ),
+        (
+            storage(K::OutOfBounds),
+            StoreError::Flash(FlashFault::OutOfBounds),
+        ),
         (storage(K::Other), StoreError::Flash(FlashFault::Other)),
         (E::Corrupted {}, StoreError::Corrupted),
         (E::ItemTooBig, StoreError::Config),
@@ -390,7 +396,10 @@ fn an_owned_region_whose_first_save_was_cut_boots_the_built_in_design() {
             assert!(s.save(&block(1), &base()).is_err());
             let mut f = s.into_flash();
             f.budget = None;
-            if f.bytes[..params::HEADER_LEN].iter().any(|&b| b != 0 && b != 0xFF) {
+            if f.bytes[..params::HEADER_LEN]
+                .iter()
+                .any(|&b| b != 0 && b != 0xFF)
+            {
                 not_erased += 1;
             }
             let mut s = Store::new(f, 0..REGION).unwrap();
