@@ -322,4 +322,47 @@ mod tests {
         assert_eq!(seen, 0xff);
         assert_eq!(XF_MONITOR, 0xf0);
     }
+
+    /// The X handler's raised faults are read back as their bits, all of
+    /// them: X outside the table (bit 0) and bad BCD (bit 2) raised are
+    /// 0b101.
+    #[test]
+    fn raised_x_faults_read_back_as_their_bits() {
+        let s = Shared::new();
+        assert_eq!(s.x_faults(), 0);
+        s.raise(Fault::XOutsideTable);
+        s.raise(Fault::XBadBcd);
+        assert_eq!(s.x_faults(), 0b101);
+    }
+
+    /// The X handler's counts read back as counted: 3 accepted, 2
+    /// debounced.
+    #[test]
+    fn the_x_event_counts_read_back_as_counted() {
+        let s = Shared::new();
+        for _ in 0..3 {
+            s.count_x_accepted();
+        }
+        for _ in 0..2 {
+            s.count_x_ignored();
+        }
+        assert_eq!((s.x_accepted(), s.x_ignored()), (3, 2));
+    }
+
+    /// Each operator request waits as its own bit (arm 1, disarm 2, clear
+    /// 4, the bits the loop tick decodes) until the tick takes them all at
+    /// once; none waits after.
+    #[test]
+    fn posted_requests_wait_as_their_own_bits_until_taken() {
+        let s = Shared::new();
+        assert!(!s.requests_pending());
+        s.request(Request::Arm);
+        s.request(Request::ClearFault);
+        assert!(s.requests_pending());
+        assert_eq!(s.take_requests(), 0b101);
+        assert!(!s.requests_pending());
+        assert_eq!(s.take_requests(), 0);
+        s.request(Request::Disarm);
+        assert_eq!(s.take_requests(), 0b010);
+    }
 }

@@ -660,4 +660,31 @@ mod tests {
         d.hum_notch_hz = 15_000.0;
         assert_eq!(d.config().unwrap_err(), DesignError::HumNotch);
     }
+
+    /// The sign check's expected gauge move after the doublet's first half,
+    /// by hand: K = 1.2796e6 codes per code per s², a = 306.24 1/s (eq
+    /// 4-33, Model 15), the pulse 0.35 V = 18 350 DAC codes for T = 1 ms:
+    /// z(T) = K·p·(T/a − (1 − e^(−aT))/a²) = 2.3481e10 · 4.5264e-7
+    /// = 10 628 codes.
+    #[test]
+    fn the_sign_checks_expected_move_is_the_doublets_first_half_by_hand() {
+        let d = ServoDesign::brief(20_000);
+        assert_eq!((d.sign_check_v, d.sign_check_ms), (0.35, 1.0));
+        let cfg = d.config().unwrap();
+        assert_eq!(cfg.sign_check_code, 18_350);
+        let got = f64::from(cfg.sign_check_expected_code);
+        assert!((got / 10_628.0 - 1.0).abs() < 1e-3, "{got}");
+    }
+
+    /// A gain beyond its format's 32 bits is refused, not saturated: at
+    /// 999 Hz on a slide with a tenth of the brief's amplifier gain,
+    /// kp = ω²/K = (2π·999)²/1.28e5 = 308 > 2³¹/2²⁴ = 128.
+    #[test]
+    fn a_gain_beyond_its_format_is_refused() {
+        let mut d = ServoDesign::brief(20_000);
+        d.bandwidth_hz = 999.0;
+        d.bandwidth_fast_hz = 999.0;
+        d.slide.amp_gain = 1.0;
+        assert_eq!(d.config().unwrap_err(), DesignError::GainRange);
+    }
 }

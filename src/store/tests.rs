@@ -295,3 +295,129 @@ fn a_save_through_param_store_reaches_the_flash_or_is_refused_by_name() {
         Err(StoreError::NoDriver)
     );
 }
+
+/// Each error of the map is reported as its own `StoreError`: the flash
+/// driver's failure by its kind, a region the map does not recognise as
+/// corrupt (erase it), a block the map can never hold as the region's
+/// size, anything else as the map's refusal.
+#[test]
+fn each_map_error_is_reported_as_its_own_store_error() {
+    use embedded_storage_async::nor_flash::NorFlashErrorKind as K;
+    use sequential_storage::Error as E;
+    let storage = |value| E::Storage { value };
+    let cases: [(E<K>, StoreError); 8] = [
+        (
+            storage(K::NotAligned),
+            StoreError::Flash(FlashFault::NotAligned),
+        ),
+        (
+            storage(K::OutOfBounds),
+            StoreError::Flash(FlashFault::OutOfBounds),
+        ),
+        (storage(K::Other), StoreError::Flash(FlashFault::Other)),
+        (E::Corrupted {}, StoreError::Corrupted),
+        (E::ItemTooBig, StoreError::Config),
+        (E::BufferTooSmall(400), StoreError::Config),
+        (E::FullStorage, StoreError::Map),
+        (E::BufferTooBig, StoreError::Map),
+    ];
+    for (e, want) in cases {
+        let said = std::format!("{e:?}");
+        assert_eq!(map_error(e), want, "{said}");
+    }
+}
+
+/// A refusal sent over the link says what went wrong and what to do.
+#[test]
+fn each_store_error_says_what_to_do() {
+    let block = params::ParamError::BlockMagic;
+    let cases = [
+        (StoreError::Flash(FlashFault::OutOfBounds), "OutOfBounds"),
+        (StoreError::Corrupted, "erase the parameter region"),
+        (StoreError::Config, "two erase pages"),
+        (StoreError::Map, "refused"),
+        (StoreError::Armed, "disarm first"),
+        (StoreError::NoDriver, "params flash"),
+    ];
+    for (e, words) in cases {
+        let text = std::format!("{e}");
+        assert!(text.contains(words), "{e:?}: {text:?}");
+    }
+    let text = std::format!("{}", StoreError::Block(block));
+    assert!(text.ends_with(&std::format!("{block}")), "{text:?}");
+}
+
+/// A store read on an intact flash meets no unreadable word.
+#[test]
+fn an_intact_store_counts_no_unreadable_read() {
+    let mut s = Store::new(Flash::new(), 0..REGION).unwrap();
+    s.save(&block(1), &base()).unwrap();
+    s.load(&base()).unwrap();
+    assert_eq!(s.unreadable_reads(), 0);
+}
+
+/// A store that owns its region from offset 0 (the NUCLEO's) boots a raw
+/// block an older `params flash` left at the region's start.
+#[test]
+fn an_owned_region_boots_the_raw_block_at_its_start() {
+    let mut f = Flash::new();
+    let raw = block(2);
+    f.bytes[..raw.len()].copy_from_slice(&raw);
+    let mut s = Store::new(f, 0..REGION).unwrap();
+    let (d, _, src) = boot::at_boot_owned(&mut s, &base()).unwrap();
+    assert_eq!(ms(&d), 3.0);
+    assert!(
+        matches!(src, params::ParamSource::Block { entries: 3, .. }),
+        "{src:?}"
+    );
+}
+
+/// A store that owns its region from offset 0, its first save cut at any
+/// of its flash operations: nothing was saved and nothing refused, so the
+/// boot takes the built-in design (the map's own bytes at the region's
+/// start are not a raw block). On the H7's 32-byte words and on 8-byte
+/// ones, where the start's 12 header bytes reach the item header.
+#[test]
+fn an_owned_region_whose_first_save_was_cut_boots_the_built_in_design() {
+    fn cut_first_save<const W: usize>(tear: Tear) -> u32 {
+        let fresh = || {
+            let mut f = RamFlash::<1024, 256, W>::new();
+            f.tear = tear;
+            f
+        };
+        let mut whole = Store::new(fresh(), 0..REGION).unwrap();
+        whole.save(&block(1), &base()).unwrap();
+        let needed = whole.into_flash().ops;
+        let mut not_erased = 0;
+        for n in 1..needed {
+            let mut f = fresh();
+            f.budget = Some(n);
+            let mut s = Store::new(f, 0..REGION).unwrap();
+            assert!(s.save(&block(1), &base()).is_err());
+            let mut f = s.into_flash();
+            f.budget = None;
+            if f.bytes[..params::HEADER_LEN]
+                .iter()
+                .any(|&b| b != 0 && b != 0xFF)
+            {
+                not_erased += 1;
+            }
+            let mut s = Store::new(f, 0..REGION).unwrap();
+            let (d, _, src) = boot::at_boot_owned(&mut s, &base()).unwrap();
+            assert_eq!(
+                src,
+                params::ParamSource::BuiltIn,
+                "{W}-byte words, {tear:?}, cut at {n} of {needed}"
+            );
+            assert_eq!(ms(&d), ms(&base()));
+        }
+        not_erased
+    }
+    let mut seen = 0;
+    for tear in [Tear::Between, Tear::Inside] {
+        seen += cut_first_save::<32>(tear);
+        seen += cut_first_save::<8>(tear);
+    }
+    // Some cut left the map's own bytes in the header's place.
+    assert!(seen > 0);
+}

@@ -459,6 +459,48 @@ mod tests {
         assert_eq!(r, Err(Fault::XGlitchStorm));
     }
 
+    /// A storm is `storm_count` anomalies within the window, whatever the
+    /// count: at 4, three repeats 10 ms apart are not one, four within
+    /// 1.5 ms (of the 2 ms window at 1 MHz) are, at the fourth.
+    #[test]
+    fn a_storm_is_its_count_of_anomalies_within_the_window_at_any_count() {
+        let mut c = cfg();
+        c.storm_count = 4;
+        let mut x = LegacyX::new(c);
+        assert!(matches!(
+            x.on_interrupt(latch_word(100), 0),
+            Ok(XEvent::Update(_))
+        ));
+        for t in [10_000, 20_000, 30_000, 100_000, 100_500, 101_000] {
+            assert_eq!(x.on_interrupt(latch_word(100), t), Ok(XEvent::Ignored));
+        }
+        assert_eq!(
+            x.on_interrupt(latch_word(100), 101_500),
+            Err(Fault::XGlitchStorm)
+        );
+    }
+
+    /// The window is open at its end: 16 anomalies spanning exactly the
+    /// 2 000 ticks are not a storm, spanning 1 999 they are.
+    #[test]
+    fn sixteen_anomalies_spanning_the_whole_window_are_not_a_storm() {
+        for (last, storm) in [(102_000, false), (101_999, true)] {
+            let mut x = LegacyX::new(cfg());
+            assert!(matches!(
+                x.on_interrupt(latch_word(100), 0),
+                Ok(XEvent::Update(_))
+            ));
+            for _ in 0..15 {
+                assert_eq!(
+                    x.on_interrupt(latch_word(100), 100_000),
+                    Ok(XEvent::Ignored)
+                );
+            }
+            let r = x.on_interrupt(latch_word(100), last);
+            assert_eq!(r == Err(Fault::XGlitchStorm), storm, "{last}: {r:?}");
+        }
+    }
+
     /// Crossing the spindle axis: the counter borrows through zero and the
     /// display reads 9.9995 in, a one-step move that lands in the null zone
     /// (as with the 8080), not a glitch.

@@ -346,6 +346,29 @@ pub struct Outcome {
     /// The fault latched (by the firmware, or the board model).
     pub latched: Option<Fault>,
     pub trace: Vec<Sample>,
+    /// The learned correction over the revolution before the injection
+    /// (none at boot, where nothing was cut before).
+    pub correction_before: Option<CorrectionSpan>,
+}
+
+/// The learned correction (the reference less the command, in) over a
+/// revolution: the table at this X, every angle once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CorrectionSpan {
+    pub least_in: f64,
+    pub greatest_in: f64,
+    /// Its largest change from one loop tick to the next, in.
+    pub largest_step_in: f64,
+}
+
+impl CorrectionSpan {
+    fn take(&mut self, c_in: f64, last_in: Option<f64>) {
+        self.least_in = self.least_in.min(c_in);
+        self.greatest_in = self.greatest_in.max(c_in);
+        if let Some(l) = last_in {
+            self.largest_step_in = self.largest_step_in.max((c_in - l).abs());
+        }
+    }
 }
 
 /// The cut every fault is injected into: chapter 5's pass on the scenario,
@@ -387,6 +410,8 @@ struct Run {
     /// The tool's largest departure into the part over the revolution
     /// before the injection, in (0: never below).
     before_rev_in: f64,
+    /// The learned correction over that revolution.
+    correction_before: CorrectionSpan,
     latched: Option<Fault>,
     trace: Vec<Sample>,
     t_inj: Nanos,
@@ -518,9 +543,18 @@ fn simulate(
     // One sample per loop-tick instant from BEFORE_NS before the injection.
     let samples: Rc<RefCell<Vec<Sample>>> = Rc::new(RefCell::new(Vec::new()));
     let before_rev = Rc::new(Cell::new(0.0f64));
+    let correction_before = Rc::new(Cell::new((
+        CorrectionSpan {
+            least_in: f64::INFINITY,
+            greatest_in: f64::NEG_INFINITY,
+            largest_step_in: 0.0,
+        },
+        None,
+    )));
     {
         let samples = samples.clone();
         let before_rev = before_rev.clone();
+        let correction_before = correction_before.clone();
         let cutter = rig.cutter.clone();
         let t0 = t_inj.saturating_sub(BEFORE_NS);
         let t_rev = t_inj.saturating_sub((rev_s * 1e9).round() as Nanos);
@@ -530,6 +564,13 @@ fn simulate(
             }
             if t >= t_rev && t < t_inj {
                 before_rev.set(before_rev.get().max(-cutter.borrow().last_error_in));
+                let sv = w.fw.servo();
+                let c_in = f64::from(sv.reference_q8() - (w.fw.command_code() << 8))
+                    / 256.0
+                    / CODES_PER_IN;
+                let (mut span, last) = correction_before.get();
+                span.take(c_in, last);
+                correction_before.set((span, Some(c_in)));
             }
             if t < t0 {
                 return;
@@ -700,6 +741,7 @@ fn simulate(
     let trace = std::mem::take(&mut *samples.borrow_mut());
     Ok(Run {
         before_rev_in: before_rev.get(),
+        correction_before: correction_before.get().0,
         latched,
         trace,
         t_inj,
@@ -736,6 +778,7 @@ pub fn run_case_at(
     }
     let Run {
         before_rev_in,
+        correction_before,
         latched,
         trace,
         t_inj,
@@ -797,6 +840,7 @@ pub fn run_case_at(
         },
         latched,
         trace,
+        correction_before: (!case.at_boot()).then_some(correction_before),
     })
 }
 
@@ -860,6 +904,7 @@ fn not_applicable(spec: &CutSpec, case: Case, why: &str) -> Outcome {
         },
         latched: None,
         trace: Vec::new(),
+        correction_before: None,
     }
 }
 
@@ -934,6 +979,7 @@ fn run_link_case(spec: &CutSpec, seed_index: u64, at: Inject) -> anyhow::Result<
         },
         latched: run.latched,
         trace: run.trace,
+        correction_before: Some(run.correction_before),
     })
 }
 

@@ -246,18 +246,29 @@ pub(crate) fn loop_model(spec: &host_sim::cut::CutSpec) -> host_sim::loopmodel::
 /// n is the part's geometry (the exact command under the tool, read from
 /// the trace, its rates by differences), ρ the profile's closed form
 /// ([`slew_from_rest`]) started a tick late (its first step may fall in the
-/// latching tick or the next); the loop's response to them is the dip. The
-/// correction's change is not known after the latch; it moves at most at
-/// its largest rate ċ over the trace before the injection (the table's
-/// correction near this angle, before the fault disturbed its angle or X), so its departure's steps are each at most ċ·h and the loop
-/// passes at most ċ·h·Σ|s_i| of it (s the model's response to a step with
-/// its rates).
+/// latching tick or the next); the loop's response to them is the dip.
+///
+/// The correction's departure u = c(t) − c(t₀) is not known after the
+/// latch, but the cut would have read it from the same table at the same
+/// X, so it stays within what the revolution before showed
+/// (`Outcome::correction_before`): it moves at most its largest step ċ per
+/// tick, and never by more than the table's range R (greatest less
+/// least). Counting from the tick before the latch (the correction that
+/// joined the command may be that tick's or the latching tick's),
+/// |u_i| ≤ min(R, ċ·(i + 1)) and |u_i − u_(i−1)| ≤ ċ. The loop passes
+/// y_k = Σ_i g_(k−i)·u_i of it (g its impulse response, the step
+/// response's differences), so |y_k| ≤ Σ_i |g_(k−i)|·min(R, ċ·(i + 1)),
+/// which stops growing at ‖g‖₁·R; and, by steps, |y_k| ≤ ċ·Σ_(m≤k) |s_m|
+/// (s the step response, with its rates), the tighter while the
+/// departure is young. The held correction's term is the smaller of the
+/// two.
 pub(crate) fn ramp_dip_in(
     spec: &host_sim::cut::CutSpec,
-    trace: &[host_sim::faults::Sample],
+    o: &host_sim::faults::Outcome,
     t_inj: u64,
     latch: usize,
 ) -> (f64, f64) {
+    let trace = &o.trace;
     let j = latch.saturating_sub(1);
     let h = 1.0 / f64::from(spec.scenario.servo_design.rate_hz);
     let exact = |x: &host_sim::faults::Sample| x.z_in - x.err_in;
@@ -282,29 +293,60 @@ pub(crate) fn ramp_dip_in(
         .collect();
     let model = loop_model(spec);
     let dip = model.reference_departure_in(&dr);
-    let c_rate = trace[..latch]
-        .iter()
-        .take_while(|x| x.t_ns < t_inj)
-        .collect::<Vec<_>>()
-        .windows(2)
-        .map(|p| {
-            let c = |x: &host_sim::faults::Sample| x.reference_in - x.command_in;
-            (c(p[1]) - c(p[0])).abs() / ((p[1].t_ns - p[0].t_ns) as f64 * 1e-9)
-        })
-        .fold(0.0f64, f64::max);
-    // Σ|s_i| up to each tick, of a unit (1 µin) step with its rates.
+    let span = o
+        .correction_before
+        .unwrap_or_else(|| panic!("{}: no revolution cut before the injection", o.row.fault));
+    assert!(
+        trace[..latch].iter().all(|x| {
+            let c = x.reference_in - x.command_in;
+            x.t_ns >= t_inj || (c >= span.least_in - 1e-12 && c <= span.greatest_in + 1e-12)
+        }),
+        "{}: the correction left the revolution's range before the injection",
+        o.row.fault
+    );
+    let (range, rate) = (span.greatest_in - span.least_in, span.largest_step_in);
+    // The step response (1 µin, with its rates), per inch.
     let mut unit = vec![[1e-6, 0.0, 0.0]; after.len()];
     unit[0] = [1e-6, 1e-6 / h, 1e-6 / (h * h)];
     if unit.len() > 1 {
         unit[1][2] = -1e-6 / (h * h);
     }
-    let step = model.reference_departure_in(&unit);
-    let mut sum = 0.0;
+    let s: Vec<f64> = model
+        .reference_departure_in(&unit)
+        .iter()
+        .map(|y| y / 1e-6)
+        .collect();
+    let g: Vec<f64> = (0..s.len())
+        .map(|m| (s[m] - if m > 0 { s[m - 1] } else { 0.0 }).abs())
+        .collect();
+    // Ticks until the rate has spent the range, and Σ|g| up to each tick.
+    // (A correction that never moved has no range either: nothing held.)
+    let young = if rate > 0.0 {
+        ((range / rate).ceil() as usize).min(g.len())
+    } else {
+        0
+    };
+    let g_sum: Vec<f64> = g
+        .iter()
+        .scan(0.0, |a, x| {
+            *a += x;
+            Some(*a)
+        })
+        .collect();
+    let mut by_steps = 0.0;
     dip.iter()
-        .zip(&step)
-        .map(|(&y, s)| {
-            sum += (s / 1e-6).abs();
-            (y, c_rate * h * sum)
+        .enumerate()
+        .map(|(k, &y)| {
+            by_steps += rate * s[k].abs();
+            let ramping: f64 = (0..=k.min(young.saturating_sub(1)))
+                .map(|i| g[k - i] * (rate * (i + 1) as f64).min(range))
+                .sum();
+            let spent = if k >= young {
+                range * g_sum[k - young]
+            } else {
+                0.0
+            };
+            (y, by_steps.min(ramping + spent))
         })
         .fold((0.0, 0.0), |m, p| if p.0 + p.1 > m.0 + m.1 { p } else { m })
 }

@@ -233,7 +233,7 @@ pub(crate) fn check_row(
             let (dip_in, held_in) = if matches!(expected(case).detect, Detect::Boot) {
                 (0.0, 0.0)
             } else {
-                ramp_dip_in(spec, &o.trace, t_inj, k)
+                ramp_dip_in(spec, o, t_inj, k)
             };
             let (dip_uin, held_uin) = (dip_in * 1e6, held_in * 1e6);
             let exact = |x: &host_sim::faults::Sample| x.z_in - x.err_in;
