@@ -24,7 +24,6 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use nalgebra::Complex;
 use zslide::firmware::excite::ExciteError;
@@ -280,7 +279,11 @@ fn window_at(c: &mut Client, at: u32) -> Result<Option<Vec<Sample>>> {
                 }
                 return Ok(Some(c.capture_read(info.recorded)?));
             }
-            _ => std::thread::sleep(Duration::from_millis(2)),
+            // No pause of its own: each request's round trip (a link
+            // poll on a board, a machine step on a simulated one) paces
+            // the polling, and on a machine in lockstep a pause would
+            // only cost wall-clock time.
+            _ => {}
         }
     }
 }

@@ -11,13 +11,20 @@
 //! F = k_t·d·f + k_e·(√(2 r_t d) + f/2), so dF/dd = k_t·f + k_e·√(r_t/(2d))):
 //! 1102, 2185 and 6514 lbf/in.
 //!
-//! Tolerance, derived: the identifier's own one-sigma (from the windows'
-//! spread through the model's Jacobian, widened by the frequencies' χ²)
-//! three times, plus the force model's curvature: the first harmonic of
-//! √(d + a sin ωt) is the slope × (1 + (3/32)(a/d)²), the tool's motion a
-//! at most a quarter of the depth (the in-air aim of d/8, ×1.7 at the
-//! in-cut resonance), 0.6 %. The one-sigma itself must be under 3 % of the
-//! stiffness, or the test proves nothing.
+//! Tolerance, from a Monte Carlo over the rig's seeds (the gauge's noise
+//! and the chip's force noise; the served machine runs in lockstep, so a
+//! seed gives one result, bit for bit, whatever the host's timing):
+//! [`monte_carlo_of_the_identified_stiffness_over_seeds`] identifies each
+//! k_e on [`MC_SEEDS`] seeds and gives the mean m of k/slope − 1 (the
+//! estimator's bias: the force model's curvature over the tool's motion,
+//! at most +0.6 % by the first harmonic of √(d + a sin ωt), and whatever
+//! else the estimator has), the spread s of the runs about it and the
+//! identifier's own one-sigma σ̄ on average; [`MC`] records them. A run
+//! must then lie within 3 r σ + 2 s/√n of slope × (1 + m): its own sigma
+//! σ, scaled by r = max(1, s/σ̄) where the runs spread wider than the
+//! identifier says, three times, plus twice the bias's standard error.
+//! The one-sigma itself must be under 3 % of the stiffness, or the test
+//! proves nothing.
 
 use std::time::Duration;
 
@@ -25,12 +32,26 @@ use host_sim::serve::Setup;
 use zslide_host::cli::run_line;
 use zslide_host::client::Link;
 
-/// The force model's curvature over the tool's motion (module docs).
-const CURVATURE: f64 = 0.006;
-/// PLACEHOLDER until the Monte Carlo is run.
-const UNEXPLAINED: f64 = 0.02;
 /// Seeds of the Monte Carlo per k_e.
 const MC_SEEDS: u64 = 12;
+
+/// What [`monte_carlo_of_the_identified_stiffness_over_seeds`] measured
+/// (seeds 1..=12 each): k_e scale, mean of k/slope − 1, its spread, and
+/// the identifier's sigma/slope on average. At k_e × 3 the bias, +0.91 %
+/// ± 0.05 %, is beyond the curvature's 0.6 %: a systematic of the
+/// estimator not run down (candidates: the in-air model against the served
+/// machine at 156-195 Hz, where the spring is 14 % of 1/H).
+const MC: [(f64, f64, f64, f64); 3] = [
+    (0.5, -0.0036, 0.0235, 0.0188),
+    (1.0, 0.0001, 0.0103, 0.0090),
+    (3.0, 0.0091, 0.0016, 0.0025),
+];
+
+/// The Monte Carlo's row for `ke_scale`.
+fn mc(ke_scale: f64) -> (f64, f64, f64) {
+    let &(_, mean, spread, sigma) = MC.iter().find(|r| r.0 == ke_scale).unwrap();
+    (mean, spread, sigma)
+}
 
 mod in_cut;
 mod machine;
@@ -53,25 +74,23 @@ fn identify_at(ke_scale: f64, seed: Option<u64>) -> Identified {
 }
 
 fn check(ke_scale: f64) {
-    let reference = model_slope(ke_scale);
+    let slope = model_slope(ke_scale);
     let got = identify_at(ke_scale, None);
-    let (k, sigma) = (
-        got.process.stiffness_lbf_per_in,
-        got.process.stiffness_sigma,
-    );
-    eprintln!(
-        "k_e x {ke_scale}:\n{}model slope {reference:.1} lbf/in",
-        got.report
-    );
+    let (k, sigma) = (got.process.stiffness_lbf_per_in, got.process.stiffness_sigma);
+    eprintln!("k_e x {ke_scale}:\n{}model slope {slope:.1} lbf/in", got.report);
     assert!(
-        sigma <= 0.03 * reference,
-        "k_e x {ke_scale}: one sigma {sigma:.1} lbf/in is over 3 % of {reference:.0}"
+        sigma <= 0.03 * slope,
+        "k_e x {ke_scale}: one sigma {sigma:.1} lbf/in is over 3 % of {slope:.0}"
     );
-    let allowed = 3.0 * sigma + (CURVATURE + UNEXPLAINED) * reference;
+    let (mean, spread, sigma_mc) = mc(ke_scale);
+    let expected = slope * (1.0 + mean);
+    let allowed = 3.0 * (spread / sigma_mc).max(1.0) * sigma
+        + 2.0 * spread / (MC_SEEDS as f64).sqrt() * slope;
     assert!(
-        (k - reference).abs() <= allowed,
+        (k - expected).abs() <= allowed,
         "k_e x {ke_scale}: identified {k:.1} ± {sigma:.1} lbf/in, the force model's slope \
-         {reference:.1} (allowed ±{allowed:.1})"
+         {slope:.1} with the estimator's bias {:+.2} %: {expected:.1} (allowed ±{allowed:.1})",
+        100.0 * mean
     );
 }
 
@@ -110,6 +129,12 @@ fn monte_carlo_of_the_identified_stiffness_over_seeds() {
             100.0 * spread / n.sqrt(),
             100.0 * sigma,
             100.0 * errs.iter().fold(0.0f64, |a, e| a.max(e.abs()))
+        );
+        let (m, sp, sg) = mc(ke_scale);
+        assert!(
+            (mean - m).abs() <= 5e-5 && (spread - sp).abs() <= 5e-5 && (sigma - sg).abs() <= 5e-5,
+            "k_e x {ke_scale}: MC records ({m}, {sp}, {sg}); this run gives \
+             ({mean:.4}, {spread:.4}, {sigma:.4}): update MC"
         );
     }
 }
