@@ -155,6 +155,22 @@ impl Rig {
         reply
     }
 
+    /// The `recorded` samples of a done capture.
+    fn read_capture(&mut self, recorded: u16) -> Vec<proto::Sample> {
+        let mut s = Vec::new();
+        while s.len() < usize::from(recorded) {
+            // Each read must bring samples: any other reply, or none, would
+            // repeat the same read forever.
+            match self.ask(Request::CaptureRead {
+                from: s.len() as u16,
+            }) {
+                Reply::Samples { samples, .. } if !samples.is_empty() => s.extend(samples),
+                x => panic!("read from {} of {recorded}: {x:?}", s.len()),
+            }
+        }
+        s
+    }
+
     fn status(&mut self) -> proto::Status {
         match self.ask(Request::Status) {
             Reply::Status(s) => s,
@@ -357,17 +373,7 @@ fn following_error_and_immediate_triggers() {
     };
     assert_eq!(info.state, CaptureState::Done);
     assert_eq!(info.before_trigger, 20);
-    let mut s = Vec::new();
-    while s.len() < usize::from(info.recorded) {
-        // Each read must bring samples: any other reply, or none, would
-        // repeat the same read forever.
-        match r.ask(Request::CaptureRead {
-            from: s.len() as u16,
-        }) {
-            Reply::Samples { samples, .. } if !samples.is_empty() => s.extend(samples),
-            x => panic!("read from {} of {}: {x:?}", s.len(), info.recorded),
-        }
-    }
+    let s = r.read_capture(info.recorded);
     assert!(s[20].error.unsigned_abs() >= level);
     assert!(s[19].error.unsigned_abs() < level);
     // Consecutive ticks: the command moves at most one slew step a tick
@@ -542,9 +548,9 @@ fn a_sine_and_a_capture_anchored_to_a_tick_start_on_it_and_late_ones_are_refused
     assert!(engaged, "the loop never engaged");
     let now = r.status().state.ticks;
     let start = now + 60;
-    // 1024 ticks a period: the peak 256 ticks after phase 0.
+    // 256 ticks a period: the peak 64 ticks after phase 0.
     let sine = |at| Request::ExciteAt {
-        step: 1 << 22,
+        step: 1 << 24,
         amplitude: 10_000,
         ticks: 4_000,
         at,
@@ -559,7 +565,7 @@ fn a_sine_and_a_capture_anchored_to_a_tick_start_on_it_and_late_ones_are_refused
     let pre = 8u16;
     assert!(matches!(
         r.ask(Request::CaptureStart {
-            samples: 300,
+            samples: 100,
             pre,
             trigger: Trigger::AtTick { tick: start },
         }),
@@ -576,15 +582,7 @@ fn a_sine_and_a_capture_anchored_to_a_tick_start_on_it_and_late_ones_are_refused
         (info.state, info.trigger_tick, info.before_trigger),
         (CaptureState::Done, start, pre)
     );
-    let mut s = Vec::new();
-    while s.len() < usize::from(info.recorded) {
-        match r.ask(Request::CaptureRead {
-            from: s.len() as u16,
-        }) {
-            Reply::Samples { samples, .. } if !samples.is_empty() => s.extend(samples),
-            x => panic!("read from {} of {}: {x:?}", s.len(), info.recorded),
-        }
-    }
+    let s = r.read_capture(info.recorded);
     let p = usize::from(pre);
     let u0 = s[0].output;
     assert!(
@@ -594,9 +592,9 @@ fn a_sine_and_a_capture_anchored_to_a_tick_start_on_it_and_late_ones_are_refused
     );
     assert!(s[p + 1].output > u0, "the sine rises from its start tick");
     assert!(
-        (s[p + 256].output - u0 - 10_000).abs() <= 2,
+        (s[p + 64].output - u0 - 10_000).abs() <= 2,
         "the peak a quarter period after the start tick: {}",
-        s[p + 256].output - u0
+        s[p + 64].output - u0
     );
 
     // Late: the loop's tick has reached (passed) the start tick.

@@ -56,8 +56,17 @@ fn mc(ke_scale: f64) -> (f64, f64, f64) {
 mod in_cut;
 mod machine;
 mod phase;
-use in_cut::{air_plant, identify, model_slope, test_dir, Identified, Run};
+use in_cut::{air_plant, identify, test_dir, Identified, Run, DEPTH_IN, FEED_IN};
 use machine::Machine;
+
+/// The force model's slope at the cut's depth d and feed f with k_e ×
+/// `ke_scale`, from its closed form (plant/cutting.rs:
+/// F = k_t·d·f + k_e·(√(2 r_t d) + f/2), so dF/dd = k_t·f + k_e·√(r_t/(2d))),
+/// lbf/in.
+fn model_slope(ke_scale: f64) -> f64 {
+    let c = host_sim::scenario::load("legacy-hw").unwrap().cutting;
+    c.k_t_psi * FEED_IN + ke_scale * c.k_e_lbf_per_in * (c.tool_radius_in / (2.0 * DEPTH_IN)).sqrt()
+}
 
 /// Identifies the process of the test cut with k_e × `ke_scale` on the
 /// rig seeded `seed` (None: the scenario's), in lockstep.
@@ -76,8 +85,14 @@ fn identify_at(ke_scale: f64, seed: Option<u64>) -> Identified {
 fn check(ke_scale: f64) {
     let slope = model_slope(ke_scale);
     let got = identify_at(ke_scale, None);
-    let (k, sigma) = (got.process.stiffness_lbf_per_in, got.process.stiffness_sigma);
-    eprintln!("k_e x {ke_scale}:\n{}model slope {slope:.1} lbf/in", got.report);
+    let (k, sigma) = (
+        got.process.stiffness_lbf_per_in,
+        got.process.stiffness_sigma,
+    );
+    eprintln!(
+        "k_e x {ke_scale}:\n{}model slope {slope:.1} lbf/in",
+        got.report
+    );
     assert!(
         sigma <= 0.03 * slope,
         "k_e x {ke_scale}: one sigma {sigma:.1} lbf/in is over 3 % of {slope:.0}"

@@ -34,15 +34,6 @@ pub fn air_plant(dir: &Path) -> PathBuf {
     path
 }
 
-/// The force model's slope at the cut's depth d and feed f with k_e ×
-/// `ke_scale`, from its closed form (plant/cutting.rs:
-/// F = k_t·d·f + k_e·(√(2 r_t d) + f/2), so dF/dd = k_t·f + k_e·√(r_t/(2d))),
-/// lbf/in.
-pub fn model_slope(ke_scale: f64) -> f64 {
-    let c = host_sim::scenario::load("legacy-hw").unwrap().cutting;
-    c.k_t_psi * FEED_IN + ke_scale * c.k_e_lbf_per_in * (c.tool_radius_in / (2.0 * DEPTH_IN)).sqrt()
-}
-
 /// One identification: the machine, and how the host reaches it.
 pub struct Run<'a> {
     /// Names the socket and the output files.
