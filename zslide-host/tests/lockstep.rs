@@ -80,9 +80,10 @@ fn identify_in_lockstep_is_bit_identical_whatever_the_hosts_delays() {
 
 /// The defect the lockstep removes, shown (not in the suite: its outcome
 /// rests on the wall clock): the same two runs against the machine served
-/// in real time (× 100) differ, because the ticks the host's requests land
-/// on, and so the noise in the windows, follow the host's timing. `cargo
-/// test --release -p zslide-host --test lockstep -- --ignored`.
+/// in real time differ, because the ticks the host's requests land on,
+/// and so the machine's state and noise in the windows, follow the host's
+/// timing. `cargo test --release -p zslide-host --test lockstep --
+/// --ignored`.
 #[test]
 #[ignore]
 fn identify_in_real_time_depends_on_the_hosts_delays() {

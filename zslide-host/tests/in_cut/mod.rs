@@ -41,7 +41,7 @@ pub struct Run<'a> {
     pub ke_scale: f64,
     /// The rig's seed (None: the scenario's).
     pub seed: Option<u64>,
-    /// `host-sim serve --lockstep`; otherwise real time × 100.
+    /// `host-sim serve --lockstep`; otherwise real time (a board's pace).
     pub lockstep: bool,
     /// `--cut-repeats` (None: identify's default).
     pub repeats: Option<u32>,
@@ -68,11 +68,7 @@ pub fn identify(r: &Run) -> Identified {
         sc.rig.seed = seed;
     }
     let mut setup = Setup::new(sc);
-    if r.lockstep {
-        setup.lockstep = true;
-    } else {
-        setup.speed = 100.0;
-    }
+    setup.lockstep = r.lockstep;
     setup.cut = Some(TestCut {
         depth_in: DEPTH_IN,
         feed_per_rev_in: FEED_IN,
