@@ -155,6 +155,22 @@ impl Rig {
         reply
     }
 
+    /// The `recorded` samples of a done capture.
+    fn read_capture(&mut self, recorded: u16) -> Vec<proto::Sample> {
+        let mut s = Vec::new();
+        while s.len() < usize::from(recorded) {
+            // Each read must bring samples: any other reply, or none, would
+            // repeat the same read forever.
+            match self.ask(Request::CaptureRead {
+                from: s.len() as u16,
+            }) {
+                Reply::Samples { samples, .. } if !samples.is_empty() => s.extend(samples),
+                x => panic!("read from {} of {recorded}: {x:?}", s.len()),
+            }
+        }
+        s
+    }
+
     fn status(&mut self) -> proto::Status {
         match self.ask(Request::Status) {
             Reply::Status(s) => s,
@@ -357,17 +373,7 @@ fn following_error_and_immediate_triggers() {
     };
     assert_eq!(info.state, CaptureState::Done);
     assert_eq!(info.before_trigger, 20);
-    let mut s = Vec::new();
-    while s.len() < usize::from(info.recorded) {
-        // Each read must bring samples: any other reply, or none, would
-        // repeat the same read forever.
-        match r.ask(Request::CaptureRead {
-            from: s.len() as u16,
-        }) {
-            Reply::Samples { samples, .. } if !samples.is_empty() => s.extend(samples),
-            x => panic!("read from {} of {}: {x:?}", s.len(), info.recorded),
-        }
-    }
+    let s = r.read_capture(info.recorded);
     assert!(s[20].error.unsigned_abs() >= level);
     assert!(s[19].error.unsigned_abs() < level);
     // Consecutive ticks: the command moves at most one slew step a tick
@@ -514,5 +520,107 @@ mod prop {
             prop_assert_eq!(s.state.phase, LoopPhase::Disarmed);
             prop_assert_eq!(u64::from(s.frames.empty) + frames as u64, stream.split(|&b| b == 0).count() as u64 - 1);
         }
+    }
+}
+
+/// Identification's sine and a capture anchored to a stated loop tick
+/// (`Request::ExciteAt`, `Trigger::AtTick`): the sine's phase 0 and the
+/// capture's trigger sample are that tick (the test gauge does not move,
+/// so the DAC code is the loop's constant output plus the sine alone); a
+/// start tick the loop has already reached, or one beyond the sine's
+/// longest lead, is refused in words, and a capture armed for a passed
+/// tick reads `Late`, never waits for ever.
+#[test]
+fn a_sine_and_a_capture_anchored_to_a_tick_start_on_it_and_late_ones_are_refused() {
+    let mut r = Rig::new();
+    r.gauge = at(0);
+    assert!(matches!(r.ask(Request::Arm), Reply::Phase(_)));
+    let mut engaged = false;
+    for _ in 0..200 {
+        if r.status().state.phase == LoopPhase::Engaged {
+            engaged = true;
+            break;
+        }
+        for _ in 0..100 {
+            r.step();
+        }
+    }
+    assert!(engaged, "the loop never engaged");
+    let now = r.status().state.ticks;
+    let start = now + 60;
+    // 256 ticks a period: the peak 64 ticks after phase 0.
+    let sine = |at| Request::ExciteAt {
+        step: 1 << 24,
+        amplitude: 10_000,
+        ticks: 4_000,
+        at,
+    };
+    assert_eq!(
+        r.ask(sine(start)),
+        Reply::Exciting {
+            tick: start,
+            ticks: 4_000
+        }
+    );
+    let pre = 8u16;
+    assert!(matches!(
+        r.ask(Request::CaptureStart {
+            samples: 100,
+            pre,
+            trigger: Trigger::AtTick { tick: start },
+        }),
+        Reply::Capture(c) if c.state == CaptureState::Armed
+    ));
+    for _ in 0..400 {
+        r.step();
+    }
+    let info = match r.ask(Request::CaptureInfo) {
+        Reply::Capture(c) => c,
+        x => panic!("{x:?}"),
+    };
+    assert_eq!(
+        (info.state, info.trigger_tick, info.before_trigger),
+        (CaptureState::Done, start, pre)
+    );
+    let s = r.read_capture(info.recorded);
+    let p = usize::from(pre);
+    let u0 = s[0].output;
+    assert!(
+        s[..=p].iter().all(|x| x.output == u0),
+        "no sine before its start tick (phase 0 is 0): {:?}",
+        &s[..=p]
+    );
+    assert!(s[p + 1].output > u0, "the sine rises from its start tick");
+    assert!(
+        (s[p + 64].output - u0 - 10_000).abs() <= 2,
+        "the peak a quarter period after the start tick: {}",
+        s[p + 64].output - u0
+    );
+
+    // Late: the loop's tick has reached (passed) the start tick.
+    let late = r.status().state.ticks;
+    match r.ask(sine(late)) {
+        Reply::Refused(why @ Refusal::Excite(_)) => {
+            assert!(why.to_string().contains("late arm"), "{why}")
+        }
+        x => panic!("a passed start tick: {x:?}"),
+    }
+    // Too far ahead: more than the longest sine (10 s at 20 kHz).
+    assert!(matches!(
+        r.ask(sine(late + 200_000 + 1_000)),
+        Reply::Refused(Refusal::Excite(_))
+    ));
+    assert!(!r.status().state.exciting, "a refused start leaves no sine");
+    assert!(matches!(
+        r.ask(Request::CaptureStart {
+            samples: 16,
+            pre: 0,
+            trigger: Trigger::AtTick { tick: late },
+        }),
+        Reply::Capture(_)
+    ));
+    match r.ask(Request::CaptureInfo) {
+        Reply::Capture(c) => assert_eq!(c.state, CaptureState::Late),
+        x => panic!("{x:?}"),
     }
 }

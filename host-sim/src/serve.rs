@@ -11,6 +11,17 @@
 //! sent go out. A simulation that falls behind the wall clock (a slow
 //! machine) runs as fast as it can: the firmware never sees time skip.
 //!
+//! Lockstep (`--lockstep`, [`Setup::lockstep`]): machine time advances
+//! only while a request is in flight. A whole request frame (up to its
+//! 0x00) is handed to the link, the machine runs as fast as it can until
+//! the reply's delimiter comes back, and stops there until the next
+//! frame. What the firmware sees is then a function of the host's requests
+//! alone, never of when they arrive: a slow or loaded host (or one that
+//! sleeps between frames) gets bit-identical answers. The link's protocol
+//! allows it: one request in flight, exactly one reply to each non-empty
+//! frame. A board has no such mode: its loop runs in real time whatever
+//! the host does.
+//!
 //! One host at a time, as on the board's RTT channel: a second connection
 //! waits until the first closes. The machine keeps running between
 //! connections.
@@ -137,8 +148,11 @@ pub struct Setup {
     pub feed_in_per_min: f64,
     /// Spindle speed, rpm.
     pub rpm: f64,
-    /// Machine seconds per wall-clock second.
+    /// Machine seconds per wall-clock second (not with `lockstep`).
     pub speed: f64,
+    /// Machine time advances only while a host request awaits its reply
+    /// (module docs): the wall clock has no say.
+    pub lockstep: bool,
     /// The parameter region's flash: shared by the clones of a setup, so
     /// a machine served again from a clone boots from what the last one
     /// saved (a power cycle of the board).
@@ -168,6 +182,7 @@ impl Setup {
             feed_in_per_min: 0.0,
             rpm,
             speed: 1.0,
+            lockstep: false,
             params_flash: Arc::new(Mutex::new(ParamsFlash::new())),
             params_file: None,
             cut: None,
@@ -202,6 +217,13 @@ impl Setup {
     pub fn check(&self) -> anyhow::Result<()> {
         if !(self.speed > 0.0 && self.speed <= 100.0) {
             bail!("--speed {}: must be in (0, 100]", self.speed);
+        }
+        if self.lockstep && self.speed != 1.0 {
+            bail!(
+                "--speed {} with --lockstep: a machine in lockstep runs only while a request \
+                 awaits its reply, at no pace of the wall clock",
+                self.speed
+            );
         }
         if let Some(c) = &self.cut {
             c.check()?;
@@ -263,8 +285,14 @@ impl Setup {
     }
 }
 
+/// Lockstep: machine time a request may take before the machine stops
+/// waiting for its reply (the station answers every request within its
+/// own deadline, `Refusal::LoopSilent`, far sooner: this only keeps a
+/// lost reply from running the machine on for ever).
+pub const LOCKSTEP_REPLY_NS: Nanos = 10_000_000_000;
+
 /// Runs the machine behind `listener` until `stop` is set (never, from the
-/// command line). `ready` is called once the machine is built.
+/// command line).
 pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::Result<()> {
     let (mut w, mut s, link) = setup.build()?;
     let mut conn: Option<Box<dyn Conn>> = None;
@@ -272,6 +300,10 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
     let mut t: Nanos = 0;
     let mut buf = [0u8; 4096];
     let mut flash_ops = link.borrow_mut().store_flash().map(|f| f.ops);
+    // Lockstep: the host's bytes not yet handed to the link, and the
+    // machine time at which the request in flight was handed over.
+    let mut held: Vec<u8> = Vec::new();
+    let mut asked: Option<Nanos> = None;
     while !stop.load(Ordering::Relaxed) {
         if conn.is_none() {
             conn = listener.accept().context("accepting a host")?;
@@ -284,6 +316,7 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
                         closed = true;
                         break;
                     }
+                    Ok(n) if setup.lockstep => held.extend_from_slice(&buf[..n]),
                     Ok(n) => link.borrow_mut().send(&buf[..n]),
                     Err(e) if e.kind() == ErrorKind::WouldBlock => break,
                     Err(e) if e.kind() == ErrorKind::Interrupted => {}
@@ -295,13 +328,32 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
             }
             if closed {
                 conn = None;
+                // A frame the host never finished is no request.
+                held.clear();
             }
         }
-        // Never ahead of the wall clock.
-        let wall = (start.elapsed().as_secs_f64() * setup.speed * 1e9) as Nanos;
-        if t + STEP_NS > wall {
-            std::thread::sleep(Duration::from_nanos((t + STEP_NS - wall).min(1_000_000)));
-            continue;
+        if setup.lockstep {
+            if asked.is_none() {
+                // One whole frame at a time: a lone delimiter (an empty
+                // frame) gets no reply, any other frame exactly one.
+                let Some(end) = held.iter().position(|&b| b == 0) else {
+                    std::thread::sleep(Duration::from_micros(100));
+                    continue;
+                };
+                let frame: Vec<u8> = held.drain(..=end).collect();
+                link.borrow_mut().send(&frame);
+                if frame.len() == 1 {
+                    continue;
+                }
+                asked = Some(t);
+            }
+        } else {
+            // Never ahead of the wall clock.
+            let wall = (start.elapsed().as_secs_f64() * setup.speed * 1e9) as Nanos;
+            if t + STEP_NS > wall {
+                std::thread::sleep(Duration::from_nanos((t + STEP_NS - wall).min(1_000_000)));
+                continue;
+            }
         }
         t += STEP_NS;
         s.run_until(&mut w, t);
@@ -313,6 +365,11 @@ pub fn serve(setup: &Setup, listener: &Listener, stop: &AtomicBool) -> anyhow::R
             }
         }
         let out = link.borrow_mut().take_received();
+        if let Some(at) = asked {
+            if out.contains(&0) || t - at >= LOCKSTEP_REPLY_NS {
+                asked = None;
+            }
+        }
         if let (Some(c), false) = (conn.as_mut(), out.is_empty()) {
             if write_all_nonblocking(c.as_mut(), &out).is_err() {
                 conn = None;

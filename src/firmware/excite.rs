@@ -58,6 +58,10 @@ pub enum ExciteError {
     Duration { max: u32 },
     /// The loop is not engaged at null (disarmed, faulted, or commanded).
     NotAtNull,
+    /// The start tick `at` was not ahead of the loop's tick `now` when the
+    /// loop took the request (a late arm), or more than [`EXCITE_MAX_S`]
+    /// ahead of it.
+    StartTick { at: u32, now: u32 },
 }
 
 impl core::fmt::Display for ExciteError {
@@ -77,6 +81,12 @@ impl core::fmt::Display for ExciteError {
             ),
             ExciteError::NotAtNull => f.write_str(
                 "excitation refused: the loop must be armed, engaged and at null (no fault, no command, no offset): arm it with X outside the table",
+            ),
+            ExciteError::StartTick { at, now } => write!(
+                f,
+                "excitation refused: its start tick {at} was not ahead of the loop's tick {now} \
+                 when the loop took the request (a late arm), or more than {EXCITE_MAX_S} s \
+                 ahead of it: ask for a tick further ahead"
             ),
         }
     }
@@ -105,6 +115,8 @@ pub struct Excitation {
     phase: u32,
     amplitude: i32,
     left: u32,
+    /// Ticks of zeros before phase 0 (an anchored start).
+    wait: u32,
 }
 
 impl Excitation {
@@ -113,18 +125,21 @@ impl Excitation {
         phase: 0,
         amplitude: 0,
         left: 0,
+        wait: 0,
     };
 
     /// Starts a sine of `amplitude` codes, `step` per tick, for `ticks`
-    /// ticks, from phase 0 (the amplitude clamped to the bound of the
-    /// largest step allowed: the station checked the exact bound).
-    pub fn start(&mut self, step: u32, amplitude: u32, ticks: u32) {
+    /// ticks, from phase 0 after `wait` ticks of zeros (the amplitude
+    /// clamped to the bound of the largest step allowed: the station
+    /// checked the exact bound).
+    pub fn start(&mut self, step: u32, amplitude: u32, ticks: u32, wait: u32) {
         let cap = (EXCITE_MAX_V * DAC_CODES_PER_V) as u32;
         *self = Self {
             step: step.min(1 << 30),
             phase: 0,
             amplitude: amplitude.min(cap) as i32,
             left: ticks,
+            wait,
         };
     }
 
@@ -140,6 +155,10 @@ impl Excitation {
     #[inline(always)]
     pub fn sample(&mut self) -> i32 {
         if self.left == 0 {
+            return 0;
+        }
+        if self.wait != 0 {
+            self.wait -= 1;
             return 0;
         }
         self.left -= 1;
@@ -158,7 +177,7 @@ mod tests {
     fn the_sine_has_its_amplitude_period_and_length() {
         let mut e = Excitation::OFF;
         // 1024 ticks per period at step 2^22.
-        e.start(1 << 22, 10_000, 2048);
+        e.start(1 << 22, 10_000, 2048, 0);
         let v: heapless::Vec<i32, 2048> = (0..2048).map(|_| e.sample()).collect();
         assert_eq!(e.sample(), 0, "stops after its ticks");
         assert_eq!(v[0], 0);
@@ -169,6 +188,20 @@ mod tests {
         );
         assert!((v[768] + 10_000).abs() <= 1, "trough: {}", v[768]);
         assert_eq!(v[100], v[1124], "periodic");
+    }
+
+    /// An anchored start: `wait` zeros, then the same sine from phase 0,
+    /// still `ticks` long.
+    #[test]
+    fn a_delayed_sine_is_the_same_sine_after_its_zeros() {
+        let (mut now, mut later) = (Excitation::OFF, Excitation::OFF);
+        now.start(1 << 22, 10_000, 300, 0);
+        later.start(1 << 22, 10_000, 300, 37);
+        assert!((0..37).all(|_| later.sample() == 0 && later.active()));
+        for i in 0..300 {
+            assert_eq!(later.sample(), now.sample(), "tick {i} of the sine");
+        }
+        assert!(!later.active());
     }
 
     #[test]

@@ -720,14 +720,15 @@ impl LoopState {
             && self.target == 0
     }
 
-    /// Starts the sine (the station's checked request); false, and nothing
-    /// started, when the loop is not engaged at null.
-    pub fn excite(&mut self, step: u32, amplitude: u32, ticks: u32) -> bool {
+    /// Starts the sine (the station's checked request), its phase 0 after
+    /// `wait` ticks; false, and nothing started, when the loop is not
+    /// engaged at null.
+    pub fn excite(&mut self, step: u32, amplitude: u32, ticks: u32, wait: u32) -> bool {
         if !self.at_null() {
             self.excite.stop();
             return false;
         }
-        self.excite.start(step, amplitude, ticks);
+        self.excite.start(step, amplitude, ticks, wait);
         true
     }
 

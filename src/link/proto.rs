@@ -93,11 +93,22 @@ pub enum Request {
     /// Save every servo parameter in force to the parameter store (only
     /// while disarmed; the boot reads it back first, `store::boot`).
     SaveParams,
+    /// [`Request::Excite`] anchored to a loop tick: the sine's phase 0 is
+    /// on loop tick `at` (the status's `ticks` count), zeros before it.
+    /// Refused (`ExciteError::StartTick`) when the loop takes the request
+    /// on or after `at` (a late arm), or more than `EXCITE_MAX_S` ahead of
+    /// it.
+    ExciteAt {
+        step: u32,
+        amplitude: u32,
+        ticks: u32,
+        at: u32,
+    },
 }
 
 /// Number of [`Request`] variants: a variant index at or above it is an
 /// unknown command (not a malformed frame).
-pub const REQUEST_KINDS: u32 = 12;
+pub const REQUEST_KINDS: u32 = 13;
 
 /// What starts a capture.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -111,6 +122,10 @@ pub enum Trigger {
     /// codes from below (an edge: a level already exceeded when the
     /// capture is armed must first fall below it).
     FollowingError { level: u32 },
+    /// Loop tick `tick` (the status's `ticks` count). A capture the loop
+    /// takes on or after that tick never triggers: its state reads
+    /// [`CaptureState::Late`].
+    AtTick { tick: u32 },
 }
 
 /// The loop's engagement phase (`servo::Phase`).
@@ -238,6 +253,9 @@ pub enum CaptureState {
     Triggered,
     /// Complete: `recorded` samples ready to read.
     Done,
+    /// Armed for [`Trigger::AtTick`] after its tick had passed: nothing
+    /// will be recorded (arm again for a later tick).
+    Late,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -554,6 +572,12 @@ mod tests {
                 ticks: u32::MAX,
             },
             Request::SaveParams,
+            Request::ExciteAt {
+                step: u32::MAX,
+                amplitude: u32::MAX,
+                ticks: u32::MAX,
+                at: u32::MAX,
+            },
         ];
         assert_eq!(all.len() as u32, REQUEST_KINDS);
         for (i, r) in all.iter().enumerate() {

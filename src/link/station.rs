@@ -11,10 +11,11 @@
 use super::proto::LoopSnapshot as Snapshot;
 use super::proto::{
     self, CaptureInfo, CaptureState, FaultPage, FaultRecord, FrameCounters, FrameError, LoopPhase,
-    Refusal, Reply, Request, SpindleSource, Status, XSource, FAULTS_PER_FRAME, FAULT_LOG,
+    Refusal, Reply, Request, SpindleSource, Status, Trigger, XSource, FAULTS_PER_FRAME, FAULT_LOG,
     MAX_FRAME, MAX_REQUEST, REQUEST_KINDS, SAMPLES_PER_FRAME,
 };
 use super::tap::{TapShared, REQ_CAPTURE, REQ_CONFIG, REQ_EXCITE, REQ_SNAPSHOT};
+use crate::firmware::excite::{ExciteError, EXCITE_MAX_S};
 use crate::handoff::{Request as LoopRequest, Shared};
 use crate::params::{self, ParamSource};
 use crate::safety::{Fault, Reaction};
@@ -73,10 +74,14 @@ enum Waiting {
         id: u16,
         value: f64,
     },
-    /// The identification sine handed to the tick: did it start?
+    /// The identification sine handed to the tick: did it start? (`at`:
+    /// its anchored start tick.)
     Excite {
         ticks: u32,
+        at: Option<u32>,
     },
+    /// A capture armed for a tick: has that tick passed unrecorded?
+    CaptureInfo,
     /// A snapshot to decide whether a save may go ahead (disarmed?).
     Save,
 }
@@ -333,18 +338,25 @@ impl<const N: usize> Station<N> {
                 step,
                 amplitude,
                 ticks,
-            } => match crate::firmware::excite::check(step, amplitude, ticks, self.cfg.loop_hz) {
-                Err(e) => self.reply(seq, &Reply::Refused(Refusal::Excite(e))),
-                Ok(()) => {
-                    for (slot, v) in tap.excite.iter().zip([step, amplitude, ticks]) {
-                        slot.store(v, core::sync::atomic::Ordering::Release);
-                    }
-                    tap.request(REQ_EXCITE);
-                    self.wait(seq, Waiting::Excite { ticks }, tap);
-                }
-            },
+            } => self.excite(seq, [step, amplitude, ticks], None, tap),
+            Request::ExciteAt {
+                step,
+                amplitude,
+                ticks,
+                at,
+            } => self.excite(seq, [step, amplitude, ticks], Some(at), tap),
             Request::SaveParams => self.wait(seq, Waiting::Save, tap),
-            Request::CaptureInfo => self.reply(seq, &Reply::Capture(self.capture_info(tap))),
+            Request::CaptureInfo => {
+                let info = self.capture_info(tap);
+                if info.state == CaptureState::Armed
+                    && matches!(info.trigger, Trigger::AtTick { .. })
+                {
+                    // Only the loop's tick count tells a late arming.
+                    self.wait(seq, Waiting::CaptureInfo, tap);
+                } else {
+                    self.reply(seq, &Reply::Capture(info));
+                }
+            }
             Request::CaptureRead { from } => {
                 if tap.scope.state() != CaptureState::Done {
                     self.reply(seq, &Reply::Refused(Refusal::CaptureNotDone));
@@ -386,6 +398,36 @@ impl<const N: usize> Station<N> {
                 self.reply(seq, &Reply::Faults(page));
             }
         }
+    }
+
+    /// Hands a checked sine to the tick (`at`: its start tick, refused
+    /// there beyond [`EXCITE_MAX_S`] ahead).
+    fn excite(
+        &mut self,
+        seq: u16,
+        [step, amplitude, ticks]: [u32; 3],
+        at: Option<u32>,
+        tap: &TapShared<'_, N>,
+    ) {
+        if let Err(e) = crate::firmware::excite::check(step, amplitude, ticks, self.cfg.loop_hz) {
+            self.reply(seq, &Reply::Refused(Refusal::Excite(e)));
+            return;
+        }
+        let lead = at.map_or(0, |_| self.max_lead());
+        for (slot, v) in tap
+            .excite
+            .iter()
+            .zip([step, amplitude, ticks, at.unwrap_or(0), lead])
+        {
+            slot.store(v, core::sync::atomic::Ordering::Release);
+        }
+        tap.request(REQ_EXCITE);
+        self.wait(seq, Waiting::Excite { ticks, at }, tap);
+    }
+
+    /// The furthest ahead an anchored sine may start, loop ticks.
+    fn max_lead(&self) -> u32 {
+        (EXCITE_MAX_S * f64::from(self.cfg.loop_hz)) as u32
     }
 
     fn capture_info(&self, tap: &TapShared<'_, N>) -> CaptureInfo {
@@ -462,18 +504,35 @@ impl<const N: usize> Station<N> {
                     }
                 }
             }
-            Waiting::Excite { ticks } => {
+            Waiting::Excite { ticks, at } => {
+                // Unanchored, the sine's phase 0 is on the tick after the
+                // snapshot's.
+                let next = s.ticks.wrapping_add(1);
                 if s.exciting || ticks == 0 {
-                    // The sine's phase 0 is on the tick after the snapshot's.
                     Reply::Exciting {
-                        tick: s.ticks.wrapping_add(1),
+                        tick: at.unwrap_or(next),
                         ticks,
                     }
                 } else {
-                    Reply::Refused(Refusal::Excite(
-                        crate::firmware::excite::ExciteError::NotAtNull,
-                    ))
+                    Reply::Refused(Refusal::Excite(match at {
+                        Some(at) if at.wrapping_sub(next) > self.max_lead() => {
+                            ExciteError::StartTick { at, now: s.ticks }
+                        }
+                        _ => ExciteError::NotAtNull,
+                    }))
                 }
+            }
+            Waiting::CaptureInfo => {
+                let mut info = self.capture_info(tap);
+                if let (CaptureState::Armed, Trigger::AtTick { tick }) = (info.state, info.trigger)
+                {
+                    // The tap records before it snapshots: armed in time,
+                    // the capture would have triggered on `tick`.
+                    if (s.ticks.wrapping_sub(tick) as i32) >= 0 {
+                        info.state = CaptureState::Late;
+                    }
+                }
+                Reply::Capture(info)
             }
             Waiting::Save => match s.phase {
                 LoopPhase::Disarmed => self.save(store),

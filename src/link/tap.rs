@@ -56,6 +56,7 @@ const GEN_ONE: u32 = 4;
 const TRIG_IMMEDIATE: u32 = 0;
 const TRIG_FAULT: u32 = 1;
 const TRIG_FERR: u32 = 2;
+const TRIG_TICK: u32 = 3;
 
 /// The capture ring: `N` samples (a power of two) of six words, atomics
 /// so that the tick writes and the background reads without a lock (the
@@ -85,9 +86,11 @@ pub struct TapShared<'s, const N: usize> {
     pub(crate) faults: Queue<FaultEvent, FAULT_QUEUE>,
     pub(crate) snapshots: Queue<Snapshot, 2>,
     pub(crate) configs: Queue<ServoConfig, 2>,
-    /// An identification sine's step, amplitude and ticks ([`REQ_EXCITE`];
-    /// written whole by the background before it sets the bit).
-    pub(crate) excite: [AtomicU32; 3],
+    /// An identification sine's step, amplitude, ticks, start tick and
+    /// the start tick's largest lead (0: start at once, no start tick)
+    /// ([`REQ_EXCITE`]; written whole by the background before it sets
+    /// the bit).
+    pub(crate) excite: [AtomicU32; 5],
 }
 
 impl<'s, const N: usize> TapShared<'s, N> {
@@ -108,7 +111,7 @@ impl<'s, const N: usize> TapShared<'s, N> {
             faults: Queue::new(),
             snapshots: Queue::new(),
             configs: Queue::new(),
-            excite: [const { AtomicU32::new(0) }; 3],
+            excite: [const { AtomicU32::new(0) }; 5],
         }
     }
 
@@ -148,6 +151,7 @@ impl<const N: usize> Scope<N> {
             Trigger::Immediate => (TRIG_IMMEDIATE, 0),
             Trigger::Fault => (TRIG_FAULT, 0),
             Trigger::FollowingError { level } => (TRIG_FERR, level),
+            Trigger::AtTick { tick } => (TRIG_TICK, tick),
         };
         self.trigger.store(kind, Ordering::Relaxed);
         self.level.store(level, Ordering::Relaxed);
@@ -171,6 +175,9 @@ impl<const N: usize> Scope<N> {
             TRIG_FAULT => Trigger::Fault,
             TRIG_FERR => Trigger::FollowingError {
                 level: self.level.load(Ordering::Relaxed),
+            },
+            TRIG_TICK => Trigger::AtTick {
+                tick: self.level.load(Ordering::Relaxed),
             },
             _ => Trigger::Immediate,
         }
@@ -329,10 +336,19 @@ impl TickTap {
         }
         if req & REQ_EXCITE != 0 {
             sh.requests.fetch_and(!REQ_EXCITE, Ordering::Relaxed);
-            let [step, amplitude, ticks] =
-                [0, 1, 2].map(|i| sh.excite.get(i).map_or(0, |a| a.load(Ordering::Acquire)));
+            let [step, amplitude, ticks, at, lead] =
+                [0, 1, 2, 3, 4].map(|i| sh.excite.get(i).map_or(0, |a| a.load(Ordering::Acquire)));
+            // Phase 0 on the next tick, or on tick `at` when anchored (a
+            // lead): an `at` already reached wraps to beyond any lead and
+            // is refused, as is one too far ahead (no sine: 0 ticks).
+            let wait = if lead == 0 {
+                0
+            } else {
+                at.wrapping_sub(lp.ticks().wrapping_add(1))
+            };
+            let ticks = if wait > lead { 0 } else { ticks };
             // A refusal shows in the snapshot (`exciting` false).
-            let _ = lp.excite(step, amplitude, ticks);
+            let _ = lp.excite(step, amplitude, ticks, wait);
         }
         if req & REQ_SNAPSHOT != 0 {
             sh.requests.fetch_and(!REQ_SNAPSHOT, Ordering::Relaxed);
@@ -408,6 +424,7 @@ impl TickTap {
                 TRIG_FAULT => fault_latched,
                 // Crossing the level from below, like a scope's edge.
                 TRIG_FERR => over && !self.over,
+                TRIG_TICK => lp.ticks() == self.level,
                 _ => true,
             };
             self.over = over;

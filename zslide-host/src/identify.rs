@@ -3,10 +3,14 @@
 //! (`crate::fit`), and the loop's model parameters set from the fit.
 //!
 //! The measurement is a stepped sine. For each frequency the firmware adds
-//! a sine to its DAC output (`Request::Excite`: only while engaged at null,
-//! amplitude bounded by the firmware), the host waits for the loop to
-//! settle, then captures whole capture windows of consecutive loop ticks
-//! (the DAC code u that reached the amplifier and the gauge code y). Each
+//! a sine to its DAC output from a loop tick the host states
+//! (`Request::ExciteAt`: only while engaged at null, amplitude bounded by
+//! the firmware), and captures whole windows of consecutive loop ticks
+//! from ticks the host states (`Trigger::AtTick`: the DAC code u that
+//! reached the amplifier and the gauge code y), the first once the loop
+//! has settled. Which ticks are measured is the plan's, not the link's
+//! timing: a request the firmware takes too late is refused as late, and
+//! the next window (or a sine further ahead) is asked for. Each
 //! frequency is a whole number of periods in the window (a bin of its
 //! DFT), so one DFT bin of u and of y gives the response y/u with no
 //! leakage from the sine itself. Repeated windows give the coherence and
@@ -20,10 +24,12 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use nalgebra::Complex;
-use zslide::link::proto::{LoopPhase, Reply, Request, Sample, Trigger};
+use zslide::firmware::excite::ExciteError;
+use zslide::link::proto::{
+    CaptureState, FrameError, LoopPhase, Refusal, Reply, Request, Sample, Trigger,
+};
 use zslide::params;
 use zslide::servo::design::DAC_CODES_PER_V;
 use zslide::servo::ServoDesign;
@@ -99,6 +105,11 @@ pub struct TuneArgs {
 /// Excitations started at one frequency before `identify` gives up on a
 /// link too slow to fit its windows in one.
 const MAX_STARTS: u32 = 4;
+
+/// How far ahead of the machine's tick count (as the status read it) the
+/// sine's start tick is set, seconds, doubled at each new start: the
+/// request's way to the loop tick (a few link polls) and back.
+const START_LEAD_S: f64 = 0.02;
 
 /// Capture window: the firmware's ring.
 const WINDOW: usize = zslide::link::CAPTURE;
@@ -205,54 +216,75 @@ fn plan(
         .collect()
 }
 
-/// Starts (or, with `ticks` 0, stops) the sine; returns the loop tick of
-/// its phase 0.
-fn excite(c: &mut Client, step: u32, amplitude: u32, ticks: u32) -> Result<u32> {
+/// Stops the sine.
+fn stop_excitation(c: &mut Client) -> Result<()> {
     match c.call(&Request::Excite {
-        step,
-        amplitude,
-        ticks,
+        step: 0,
+        amplitude: 0,
+        ticks: 0,
     })? {
-        Reply::Exciting { tick, .. } => Ok(tick),
+        Reply::Exciting { .. } => Ok(()),
         r => Err(unexpected(&r)),
     }
 }
 
-/// Waits `ticks` of the machine's loop ticks (as its status counts
-/// them: a simulated machine may run faster or slower than the wall).
-fn wait_ticks(c: &mut Client, ticks: u32) -> Result<()> {
-    let t0 = c.status()?.state.ticks;
-    loop {
-        let s = c.status()?;
-        if s.state.ticks.wrapping_sub(t0) >= ticks {
-            return Ok(());
-        }
-        std::thread::sleep(Duration::from_millis(2));
+/// Starts the sine with its phase 0 on loop tick `at`; `None` when the
+/// firmware took the request on or after that tick (a late arm).
+fn excite_at(
+    c: &mut Client,
+    step: u32,
+    amplitude: u32,
+    ticks: u32,
+    at: u32,
+) -> Result<Option<u32>> {
+    match c.call(&Request::ExciteAt {
+        step,
+        amplitude,
+        ticks,
+        at,
+    })? {
+        Reply::Exciting { tick, .. } if tick == at => Ok(Some(tick)),
+        Reply::Refused(Refusal::Excite(ExciteError::StartTick { .. })) => Ok(None),
+        Reply::Refused(Refusal::Frame(FrameError::UnknownCommand(_))) => Err(
+            "this firmware has no excitation anchored to a loop tick (link command ExciteAt): \
+             identify needs it to capture exactly the planned ticks; update the firmware"
+                .into(),
+        ),
+        r => Err(unexpected(&r)),
     }
 }
 
-/// One capture window: its samples and the loop tick of its first.
-fn window(c: &mut Client) -> Result<(Vec<Sample>, u32)> {
+/// One capture window from loop tick `at`: its samples, or `None` when
+/// the firmware armed it after that tick (a late arm).
+fn window_at(c: &mut Client, at: u32) -> Result<Option<Vec<Sample>>> {
     match c.call(&Request::CaptureStart {
         samples: WINDOW as u16,
         pre: 0,
-        trigger: Trigger::Immediate,
+        trigger: Trigger::AtTick { tick: at },
     })? {
         Reply::Capture(_) => {}
         r => return Err(unexpected(&r)),
     }
     loop {
         let info = c.capture_info()?;
-        if info.state == zslide::link::proto::CaptureState::Done {
-            if usize::from(info.recorded) != WINDOW {
-                return Err(format!(
-                    "the capture recorded {} samples, not {WINDOW}",
-                    info.recorded
-                ));
+        match info.state {
+            CaptureState::Late => return Ok(None),
+            CaptureState::Done => {
+                if usize::from(info.recorded) != WINDOW || info.trigger_tick != at {
+                    return Err(format!(
+                        "the capture armed for tick {at} recorded {} samples from tick {}, \
+                         not {WINDOW} from {at}",
+                        info.recorded, info.trigger_tick
+                    ));
+                }
+                return Ok(Some(c.capture_read(info.recorded)?));
             }
-            return Ok((c.capture_read(info.recorded)?, info.trigger_tick));
+            // No pause of its own: each request's round trip (a link
+            // poll on a board, a machine step on a simulated one) paces
+            // the polling, and on a machine in lockstep a pause would
+            // only cost wall-clock time.
+            _ => {}
         }
-        std::thread::sleep(Duration::from_millis(2));
     }
 }
 
@@ -299,45 +331,53 @@ pub fn measure(
         // (a read takes about a window's ticks more on a simulated link).
         let ticks = ((settle + 12 * WINDOW as u32 * repeats) as f64)
             .min(zslide::firmware::excite::EXCITE_MAX_S * loop_hz) as u32;
-        // Each window's DFT bins turned back by the sine's phase at its
-        // first tick (the excitation's start and the capture's trigger are
-        // loop ticks the firmware reports): the windows then average
+        // The sine starts on a stated loop tick, `lead` ahead of the
+        // status's count, and each window is captured from a stated tick:
+        // the settled sine's next whole window, one after another. So the
+        // ticks measured are the plan's, whenever the host's requests
+        // arrive; a window (or a sine) the firmware took too late is not
+        // recorded (it says so), and the next one is asked for (the sine
+        // again, further ahead). Each window's DFT bins are turned back by
+        // the sine's phase at its first tick: the windows then average
         // coherently, u and y alike, so the noise the loop feeds back from
-        // y into u averages out of the ratio instead of biasing it. A
-        // window that did not lie wholly within the settled sine (a host
-        // slow against the machine) is not used; the sine is started again.
+        // y into u averages out of the ratio instead of biasing it.
         let mut uy: Vec<(Complex<f64>, Complex<f64>)> = Vec::new();
         let mut starts = 0;
         'sine: while uy.len() < repeats as usize {
             starts += 1;
             if starts > MAX_STARTS {
-                excite(c, 0, 0, 0)?;
+                stop_excitation(c)?;
                 return Err(format!(
-                    "{f_hz:.1} Hz: {starts} excitations of {ticks} ticks each ended before \
-                     {repeats} capture windows fitted in them: the link is too slow against \
+                    "{f_hz:.1} Hz: {MAX_STARTS} excitations of {ticks} ticks each ended before \
+                     {repeats} capture windows were taken in them: the link is too slow against \
                      the machine's loop"
                 ));
             }
-            let start = excite(c, step, amplitude, ticks)?;
-            wait_ticks(c, settle)?;
+            let lead = ((START_LEAD_S * loop_hz) as u32) << (starts - 1);
+            let now = c.status()?.state.ticks;
+            let Some(start) = excite_at(c, step, amplitude, ticks, now.wrapping_add(lead))? else {
+                continue;
+            };
+            let mut since = settle;
             while uy.len() < repeats as usize {
-                let (w, at) = window(c)?;
-                let since = at.wrapping_sub(start);
-                if since < settle {
-                    continue;
-                }
                 if u64::from(since) + WINDOW as u64 > u64::from(ticks) {
                     continue 'sine;
                 }
-                let turns =
-                    ((u64::from(step) * u64::from(since)) & 0xFFFF_FFFF) as f64 / 4_294_967_296.0;
+                let at = start.wrapping_add(since);
+                since += WINDOW as u32;
+                let Some(w) = window_at(c, at)? else {
+                    continue;
+                };
+                let turns = ((u64::from(step) * u64::from(at.wrapping_sub(start))) & 0xFFFF_FFFF)
+                    as f64
+                    / 4_294_967_296.0;
                 let back = Complex::from_polar(1.0, -std::f64::consts::TAU * turns);
                 let u = bin(w.iter().map(|s| f64::from(s.output)), k);
                 let y = bin(w.iter().map(|s| f64::from(s.position)), k);
                 uy.push((u * back, y * back));
             }
         }
-        excite(c, 0, 0, 0)?;
+        stop_excitation(c)?;
         let (mut su, mut sy, mut suy, mut suu, mut syy) = (
             Complex::new(0.0, 0.0),
             Complex::new(0.0, 0.0),

@@ -52,6 +52,7 @@ pub fn trigger(t: Trigger) -> String {
             let digits = if v < 1.0 { 2 } else { 1 };
             format!("|following error| ≥ {v:.digits$} µin")
         }
+        Trigger::AtTick { tick } => format!("at loop tick {tick}"),
     }
 }
 

@@ -11,97 +11,147 @@
 //! F = k_t·d·f + k_e·(√(2 r_t d) + f/2), so dF/dd = k_t·f + k_e·√(r_t/(2d))):
 //! 1102, 2185 and 6514 lbf/in.
 //!
-//! Tolerance, derived: the identifier's own one-sigma (from the windows'
-//! spread through the model's Jacobian, widened by the frequencies' χ²)
-//! three times, plus the force model's curvature: the first harmonic of
-//! √(d + a sin ωt) is the slope × (1 + (3/32)(a/d)²), the tool's motion a
-//! at most a quarter of the depth (the in-air aim of d/8, ×1.7 at the
-//! in-cut resonance), 0.6 %. The one-sigma itself must be under 3 % of the
-//! stiffness, or the test proves nothing.
+//! Tolerance, from a Monte Carlo over the rig's seeds (the gauge's noise
+//! and the chip's force noise; the served machine runs in lockstep, so a
+//! seed gives one result, bit for bit, whatever the host's timing):
+//! [`monte_carlo_of_the_identified_stiffness_over_seeds`] identifies each
+//! k_e on [`MC_SEEDS`] seeds and gives the mean m of k/slope − 1 (the
+//! estimator's bias: the force model's curvature over the tool's motion,
+//! at most +0.6 % by the first harmonic of √(d + a sin ωt), and whatever
+//! else the estimator has), the spread s of the runs about it and the
+//! identifier's own one-sigma σ̄ on average; [`MC`] records them. A run
+//! must then lie within 3 r σ + 2 s/√n of slope × (1 + m): its own sigma
+//! σ, scaled by r = max(1, s/σ̄) where the runs spread wider than the
+//! identifier says, three times, plus twice the bias's standard error.
+//! The one-sigma itself must be under 3 % of the stiffness, or the test
+//! proves nothing.
 
-use std::path::PathBuf;
 use std::time::Duration;
 
-use host_sim::cut::test_cut::TestCut;
 use host_sim::serve::Setup;
-use zslide::link::proto::LoopPhase;
 use zslide_host::cli::run_line;
 use zslide_host::client::Link;
-use zslide_host::identify::{known_from_scenario, plant_text};
-use zslide_host::process::read_process;
 
-mod machine;
-mod phase;
-use machine::Machine;
-use phase::wait_phase;
+/// Seeds of the Monte Carlo per k_e.
+const MC_SEEDS: u64 = 12;
 
-/// Every run reads 1-2 % above the slope (and a slightly negative
-/// damping): a systematic not yet run down (candidates: the in-air model
-/// against the served machine at 156-195 Hz, where the spring is 14 % of
-/// 1/H, so 0.2 % of model error there is 1.4 % of k; the carriage's depth
-/// against the gauge's null). Allowed for here, stated, not derived.
-const UNEXPLAINED: f64 = 0.02;
+/// What [`monte_carlo_of_the_identified_stiffness_over_seeds`] measured
+/// (seeds 1..=12 each): k_e scale, mean of k/slope − 1, its spread, and
+/// the identifier's sigma/slope on average. At k_e × 3 the bias, +0.91 %
+/// ± 0.05 %, is beyond the curvature's 0.6 %: a systematic of the
+/// estimator not run down (candidates: the in-air model against the served
+/// machine at 156-195 Hz, where the spring is 14 % of 1/H).
+const MC: [(f64, f64, f64, f64); 3] = [
+    (0.5, -0.0036, 0.0235, 0.0188),
+    (1.0, 0.0001, 0.0103, 0.0090),
+    (3.0, 0.0091, 0.0016, 0.0025),
+];
 
-const DEPTH_IN: f64 = 300e-6;
-const FEED_IN: f64 = 100e-6;
-
-/// The in-air plant file: the data sheet's (the nominal machine's).
-fn air_plant(dir: &std::path::Path) -> PathBuf {
-    let (_, sheet) = known_from_scenario("legacy-hw").unwrap();
-    let path = dir.join("process-air.plant");
-    std::fs::write(&path, plant_text(&sheet, "legacy-hw")).unwrap();
-    path
+/// The Monte Carlo's row for `ke_scale`.
+fn mc(ke_scale: f64) -> (f64, f64, f64) {
+    let &(_, mean, spread, sigma) = MC.iter().find(|r| r.0 == ke_scale).unwrap();
+    (mean, spread, sigma)
 }
 
-/// Identifies the process of the test cut with k_e × `ke_scale`; returns
-/// (stiffness, sigma, the model's slope).
-fn identify_at(ke_scale: f64) -> (f64, f64, f64) {
-    let mut sc = host_sim::scenario::load("legacy-hw").unwrap();
-    let c = sc.cutting.clone();
-    let reference = c.k_t_psi * FEED_IN
-        + ke_scale * c.k_e_lbf_per_in * (c.tool_radius_in / (2.0 * DEPTH_IN)).sqrt();
-    sc.cutting.k_e_lbf_per_in *= ke_scale;
-    let mut setup = Setup::new(sc);
-    setup.speed = 100.0;
-    setup.cut = Some(TestCut {
-        depth_in: DEPTH_IN,
-        feed_per_rev_in: FEED_IN,
-    });
-    let name = format!("process-ke{ke_scale}");
-    let m = Machine::start(&name, setup);
-    let mut link = Link::new(&m.addr, Duration::from_secs(10));
-    run_line(&mut link, "link arm").unwrap();
-    wait_phase(&mut link, LoopPhase::Engaged);
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/zslide-host-test");
-    let air = air_plant(&dir);
-    let stem = dir.join(&name);
-    let report = run_line(
-        &mut link,
-        &format!(
-            "identify --in-cut {} --cut-depth {} --out {}",
-            air.display(),
-            DEPTH_IN * 1e6,
-            stem.display()
-        ),
-    )
-    .unwrap();
-    eprintln!("k_e x {ke_scale}:\n{report}model slope {reference:.1} lbf/in");
-    let p = read_process(&stem.with_extension("process")).unwrap();
-    (p.stiffness_lbf_per_in, p.stiffness_sigma, reference)
+mod in_cut;
+mod machine;
+mod phase;
+use in_cut::{air_plant, identify, test_dir, Identified, Run, DEPTH_IN, FEED_IN};
+use machine::Machine;
+
+/// The force model's slope at the cut's depth d and feed f with k_e ×
+/// `ke_scale`, from its closed form (plant/cutting.rs:
+/// F = k_t·d·f + k_e·(√(2 r_t d) + f/2), so dF/dd = k_t·f + k_e·√(r_t/(2d))),
+/// lbf/in.
+fn model_slope(ke_scale: f64) -> f64 {
+    let c = host_sim::scenario::load("legacy-hw").unwrap().cutting;
+    c.k_t_psi * FEED_IN + ke_scale * c.k_e_lbf_per_in * (c.tool_radius_in / (2.0 * DEPTH_IN)).sqrt()
+}
+
+/// Identifies the process of the test cut with k_e × `ke_scale` on the
+/// rig seeded `seed` (None: the scenario's), in lockstep.
+fn identify_at(ke_scale: f64, seed: Option<u64>) -> Identified {
+    let name = format!("process-ke{ke_scale}-seed{seed:?}");
+    identify(&Run {
+        name: &name,
+        ke_scale,
+        seed,
+        lockstep: true,
+        repeats: None,
+        route: &|addr| addr.to_owned(),
+    })
 }
 
 fn check(ke_scale: f64) {
-    let (k, sigma, reference) = identify_at(ke_scale);
-    assert!(
-        sigma <= 0.03 * reference,
-        "k_e x {ke_scale}: one sigma {sigma:.1} lbf/in is over 3 % of {reference:.0}"
+    let slope = model_slope(ke_scale);
+    let got = identify_at(ke_scale, None);
+    let (k, sigma) = (
+        got.process.stiffness_lbf_per_in,
+        got.process.stiffness_sigma,
     );
-    let allowed = 3.0 * sigma + (0.006 + UNEXPLAINED) * reference;
+    eprintln!(
+        "k_e x {ke_scale}:\n{}model slope {slope:.1} lbf/in",
+        got.report
+    );
     assert!(
-        (k - reference).abs() <= allowed,
+        sigma <= 0.03 * slope,
+        "k_e x {ke_scale}: one sigma {sigma:.1} lbf/in is over 3 % of {slope:.0}"
+    );
+    let (mean, spread, sigma_mc) = mc(ke_scale);
+    let expected = slope * (1.0 + mean);
+    let allowed = 3.0 * (spread / sigma_mc).max(1.0) * sigma
+        + 2.0 * spread / (MC_SEEDS as f64).sqrt() * slope;
+    assert!(
+        (k - expected).abs() <= allowed,
         "k_e x {ke_scale}: identified {k:.1} ± {sigma:.1} lbf/in, the force model's slope \
-         {reference:.1} (allowed ±{allowed:.1})"
+         {slope:.1} with the estimator's bias {:+.2} %: {expected:.1} (allowed ±{allowed:.1})",
+        100.0 * mean
     );
+}
+
+/// The Monte Carlo over the rig's seeds behind the tolerance: for each
+/// k_e, `MC_SEEDS` identifications, each on its own seed (the gauge's
+/// noise and the chip's force noise), in lockstep. Prints the mean and
+/// the spread of k/slope − 1 and the mean of the identifier's own
+/// sigma/slope. Not part of the suite (a minute of release-profile
+/// simulation): `cargo test --release -p zslide-host --test process --
+/// --ignored --nocapture`.
+#[test]
+#[ignore]
+fn monte_carlo_of_the_identified_stiffness_over_seeds() {
+    for ke_scale in [0.5, 1.0, 3.0] {
+        let reference = model_slope(ke_scale);
+        let (mut errs, mut sigmas) = (Vec::new(), Vec::new());
+        for seed in 1..=MC_SEEDS {
+            let p = identify_at(ke_scale, Some(seed)).process;
+            errs.push(p.stiffness_lbf_per_in / reference - 1.0);
+            sigmas.push(p.stiffness_sigma / reference);
+            eprintln!(
+                "k_e x {ke_scale} seed {seed}: {:.1} ± {:.1} lbf/in against {reference:.1}",
+                p.stiffness_lbf_per_in, p.stiffness_sigma
+            );
+        }
+        let n = errs.len() as f64;
+        let mean = errs.iter().sum::<f64>() / n;
+        let spread = (errs.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let sigma = sigmas.iter().sum::<f64>() / n;
+        eprintln!(
+            "k_e x {ke_scale}: over {MC_SEEDS} seeds k/slope - 1 = {:+.2} % mean, {:.2} % spread \
+             (standard error of the mean {:.2} %), the identifier's sigma {:.2} % on average, \
+             largest |error| {:.2} %",
+            100.0 * mean,
+            100.0 * spread,
+            100.0 * spread / n.sqrt(),
+            100.0 * sigma,
+            100.0 * errs.iter().fold(0.0f64, |a, e| a.max(e.abs()))
+        );
+        let (m, sp, sg) = mc(ke_scale);
+        assert!(
+            (mean - m).abs() <= 5e-5 && (spread - sp).abs() <= 5e-5 && (sigma - sg).abs() <= 5e-5,
+            "k_e x {ke_scale}: MC records ({m}, {sp}, {sg}); this run gives \
+             ({mean:.4}, {spread:.4}, {sigma:.4}): update MC"
+        );
+    }
 }
 
 #[test]
@@ -163,8 +213,7 @@ fn tune_refuses_a_design_whose_margins_at_the_measured_stiffness_are_below_the_m
         "the model's margins at {stiff} lbf/in: {least_pm:.1} deg, {least_gm:.1} dB"
     );
 
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/zslide-host-test");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = test_dir();
     let plant = air_plant(&dir);
     let file = |name: &str, k: f64| {
         let path = dir.join(name);

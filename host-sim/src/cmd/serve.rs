@@ -40,6 +40,12 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub speed: f64,
+    /// Machine time advances only while a request awaits its reply, as
+    /// fast as the simulation runs: the firmware sees the same machine
+    /// whenever the host's frames arrive (a slow host changes nothing).
+    /// For reproducible measurements; a board has no such mode.
+    #[arg(long, conflicts_with = "speed")]
+    pub lockstep: bool,
     /// The plant's differences from the scenario's model (the firmware's
     /// design keeps the model): a machine to identify and tune.
     #[command(flatten)]
@@ -100,6 +106,7 @@ pub fn setup(a: &Args) -> anyhow::Result<Setup> {
         s.rpm = r;
     }
     s.speed = a.speed;
+    s.lockstep = a.lockstep;
     if let Some(d) = a.cut_depth {
         anyhow::ensure!(
             a.ke_scale.is_finite() && a.ke_scale > 0.0 && a.ke_scale <= 10.0,
