@@ -39,6 +39,7 @@ fn a_pass_0_010_in_deep_over_open_holes_completes_without_a_fault_within_the_cur
         windows: vec![],
         zone: vec![(lo, hi)],
         index,
+        entry: host_sim::cut::run::Entry::AfterPreroll,
     };
     let r = run_stretch(&s, &st, &Extras::default(), &|_| {}).unwrap();
     let z = ZoneMeasured::measure(&grid, r.log.zone.as_ref().unwrap()).summary();

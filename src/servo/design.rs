@@ -288,7 +288,7 @@ impl ServoDesign {
         }
         let depth_guard_uin = self.depth_guard_uin();
         if !(depth_guard_uin >= self.depth_of_cut_uin / 2.0
-                && depth_guard_uin <= self.depth_of_cut_uin)
+            && depth_guard_uin <= self.depth_of_cut_uin)
             || !(self.oscillation_uin > 0.0 && self.oscillation_uin <= 10_000.0)
             || !(self.gauge_frozen_ms > 0.0 && self.gauge_frozen_ms <= 10_000.0)
             || self.x_stall_revs > 10_000

@@ -112,8 +112,6 @@ macro_rules! servo_parameters {
                     "Where the command goes on a `Retract` fault, in along +Z; its sign names the side away from the stock (chapter 5's stock lies toward −Z, `cut.part_side = −1`), which the depth guard watches the other way."),
                 (40, learning_lowpass_hz, f64, "Hz (0 = off)", 80.0, 0.0, 1000.0,
                     "Repetitive learning: first-order low-pass on the error it takes in, Hz (0 = off). Its lag takes back the lead's excess above ≈ 60 Hz, where the engaged part's spring turns the loop's phase forward: the learning converges at every harmonic from in air to 11 000 lbf/in (k_e × 5), docs/TUNING.md."),
-                (33, depth_of_cut_uin, f64, "uin", 300.0, 1.0, 10_000.0,
-                    "The part program's depth of cut, µin: the stock the pass removes (chapter 5: 300 finishing, 5 000..10 000 roughing). The contour monitoring's depth guard and the hole edges' contact chord follow from it."),
             }
             slide {
                 (24, motor_kf_lbf_per_a, kf_lbf_per_a, f64, "lbf/A", 2.9, 0.1, 100.0,

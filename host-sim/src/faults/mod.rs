@@ -880,6 +880,8 @@ fn ridden_out(
         },
         latched: None,
         trace,
+        // Nothing ramped to null: no ramp's depth to bound.
+        correction_before: None,
     }
 }
 
