@@ -405,6 +405,8 @@ pub enum DesignError {
     /// The part program's depth of cut (`depth_of_cut_uin`) out of its
     /// range.
     DepthOfCut,
+    /// `edge_feedforward` neither 0 nor 1.
+    EdgeFeedforward,
 }
 
 #[cfg(test)]

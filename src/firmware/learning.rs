@@ -59,8 +59,10 @@ impl LearnState {
         let nose_radius_nin = gen.map_or(0, |g| {
             g.interpolator().table().header().geometry.tool_radius_nin
         });
+        let mut ahead = AheadState::new(gen, x_published);
+        ahead.edge_feedforward = cfg.edge_feedforward;
         Self {
-            ahead: AheadState::new(gen, x_published),
+            ahead,
             learner: Learner::new(cfg),
             monitor: Monitor::new(cfg.monitor),
             lost_seen: 0,
@@ -144,6 +146,9 @@ pub struct AheadState {
     /// follows the coefficients' X, its expectation goes with the command
     /// ahead.
     edges: Edges,
+    /// Whether the edges' expectation is handed to the tick
+    /// (`ServoConfig::edge_feedforward`; the step is learned either way).
+    edge_feedforward: bool,
 }
 
 impl AheadState {
@@ -156,6 +161,7 @@ impl AheadState {
             request_seen: 0,
             published: 0,
             edges: Edges::new(Interruptions::NONE, 0),
+            edge_feedforward: true,
         }
     }
 
@@ -202,9 +208,12 @@ impl AheadState {
             _ => None,
         };
         let correction = sh.learned().ahead(at, dphi);
-        let edge_q8 = self
-            .edges
-            .expected_q8(SpindleAngle(at.0.wrapping_add((dphi / 2) as u32)));
+        let edge_q8 = if self.edge_feedforward {
+            self.edges
+                .expected_q8(SpindleAngle(at.0.wrapping_add((dphi / 2) as u32)))
+        } else {
+            0
+        };
         self.published = self.published.wrapping_add(1);
         sh.ahead().publish(
             self.published,

@@ -130,7 +130,7 @@ impl ServoDesign {
     /// (`Fault::Oscillation`).
     pub fn depth_guard_uin(&self) -> f64 {
         let w = core::f64::consts::TAU * self.bandwidth_hz;
-        let t_d = f64::from(super::monitor::DEPTH_GUARD_TICKS + 1) / f64::from(self.rate_hz);
+        let t_d = f64::from(DEPTH_GUARD_TICKS + 1) / f64::from(self.rate_hz);
         self.depth_of_cut_uin - core::f64::consts::SQRT_2 * self.oscillation_uin * (1.0 + w * t_d)
     }
 
@@ -286,6 +286,9 @@ impl ServoDesign {
         if !(self.depth_of_cut_uin >= 1.0 && self.depth_of_cut_uin <= 10_000.0) {
             return Err(E::DepthOfCut);
         }
+        if self.edge_feedforward > 1 {
+            return Err(E::EdgeFeedforward);
+        }
         let depth_guard_uin = self.depth_guard_uin();
         if !(depth_guard_uin >= self.depth_of_cut_uin / 2.0
             && depth_guard_uin <= self.depth_of_cut_uin)
@@ -360,6 +363,7 @@ impl ServoDesign {
                 edge_settle_ticks: libm::round(3.0 / (self.damping * w) * fs) as u32,
             },
             depth_of_cut_uin: libm::round(self.depth_of_cut_uin) as u32,
+            edge_feedforward: self.edge_feedforward == 1,
         })
     }
 
@@ -496,6 +500,7 @@ impl DesignError {
                 "oscillation_uin in (0, 10000], the depth guard (depth_of_cut_uin − √2·oscillation_uin·(1 + 2π·bandwidth_hz·detection)) at least half the depth of cut, gauge_frozen_ms in (0, 10000], x_stall_revs 0..=10000, retract_z_in in [-0.010, 0.010]"
             }
             Self::DepthOfCut => "depth_of_cut_uin: must be in [1, 10000] µin (0.010 in, the gauge's range)",
+            Self::EdgeFeedforward => "edge_feedforward: 0 (off) or 1 (on)",
         }
     }
 }
@@ -554,7 +559,14 @@ pub struct ServoConfig {
     /// `depth_of_cut_uin` rounded): the hole edges' contact chord
     /// (`servo::edges::contact_chord_uin`).
     pub depth_of_cut_uin: u32,
+    /// The hole edges' expected force change goes to the tick
+    /// (`edge_feedforward`).
+    pub edge_feedforward: bool,
 }
+
+/// Ticks beyond the depth guard before it is a fault: a single sample of
+/// ADC noise cannot make it (the guard is ≥ 60 σ of the noisiest gauge).
+pub const DEPTH_GUARD_TICKS: u32 = 3;
 
 /// Contour monitoring's limits (`servo::monitor`), in the units it
 /// compares: gauge codes (Q8 for the error, whole codes squared for its

@@ -39,13 +39,10 @@
 //! and oscillation checks stand down: no stock is under the tool there,
 //! and the force's steps are the cut's, not a fault's.
 
-use super::design::MonitorConfig;
+use super::design::{MonitorConfig, DEPTH_GUARD_TICKS};
 use super::repetitive::{Freeze, LearnSample};
 use crate::safety::Fault;
 
-/// Ticks beyond the depth guard before it is a fault: a single sample of
-/// ADC noise cannot make it (the guard is ≥ 60 σ of the noisiest gauge).
-pub const DEPTH_GUARD_TICKS: u32 = 3;
 /// Revolutions of live command after the engagement before the depth
 /// and oscillation checks judge the error. Until the spindle angle has
 /// been corrected at an index pulse with a measured period, the command
@@ -319,5 +316,4 @@ fn wrapped(last: u32, phi: u32) -> bool {
 }
 
 #[cfg(test)]
-#[path = "monitor_tests.rs"]
 mod tests;

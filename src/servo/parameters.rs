@@ -110,6 +110,8 @@ macro_rules! servo_parameters {
                     "Contour monitoring: revolutions with the table command live and no new X before `XStalled` (retract); 0 = off, the default: only the part program knows that X feeds (a dwell is legal). 20 for a pass that feeds ≥ 25 µin/rev: four half-mil X steps at the finishing feed of 100 µin/rev."),
                 (37, retract_z_in, f64, "in", 0.009, -0.010, 0.010,
                     "Where the command goes on a `Retract` fault, in along +Z; its sign names the side away from the stock (chapter 5's stock lies toward −Z, `cut.part_side = −1`), which the depth guard watches the other way."),
+                (38, edge_feedforward, u32, "(0 = off)", 1, 0.0, 1.0,
+                    "The hole edges' anticipation: 1 = the force change expected at each edge of the part's interruption block goes into the observer's disturbance estimate at the tick it happens (`servo::edges`); 0 = it does not, while the block still tells contour monitoring where the holes are (`cut --anticipate off`)."),
                 (40, learning_lowpass_hz, f64, "Hz (0 = off)", 80.0, 0.0, 1000.0,
                     "Repetitive learning: first-order low-pass on the error it takes in, Hz (0 = off). Its lag takes back the lead's excess above ≈ 60 Hz, where the engaged part's spring turns the loop's phase forward: the learning converges at every harmonic from in air to 11 000 lbf/in (k_e × 5), docs/TUNING.md."),
             }

@@ -153,6 +153,12 @@ impl fmt::Display for Refusal<'_> {
                 "depth_of_cut_uin = {} must be in [1, 10000] µin (0.010 in: the gauge's range, over which the slide lifts the tool clear of the stock)",
                 d.depth_of_cut_uin
             ),
+            E::EdgeFeedforward => write!(
+                f,
+                "edge_feedforward = {}: {}",
+                d.edge_feedforward,
+                E::EdgeFeedforward.reason()
+            ),
             E::Slide => f.write_str(E::Slide.reason()),
         }
     }

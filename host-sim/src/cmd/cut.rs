@@ -112,9 +112,10 @@ pub struct Args {
     /// sweeps it for the CMM band alone).
     #[arg(long, default_value_t = 1.0)]
     pub ke_scale: f64,
-    /// The digital firmware anticipates the open holes' edges: it gets the
-    /// part's interruption block (`zslide::servo::edges`); `off`: no block,
-    /// the firmware as without one (the hole zone's "before").
+    /// The digital firmware anticipates the open holes' edges of the
+    /// part's interruption block (`zslide::servo::edges`); `off`: the same
+    /// block with `edge_feedforward` 0 (the hole zone's "before"; contour
+    /// monitoring still knows the holes).
     #[arg(long, value_enum, default_value_t = OnOff::On)]
     pub anticipate: OnOff,
     /// Turn every hole in the firmware's interruption block by this many

@@ -117,9 +117,10 @@ pub struct CutSpec {
     /// The default part cut with this table instead of the default one
     /// (`cut --table` without `--part`).
     pub table_image: Option<&'static [u8]>,
-    /// The digital firmware gets the open holes as its interruption block
-    /// and anticipates their edges (`zslide::servo::edges`); `false`: no
-    /// block, the firmware as without one.
+    /// The digital firmware anticipates the edges of the open holes of its
+    /// interruption block (`zslide::servo::edges`); `false`: it gets the
+    /// block (contour monitoring stands down over the holes) with
+    /// `edge_feedforward` 0.
     pub anticipate: bool,
     /// Added to every hole's angle in the block the firmware gets (not to
     /// the part the tool cuts), degrees: a part program that has the holes
@@ -627,11 +628,16 @@ pub fn build_stretch(
     // The part program's depth of cut (`--depth-in`): the depth guard's.
     let mut design = sc.servo_design;
     design.depth_of_cut_uin = spec.depth_in * 1e6;
+    // `--anticipate off`: the block still tells contour monitoring where
+    // the holes are; only the edges' feedforward is off.
+    if !spec.anticipate {
+        design.edge_feedforward = 0;
+    }
     let servo = design
         .config()
         .map_err(|e| anyhow::anyhow!("servo.{}", design.refusal(e)))?;
     let (mut w, mut s) = machine_with_table(sc.rig.clone(), &machine, sc.loop_hz, servo, table);
-    if spec.anticipate && spec.controller == Controller::Digital {
+    if spec.controller == Controller::Digital {
         // The part program's interruption block, through the firmware's
         // own parser (filled holes: an empty block).
         let mut holes = cutting.bolt_holes.clone();

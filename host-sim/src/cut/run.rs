@@ -29,12 +29,22 @@ pub enum Entry {
     /// table, as a continuous pass does before its rim; at the settle time
     /// (and the firmware following its table) the whole chord is in the
     /// stock at once, the stock being what the previous pass left from
-    /// there on. A step: harsher than the rim's growing chord.
+    /// there on. The chord's force comes in over `ENTRY_RAMP_REVS`
+    /// revolutions: a band stands for the middle of a continuous pass,
+    /// whose chord grew in over the rim's 87 (`Rim`), and a whole-chord
+    /// step is a tool crash, not a band (contour monitoring latches it).
     AfterPreroll,
     /// The tool in the stock from the first tick, the loop engaging onto
     /// the running cut (a fault campaign's stretch).
     InStock,
 }
+
+/// Revolutions over which a band's chord force comes in after its
+/// pre-roll (`Entry::AfterPreroll`): nine times as fast as the real rim's
+/// growth (the chord over the feed, 8660 / 100 µin), so the band's
+/// recording, 40 revolutions later, sees the learning settled on the
+/// whole chord.
+pub const ENTRY_RAMP_REVS: f64 = 10.0;
 
 /// What one stretch records.
 #[derive(Clone, Debug, Default)]
@@ -77,6 +87,9 @@ pub struct Cutter {
     /// starts afresh, s (∞ once done).
     settle_s: f64,
     entry: Entry,
+    /// The spindle's turns when a band's chord met the stock
+    /// (`Entry::AfterPreroll`; `None` before, or another entry).
+    entered_turns: Option<f64>,
     prev: Option<(f64, f64, f64)>,
     rev: i64,
     rev_force_sum: f64,
@@ -134,6 +147,7 @@ impl Cutter {
         Self {
             settle_s,
             entry,
+            entered_turns: None,
             eng,
             nominal: nominal.into(),
             index_phase_turns,
@@ -217,6 +231,7 @@ impl TickHook for Cutter {
             self.eng.reset_memory();
             if self.entry == Entry::AfterPreroll {
                 self.eng.set_rim(f64::INFINITY);
+                self.entered_turns = Some(turns);
             }
             self.settle_s = f64::INFINITY;
         }
@@ -224,6 +239,9 @@ impl TickHook for Cutter {
         let mut c = self.eng.step(x, phi, e);
         if let Some(er) = self.errors.as_ref() {
             c.force_lbf *= er.force_speed_factor(x);
+        }
+        if let Some(t0) = self.entered_turns {
+            c.force_lbf *= ((turns - t0) / ENTRY_RAMP_REVS).clamp(0.0, 1.0);
         }
         if c.force_lbf != 0.0 {
             self.log.deepest_in = self.log.deepest_in.min(e);
