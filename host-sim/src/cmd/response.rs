@@ -425,7 +425,12 @@ pub fn measure_digital_on(
     if rigid {
         cfg.slide = cfg.slide.rigid();
     }
-    let (mut w, mut s) = firmware_with(cfg, sc.loop_hz, sc.servo);
+    // The noiseless gauge reads the loop's linear response; a real
+    // gauge's noise is what the frozen-gauge check relies on, so it is
+    // held off for this bench measurement (never for a cut).
+    let mut servo = sc.servo;
+    servo.monitor.gauge_frozen_ticks = u32::MAX;
+    let (mut w, mut s) = firmware_with(cfg, sc.loop_hz, servo);
     w.fw.request(zslide::firmware::Request::Arm);
     let period = 1_000_000_000 / u64::from(sc.loop_hz.max(1));
     let wr = std::f64::consts::TAU * f_hz;
@@ -467,6 +472,11 @@ pub fn measure_digital_on(
         }
     }));
     s.run_until(&mut w, t_settle + (measure * 1e9) as u64);
+    assert!(
+        w.fw.fault().is_none(),
+        "the response measurement at {f_hz} Hz latched {:?}: its points would not be the loop's",
+        w.fw.fault()
+    );
     let r = rec.borrow();
     LoopPoint {
         f_hz,
