@@ -73,7 +73,7 @@ fn reference(r: &[u8]) -> Result<(u32, &[u8]), FormatError> {
         return Err(FormatError::Missing);
     }
     let v = le32(r, 4).ok_or(FormatError::Corrupt)?;
-    if v != 1 {
+    if v != 2 {
         return Err(FormatError::Version(v));
     }
     let len = le32(r, 8).ok_or(FormatError::Corrupt)? as usize;
